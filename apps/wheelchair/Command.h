@@ -1,0 +1,33 @@
+// Subcommand registry of the `wheelchair` program.
+//
+// Each subcommand lives in its own cmd_<name>.cpp and registers itself with a static
+// `RegisterCommand` object; main.cpp only dispatches. Exit codes are shared by all:
+// 0 success, 1 bad input (file content, I/O), 2 usage error (command line).
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace wheelchair::cli {
+
+constexpr int kExitOk = 0;
+constexpr int kExitBadInput = 1;
+constexpr int kExitUsage = 2;
+
+struct Command {
+  std::string name;
+  std::string description;
+  // Adds the subcommand's options to `sub`; returns the action run after parsing.
+  std::function<std::function<int()>(CLI::App& sub)> setup;
+};
+
+std::vector<Command>& commandRegistry();
+
+struct RegisterCommand {
+  explicit RegisterCommand(Command c) { commandRegistry().push_back(std::move(c)); }
+};
+
+}  // namespace wheelchair::cli

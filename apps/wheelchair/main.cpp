@@ -1,0 +1,73 @@
+// `wheelchair`: command-line front end of libwheelchair. Dispatches to the registered
+// subcommands (cmd_*.cpp); turns exceptions into the documented exit codes.
+#include "Command.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <exception>
+#include <iostream>
+#include <map>
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+namespace wheelchair::cli {
+std::vector<Command>& commandRegistry() {
+  static std::vector<Command> registry;
+  return registry;
+}
+}  // namespace wheelchair::cli
+
+namespace {
+// A corrupt rawlog can hold a nonsense container length that MRPT's deserializer would try to
+// allocate (and zero) in full. Capping the address space turns that into std::bad_alloc,
+// which the readers report as a corrupt record, instead of the OOM killer ending the process.
+void capAddressSpace() {
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || page <= 0) return;
+  const rlim_t cap = std::min<rlim_t>(static_cast<rlim_t>(pages) * page / 2, rlim_t{16} << 30);
+  rlimit rl{};
+  if (getrlimit(RLIMIT_AS, &rl) == 0 && (rl.rlim_cur == RLIM_INFINITY || rl.rlim_cur > cap)) {
+    rl.rlim_cur = cap;
+    setrlimit(RLIMIT_AS, &rl);
+  }
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace wheelchair::cli;
+  capAddressSpace();
+  CLI::App app{
+      "wheelchair: localization and model checking for a semi-autonomous power wheelchair"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "libwheelchair 0.1.0");
+
+  auto& registry = commandRegistry();
+  std::sort(registry.begin(), registry.end(),
+            [](const Command& a, const Command& b) { return a.name < b.name; });
+  std::map<CLI::App*, std::function<int()>> actions;
+  for (const auto& cmd : registry) {
+    CLI::App* sub = app.add_subcommand(cmd.name, cmd.description);
+    actions[sub] = cmd.setup(*sub);
+  }
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? kExitOk : kExitUsage;
+  }
+
+  for (auto& [sub, action] : actions) {
+    if (sub->parsed()) {
+      try {
+        return action();
+      } catch (const std::exception& e) {
+        std::cerr << "wheelchair " << sub->get_name() << ": error: " << e.what() << "\n";
+        return kExitBadInput;
+      }
+    }
+  }
+  return kExitUsage;
+}

@@ -1,0 +1,139 @@
+// Generic continuous-discrete extended Kalman filter (Lewis, Xie & Popa 2008, section 5.3.3):
+// a continuous-time process model with discrete, asynchronous measurements.
+//
+//   between measurements:  xdot = f(x, u(t)),   Pdot = F P + P F' + Q      (F = df/dx)
+//   at a measurement z:    y = z - h(x),  S = H P H' + R,  K = P H' S^-1,
+//                          x += K y,  P = (I - K H) P (I - K H)' + K R K'   (Joseph form)
+//
+// Q is the continuous-time process-noise spectral density (units of x^2 per second). The
+// state and the Riccati ODE are integrated TOGETHER by SUNDIALS CVODE 6.4 (the covariance as
+// its packed lower triangle, so it stays exactly symmetric); one CVODE memory is created
+// once and re-initialised (CVodeReInit) for every interval, because u(t) and the state jump
+// at measurement times. Default method Adams-Moulton with fixed-point (functional)
+// iteration: the system is not stiff (time constants of seconds, intervals of milliseconds),
+// so no Jacobian of the augmented (x, P) system is needed. BDF + dense Newton (finite-
+// difference Jacobian) is available for stiff models.
+//
+// The caller computes innovations (so that it can wrap angles) and decides what the gate
+// is; update() returns the NIS and whether the measurement passed the gate. A rejected
+// measurement leaves the state untouched.
+//
+// Example:
+//   struct Lin : CdModel { ... };            // f, F, Q
+//   CdEkf ekf(model, CvodeOptions{});
+//   ekf.reset(0.0, x0, P0);
+//   ekf.propagate(0.1, [](double t) { return Eigen::VectorXd::Zero(1); });
+//   auto r = ekf.update(z - H * ekf.x(), H, R, chi2Quantile(0.999, 1));
+#pragma once
+
+#include <Eigen/Core>
+
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace wheelchair::estimation {
+
+/// A continuous-time process model xdot = f(x, u) with Jacobian and noise density.
+class CdModel {
+ public:
+  virtual ~CdModel() = default;
+  virtual int stateDim() const = 0;
+  /// xdot = f(x, u).
+  virtual void f(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
+                 Eigen::VectorXd& xdot) const = 0;
+  /// F = df/dx (stateDim x stateDim).
+  virtual void F(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& F) const = 0;
+  /// Q: continuous-time process-noise spectral density (stateDim x stateDim, symmetric PSD).
+  virtual void Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& Q) const = 0;
+};
+
+/// u(t) over one propagation interval.
+using InputFunction = std::function<Eigen::VectorXd(double t_s)>;
+
+/// CVODE settings (the [estimator] keys cvode_*).
+struct CvodeOptions {
+  enum class Method { Adams, Bdf };
+  Method method = Method::Adams;  ///< Adams + fixed-point iteration, or BDF + dense Newton
+  double rel_tol = 1e-8;          ///< relative tolerance (-)
+  double abs_tol_state = 1e-10;   ///< absolute tolerance on the state (state units)
+  double abs_tol_cov = 1e-14;     ///< absolute tolerance on covariance entries (state units^2)
+  long max_num_steps = 50000;     ///< per interval
+  double max_step_s = 0.0;        ///< 0: no limit
+  int max_order = 0;              ///< 0: CVODE's default (12 Adams, 5 BDF)
+};
+
+/// Result of one measurement update.
+struct UpdateResult {
+  bool accepted = false;
+  double nis = 0;  ///< y' S^-1 y
+  int dof = 0;     ///< measurement dimension
+  Eigen::VectorXd innovation;
+  Eigen::MatrixXd S;
+};
+
+/// Counters of the integrator, summed over all intervals.
+struct CvodeStats {
+  long intervals = 0;
+  long steps = 0;
+  long rhs_evals = 0;
+  long short_intervals = 0;  ///< intervals too short for CVODE, done by one Euler step
+};
+
+class CdEkf {
+ public:
+  /// The model must outlive the filter.
+  CdEkf(const CdModel& model, const CvodeOptions& options);
+  ~CdEkf();
+  CdEkf(const CdEkf&) = delete;
+  CdEkf& operator=(const CdEkf&) = delete;
+
+  void reset(double t0_s, const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0);
+
+  /// Integrates state and covariance from time() to t1_s (t1_s >= time()) with input u(t).
+  /// Throws std::runtime_error when CVODE fails.
+  void propagate(double t1_s, const InputFunction& u);
+
+  /// Measurement update with innovation y = z - h(x), Jacobian H, noise R. The measurement
+  /// is applied only if NIS <= gate (gate <= 0: no gating).
+  UpdateResult update(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H,
+                      const Eigen::MatrixXd& R, double gate);
+
+  /// NIS of a would-be update, without changing anything.
+  double nis(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H,
+             const Eigen::MatrixXd& R) const;
+
+  double time() const { return t_; }
+  const Eigen::VectorXd& x() const { return x_; }
+  const Eigen::MatrixXd& P() const { return P_; }
+  /// Direct access (angle wrapping, resets of augmented states); P is re-symmetrised.
+  void setState(const Eigen::VectorXd& x) { x_ = x; }
+  void setCovariance(const Eigen::MatrixXd& P);
+  const CvodeStats& stats() const { return stats_; }
+  const CvodeOptions& options() const { return opt_; }
+
+ private:
+  struct Cvode;
+  friend struct CdEkfAccess;
+  void evalRhs(double t, const double* y, double* ydot);
+  void pack(double* y) const;
+  void unpack(const double* y);
+
+  const CdModel& model_;
+  CvodeOptions opt_;
+  int n_ = 0;
+  double t_ = 0;
+  Eigen::VectorXd x_;
+  Eigen::MatrixXd P_;
+  const InputFunction* u_ = nullptr;
+  // Work space of the right-hand side.
+  Eigen::VectorXd wx_, wu_, wxd_;
+  Eigen::MatrixXd wP_, wF_, wQ_, wFP_;
+  std::unique_ptr<Cvode> cv_;
+  CvodeStats stats_;
+};
+
+/// Packed lower triangle (column-major) size of an n x n symmetric matrix.
+inline int packedSize(int n) { return n * (n + 1) / 2; }
+
+}  // namespace wheelchair::estimation

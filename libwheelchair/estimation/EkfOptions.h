@@ -1,0 +1,107 @@
+// Options of the estimators: the [estimator] section of the configuration
+// (config/wheelchair.ini documents every key with its unit; docs/estimation.md explains them).
+//
+// Sensor noise keys set to a negative value mean "take the datasheet value from the shared
+// sensor sections" ([imu] gyro_noise_rad_s, [sonar] noise_m, [pozyx] noise_m,
+// [motors] current_noise_A / rate_hz); resolveSensorDefaults() does that.
+//
+// Example:
+//   auto cfg = config::WheelchairConfig::load("config/wheelchair.ini");
+//   EkfOptions opt;
+//   opt.loadFromConfig(cfg.ini());          // section "estimator"; missing keys keep defaults
+//   opt.resolveSensorDefaults(cfg);
+//   auto res = runEstimator(rec, cfg, opt);
+#pragma once
+
+#include "libwheelchair/estimation/CdEkf.h"
+
+#include <mrpt/config/CConfigFileBase.h>
+
+#include <string>
+
+namespace wheelchair::config {
+class WheelchairConfig;
+}
+
+namespace wheelchair::estimation {
+
+enum class FilterKind { Physics, Baseline };
+enum class EncoderMeasurementModel {
+  Mean,    ///< exact: z = (integral of (v, omega) over the interval) / dt, by accumulators
+  Instant  ///< naive: the interval mean taken as (v, omega) at the interval's end
+};
+enum class InputInterpolation { Linear, Hold };
+enum class ObstacleInit { FirstSonar, Config };
+enum class ObstacleFormOption { Cartesian, Polar };
+
+struct EkfOptions {
+  // --- what runs --------------------------------------------------------------------------
+  FilterKind filter = FilterKind::Physics;                   ///< filter = physics | baseline
+  ObstacleFormOption obstacle_form = ObstacleFormOption::Cartesian;  ///< (7) | (8)
+  EncoderMeasurementModel encoder_model = EncoderMeasurementModel::Mean;
+  InputInterpolation input_interpolation = InputInterpolation::Linear;
+  bool use_encoders = true, use_gyro = true, use_sonar = true, use_pozyx = false;
+  double output_rate_hz = 0;  ///< 0: one output per processed measurement time
+
+  // --- gating -----------------------------------------------------------------------------
+  double gate_probability = 0.999;  ///< chi2 probability of the NIS gate; 0 or >= 1: no gate
+  /// After this many consecutive gated sonar readings the obstacle is re-initialised from the
+  /// reading (a different obstacle took over the echo); 0: never.
+  int sonar_reinit_after_rejections = 5;
+
+  // --- integrator -------------------------------------------------------------------------
+  CvodeOptions cvode;
+
+  // --- process noise (continuous-time spectral densities) ---------------------------------
+  double q_v_m2_s3 = 0.01;             ///< on vdot (model error of (6))
+  double q_omega_rad2_s3 = 0.02;       ///< on omegadot
+  double q_xy_m2_s = 1e-5;             ///< on xdot, ydot (wheel slip)
+  double q_phi_rad2_s = 1e-6;          ///< on phidot
+  double q_obstacle_m2_s = 1e-5;       ///< on the obstacle (px, py) or d
+  double q_obstacle_bearing_rad2_s = 1e-5;  ///< on beta (polar form)
+  /// Density of the motor-current measurement noise mapped through G = df/du (A^2 s);
+  /// negative: [motors] current_noise_A^2 / rate_hz.
+  double current_noise_density_A2_s = -1;
+
+  // --- measurement noise ------------------------------------------------------------------
+  bool encoder_quantisation = true;        ///< add the tick quantisation variance
+  double encoder_extra_noise_m_s = 0.005;  ///< per-wheel rim speed noise, 1 sigma (m/s)
+  double max_encoder_interval_s = 0.5;     ///< longer encoder gaps give no speed measurement
+  double gyro_noise_rad_s = -1;            ///< 1 sigma; negative: [imu] gyro_noise_rad_s
+  double sonar_noise_m = -1;               ///< 1 sigma; negative: [sonar] noise_m
+  double pozyx_noise_m = -1;               ///< 1 sigma per axis; negative: [pozyx] noise_m
+  /// Pozyx anchor frame: p_anchor = R(yaw) p_start + (x, y) (m, m, deg).
+  double pozyx_anchor_x_m = 0, pozyx_anchor_y_m = 0, pozyx_anchor_yaw_deg = 0;
+
+  // --- initialisation ---------------------------------------------------------------------
+  double initial_sigma_v_m_s = 0.02;
+  double initial_sigma_omega_rad_s = 0.02;
+  double initial_sigma_xy_m = 1e-3;
+  double initial_sigma_phi_rad = 1e-3;
+  ObstacleInit initial_obstacle = ObstacleInit::FirstSonar;
+  double initial_obstacle_x_m = 2.0, initial_obstacle_y_m = 0.0;  ///< body frame at start (m)
+  double initial_obstacle_range_sigma_m = 0.5;  ///< Config mode (m)
+  /// Bearing 1 sigma at initialisation (deg); negative: cone half-angle / sqrt(3) (uniform).
+  double initial_obstacle_bearing_sigma_deg = -1;
+
+  // --- baseline (discrete constant-velocity EKF) ------------------------------------------
+  double baseline_q_v_m2_s3 = 0.5;       ///< random-walk density of v
+  double baseline_q_omega_rad2_s3 = 0.5; ///< random-walk density of omega
+  double baseline_q_xy_m2_s = 1e-4;
+  double baseline_q_phi_rad2_s = 1e-5;
+  double baseline_q_obstacle_m2_s = 1e-5;
+
+  /// Reads the keys present in `section` (missing keys keep their values). Throws
+  /// std::runtime_error naming section and key on a malformed value.
+  void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
+                      const std::string& section = "estimator");
+  /// Writes every key to `section`.
+  void saveToConfig(mrpt::config::CConfigFileBase& ini,
+                    const std::string& section = "estimator") const;
+  /// Replaces the negative "from the sensor sections" values by the datasheet ones.
+  void resolveSensorDefaults(const config::WheelchairConfig& cfg);
+  /// Throws std::invalid_argument on inconsistent values.
+  void validate() const;
+};
+
+}  // namespace wheelchair::estimation

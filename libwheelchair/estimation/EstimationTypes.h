@@ -1,0 +1,92 @@
+// Outputs of the estimators (docs/estimation.md, "Outputs").
+//
+// Every estimate is reported in ONE canonical layout whatever the filter and obstacle form:
+//   x = [v, omega, x, y, phi, px, py]   (m/s, rad/s, m, m, rad, m, m)
+// with (x, y, phi) the pose of the base frame in the start frame and (px, py) the obstacle in
+// the base frame (Cartesian; a polar state is converted with the Jacobian of the change of
+// variables), P its 7x7 covariance and sd = sqrt(diag(P)).
+#pragma once
+
+#include "libwheelchair/estimation/CdEkf.h"
+
+#include <Eigen/Core>
+
+#include <array>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace wheelchair::estimation {
+
+constexpr int kCanonicalDim = 7;
+using CanonicalState = Eigen::Matrix<double, kCanonicalDim, 1>;
+using CanonicalCov = Eigen::Matrix<double, kCanonicalDim, kCanonicalDim>;
+
+/// Sensors whose measurements the filters use (index into EstimationResult::sensors).
+enum class Sensor { Encoders = 0, Gyro = 1, Sonar = 2, Pozyx = 3 };
+constexpr int kNumSensors = 4;
+const char* sensorName(Sensor s);
+
+struct EstimateSample {
+  double t_s = 0;
+  CanonicalState x = CanonicalState::Zero();
+  CanonicalState sd = CanonicalState::Zero();
+  CanonicalCov P = CanonicalCov::Zero();
+  bool obstacle_initialised = false;
+  /// The paper's d_o^M (distance from the axle midpoint) and theta_o^M, with 1 sigma.
+  double obstacle_distance_m = 0, obstacle_distance_sd_m = 0;
+  double obstacle_bearing_rad = 0, obstacle_bearing_sd_rad = 0;
+};
+
+/// A measurement that failed the NIS gate (kept, never silently dropped).
+struct RejectedMeasurement {
+  double t_s = 0;
+  Sensor sensor = Sensor::Encoders;
+  double nis = 0;
+  int dof = 0;
+  double gate = 0;
+  Eigen::VectorXd innovation;
+};
+
+/// One NIS value (every update attempt, accepted or not).
+struct NisRecord {
+  double t_s = 0;
+  Sensor sensor = Sensor::Encoders;
+  double nis = 0;
+  int dof = 0;
+  bool accepted = false;
+};
+
+struct SensorStats {
+  long used = 0;      ///< measurement updates applied (and obstacle initialisations)
+  long rejected = 0;  ///< failed the NIS gate
+  long dropouts = 0;  ///< invalid readings (sonar 0 / out of range, encoder gaps)
+  long skipped = 0;   ///< not used by choice (sensor disabled)
+  long reinitialisations = 0;  ///< sonar: obstacle re-initialised after repeated rejections
+  // NIS over the ACCEPTED updates.
+  long nis_count = 0;
+  double nis_sum = 0;
+  long nis_inside95 = 0;  ///< NIS inside the two-sided 95 % band of chi2(dof)
+  int dof = 0;
+
+  double meanNis() const { return nis_count ? nis_sum / nis_count : 0.0; }
+  double fractionInside95() const { return nis_count ? double(nis_inside95) / nis_count : 0.0; }
+  /// Two-sided 95 % band of meanNis() for a consistent filter (independent samples).
+  std::pair<double, double> meanNisBand95() const;
+};
+
+struct EstimationResult {
+  std::string filter;  ///< "physics" or "baseline"
+  std::vector<EstimateSample> estimates;
+  std::array<SensorStats, kNumSensors> sensors{};
+  std::vector<RejectedMeasurement> rejected;
+  std::vector<NisRecord> nis;
+  CvodeStats cvode;                   ///< physics filter only
+  std::vector<std::string> warnings;  ///< e.g. "no motor currents: input held at 0"
+
+  const SensorStats& stats(Sensor s) const { return sensors[static_cast<int>(s)]; }
+  /// Final estimate (throws std::logic_error when there is none).
+  const EstimateSample& final() const;
+};
+
+}  // namespace wheelchair::estimation

@@ -1,0 +1,138 @@
+// The estimators' common interface and the driver that runs one over a recording.
+//
+// runEstimator() merges every measurement of an io::Recording into ONE time-ordered event
+// list (each stream sorted by time first; equal timestamps ordered by the fixed stream
+// priority encoders < gyro < sonar < Pozyx, then by value), so the result does not depend on
+// the order in which samples were stored or arrived. Motor currents are not events: they are
+// the input signal u(t) of the physics filter (InputSignal), whose sample times become extra
+// integration breakpoints.
+//
+// Example:
+//   auto cfg = config::WheelchairConfig::load("config/wheelchair.ini");
+//   EkfOptions opt;  opt.loadFromConfig(cfg.ini());
+//   EstimationResult res = runEstimator(recording, cfg, opt);
+//   const EstimateSample& last = res.final();
+//   double nis = res.stats(Sensor::Gyro).meanNis();
+#pragma once
+
+#include "libwheelchair/estimation/CdEkf.h"
+#include "libwheelchair/estimation/EkfOptions.h"
+#include "libwheelchair/estimation/EstimationTypes.h"
+#include "libwheelchair/io/Recording.h"
+#include "libwheelchair/sensors/Encoders.h"
+
+#include <Eigen/Core>
+
+#include <map>
+#include <memory>
+#include <vector>
+
+namespace wheelchair::config {
+class WheelchairConfig;
+}
+
+namespace wheelchair::estimation {
+
+/// Motor currents u(t) = (i_R, i_L) from samples: linear interpolation between samples or
+/// zero-order hold of the last one; before the first sample its value is held, after the last
+/// the last one. No samples: u = 0.
+class InputSignal {
+ public:
+  explicit InputSignal(InputInterpolation mode = InputInterpolation::Linear) : mode_(mode) {}
+  /// Replaces the samples (sorted by time here; of equal times the last in sorted order wins).
+  void setSamples(std::vector<io::MotorSample> samples);
+  /// Adds a sample (streaming use; may arrive out of order).
+  void add(const io::MotorSample& s);
+  /// u at t (right limit at a sample time in Hold mode).
+  Eigen::Vector2d at(double t_s) const;
+  /// Sample times strictly inside (t0, t1): where u(t) has a kink or a jump.
+  std::vector<double> breakpoints(double t0_s, double t1_s) const;
+  /// u(t) on [t0, t1] when no breakpoint lies inside: exact for both modes.
+  InputFunction segment(double t0_s, double t1_s) const;
+  bool empty() const { return t_.empty(); }
+  InputInterpolation mode() const { return mode_; }
+
+ private:
+  InputInterpolation mode_;
+  std::vector<double> t_;
+  std::vector<Eigen::Vector2d> u_;
+};
+
+/// What every filter implements (physics CD-EKF and the kinematic baseline). Calls must come
+/// in non-decreasing time; the caller predicts to a measurement's time before passing it.
+class Estimator {
+ public:
+  Estimator(const config::WheelchairConfig& cfg, const EkfOptions& opt);
+  virtual ~Estimator() = default;
+
+  /// Initial state at t0 (standstill at the origin of the start frame, obstacle per options).
+  virtual void start(double t0_s) = 0;
+  /// Propagates the state (no measurement) to t_s >= time().
+  virtual void predictTo(double t_s) = 0;
+  virtual double time() const = 0;
+  /// Current estimate in the canonical layout.
+  virtual EstimateSample estimate() const = 0;
+
+  /// Encoder sample that starts the first speed interval (resets the accumulators).
+  virtual void encoderStart(double t_s) = 0;
+  /// Mean speeds over [iv.t0_s, iv.t1_s] (measurement time iv.t1_s).
+  virtual void encoderInterval(const sensors::WheelSpeedInterval& iv) = 0;
+  void gyro(double t_s, double gyro_z_rad_s);
+  /// Sonar range (m): 0 or outside [min, max] is a dropout; the first valid one initialises the
+  /// obstacle (initial_obstacle = first_sonar); repeated gated readings re-initialise it.
+  void sonar(double t_s, double range_m);
+  /// Pozyx position in the anchor frame (m).
+  void pozyx(double t_s, const Eigen::Vector2d& p_anchor_m);
+
+  const EstimationResult& result() const { return res_; }
+  EstimationResult& result() { return res_; }
+  const EkfOptions& options() const { return opt_; }
+
+ protected:
+  // Filter-specific parts of the measurement updates (state already at the measurement time).
+  virtual UpdateResult gyroUpdate(double z, double R, double gate) = 0;
+  virtual UpdateResult sonarUpdate(double z, double R, double gate) = 0;
+  virtual UpdateResult pozyxUpdate(const Eigen::Vector2d& z_start, const Eigen::Matrix2d& R,
+                                   double gate) = 0;
+  virtual bool obstacleInitialised() const = 0;
+  /// Obstacle at `range` along the sonar axis, covariance from the sonar datasheet.
+  virtual void initObstacleFromSonar(double range_m) = 0;
+
+  /// Books an update attempt: counts, NIS statistics, rejected list.
+  void record(Sensor s, double t_s, const UpdateResult& r, double gate);
+  /// NIS gate for a dof-dimensional measurement (0: no gating).
+  double gate(int dof) const;
+  /// Covariance of the encoder mean speeds (v, omega) over an interval of dt seconds:
+  /// tick quantisation (difference of two uniform errors, var = 1/6 tick^2 per wheel) plus the
+  /// configured per-wheel noise.
+  Eigen::Matrix2d encoderNoise(double dt_s) const;
+  /// Sonar body-frame mount and the obstacle covariance (body frame, Cartesian) of a sonar
+  /// reading: along the beam sonar_noise_m, across it range * bearing sigma.
+  Eigen::Vector2d sonarPointBody(double range_m) const;
+  Eigen::Matrix2d sonarPointCovBody(double range_m) const;
+  /// Initial obstacle from the options (body frame, Cartesian) and its covariance.
+  Eigen::Vector2d configObstacle() const;
+  Eigen::Matrix2d configObstacleCov() const;
+  SensorStats& stats(Sensor s) { return res_.sensors[static_cast<int>(s)]; }
+
+  EkfOptions opt_;  ///< sensor defaults resolved
+  double wheel_radius_m_, track_width_m_, wheel_rad_per_tick_;
+  double sonar_min_m_, sonar_max_m_, sonar_yaw_rad_;
+  Eigen::Vector2d sonar_offset_m_, pozyx_lever_m_;
+  EstimationResult res_;
+
+ private:
+  mutable std::map<int, double> gates_;
+  int consecutive_sonar_rejections_ = 0;
+};
+
+/// The filter selected by opt.filter. `input` (motor currents) must outlive it; the baseline
+/// ignores it.
+std::unique_ptr<Estimator> makeEstimator(const config::WheelchairConfig& cfg,
+                                         const EkfOptions& opt, const InputSignal* input);
+
+/// Runs the selected filter over a whole recording (see the header comment).
+EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                              const EkfOptions& opt);
+
+}  // namespace wheelchair::estimation

@@ -1,0 +1,1090 @@
+#include "libwheelchair/identification/Identification.h"
+
+#include "libwheelchair/model/VehicleParams.h"
+#include "libwheelchair/sensors/Encoders.h"
+#include "libwheelchair/sensors/Filtering.h"
+#include "libwheelchair/sensors/VoltageCircuit.h"
+
+#include <fmt/format.h>
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+
+namespace wheelchair::identification {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+const char* kThetaNames[5] = {"theta_1", "theta_2", "theta_3", "theta_4", "theta_5"};
+const char* kThetaMeaning[5] = {"1/(eta_G k_m)", "J_m/(eta_G k_m)", "I_w,zz/(eta_G k_m)",
+                                "I_zz/(eta_G k_m)", "B_m/k_m"};
+const char* kThetaUnit[5] = {"A/(N m)", "A s^2", "A s^2", "A s^2", "A s/rad"};
+
+// ---- thin adapters over sensors/ (the only place that calls that module) -------------------
+
+struct Stream {
+  std::vector<double> t;
+  std::vector<std::vector<double>> x;
+};
+
+struct EncoderStream {
+  std::vector<double> t, t0, t1;  // midpoints and interval bounds
+  std::vector<double> u_r, u_l;
+};
+
+std::vector<double> filt(const std::vector<double>& x, const IdentificationOptions& o) {
+  return sensors::filtfiltButter2(x, o.cutoff_hz, o.rate_hz);
+}
+
+std::vector<double> resample(const std::vector<double>& ts, const std::vector<double>& xs,
+                             const std::vector<double>& tg) {
+  return sensors::resampleLinear(ts, xs, tg);
+}
+
+// Encoder intervals -> mean rim speeds at the interval midpoints (time-ordered, positive
+// and non-overlapping intervals only).
+EncoderStream encoderStream(const io::Recording& rec, const config::WheelchairConfig& cfg) {
+  const auto& g = cfg.vehicle.geom;
+  auto iv = sensors::wheelSpeedsFromTicks(rec.encoders, cfg.encoders.params, g.wheel_radius_m,
+                                          g.track_width_m);
+  std::stable_sort(iv.begin(), iv.end(),
+                   [](const auto& a, const auto& b) { return a.t0_s < b.t0_s; });
+  EncoderStream s;
+  for (const auto& w : iv) {
+    if (!(w.t1_s > w.t0_s) || !std::isfinite(w.u_right_m_s) || !std::isfinite(w.u_left_m_s))
+      continue;
+    if (!s.t1.empty() && w.t0_s < s.t1.back()) continue;
+    s.t.push_back(w.tMid());
+    s.t0.push_back(w.t0_s);
+    s.t1.push_back(w.t1_s);
+    s.u_r.push_back(w.u_right_m_s);
+    s.u_l.push_back(w.u_left_m_s);
+  }
+  return s;
+}
+
+// Means of a sampled signal (piecewise linear between its samples, held constant outside)
+// over the encoder intervals [t0, t1], placed at the interval midpoints: the speeds are
+// interval means, so the other signals go through the same box filter (section 2 of
+// docs/identification.md: both sides of (2) must see the same filter).
+std::vector<double> intervalMeans(const std::vector<double>& ts, const std::vector<double>& xs,
+                                  const std::vector<double>& t0, const std::vector<double>& t1) {
+  const std::size_t n = ts.size();
+  std::vector<double> F(n, 0.0);  // integral from ts[0]
+  for (std::size_t j = 1; j < n; ++j)
+    F[j] = F[j - 1] + 0.5 * (xs[j] + xs[j - 1]) * (ts[j] - ts[j - 1]);
+  auto integral = [&](double t) {
+    if (t <= ts.front()) return xs.front() * (t - ts.front());
+    if (t >= ts.back()) return F[n - 1] + xs.back() * (t - ts.back());
+    const std::size_t j = std::upper_bound(ts.begin(), ts.end(), t) - ts.begin() - 1;
+    const double h = t - ts[j], slope = (xs[j + 1] - xs[j]) / (ts[j + 1] - ts[j]);
+    return F[j] + xs[j] * h + 0.5 * slope * h * h;
+  };
+  std::vector<double> m(t0.size());
+  for (std::size_t k = 0; k < t0.size(); ++k)
+    m[k] = (integral(t1[k]) - integral(t0[k])) / (t1[k] - t0[k]);
+  return m;
+}
+
+// Time-sorts a stream and drops duplicated/non-increasing timestamps (raw logs may hold them).
+void sanitize(Stream& s) {
+  std::vector<std::size_t> idx(s.t.size());
+  std::iota(idx.begin(), idx.end(), 0);
+  std::stable_sort(idx.begin(), idx.end(), [&](auto a, auto b) { return s.t[a] < s.t[b]; });
+  Stream o;
+  o.x.resize(s.x.size());
+  for (auto k : idx) {
+    if (!std::isfinite(s.t[k])) continue;
+    if (!o.t.empty() && !(s.t[k] > o.t.back())) continue;
+    bool finite = true;
+    for (auto& c : s.x) finite = finite && std::isfinite(c[k]);
+    if (!finite) continue;
+    o.t.push_back(s.t[k]);
+    for (std::size_t c = 0; c < s.x.size(); ++c) o.x[c].push_back(s.x[c][k]);
+  }
+  s = std::move(o);
+}
+
+// True when grid time t lies inside the stream's coverage and not inside a gap.
+bool covered(const std::vector<double>& ts, double t, double max_gap) {
+  auto it = std::upper_bound(ts.begin(), ts.end(), t);
+  if (it == ts.begin()) return t == ts.front();
+  if (it == ts.end()) return t == ts.back();
+  return (*it - *(it - 1)) <= max_gap;
+}
+
+std::vector<double> centralDiff(const std::vector<double>& x, double dt) {
+  const std::size_t n = x.size();
+  std::vector<double> d(n, 0.0);
+  if (n < 2) return d;
+  for (std::size_t k = 1; k + 1 < n; ++k) d[k] = (x[k + 1] - x[k - 1]) / (2 * dt);
+  d[0] = (x[1] - x[0]) / dt;
+  d[n - 1] = (x[n - 1] - x[n - 2]) / dt;
+  return d;
+}
+
+double normalQuantile(double p) {  // inverse of Phi by bisection on erfc (p in (0.5, 1))
+  double lo = 0, hi = 10;
+  for (int i = 0; i < 200; ++i) {
+    const double m = 0.5 * (lo + hi);
+    (0.5 * std::erfc(-m / std::sqrt(2.0)) < p ? lo : hi) = m;
+  }
+  return 0.5 * (lo + hi);
+}
+
+nlohmann::json num(double x) {
+  return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json();
+}
+
+Estimate fromFunctional(const LsSolution& s, const Eigen::VectorXd& w, const std::string& why_not) {
+  Estimate e;
+  if (!s.isEstimable(w)) {
+    e.reason = why_not;
+    return e;
+  }
+  e.identifiable = true;
+  e.value = s.estimate(w);
+  e.se = s.standardError(w);
+  e.se_naive = s.standardErrorNaive(w);
+  return e;
+}
+
+// Marks an estimable but useless estimate (relative standard error above 50 %) as not
+// identifiable: never print a confident wrong number.
+void guardPrecision(Estimate& e, const std::string& what) {
+  if (!e.identifiable) return;
+  if (!(std::abs(e.value) > 0) || !(e.se < 0.5 * std::abs(e.value))) {
+    e.reason = fmt::format(
+        "{} is estimable in principle but the data do not determine it (estimate {:.4g}, "
+        "standard error {:.4g}): the drive hardly excites it",
+        what, e.value, e.se);
+    e.identifiable = false;
+    e.value = e.se = e.se_naive = kNaN;
+  }
+}
+
+RegressionReport report(const LsSolution& s, std::vector<std::string> cols) {
+  RegressionReport r;
+  r.columns = std::move(cols);
+  r.rank = s.rank;
+  r.condition_number = s.condition_number;
+  r.condition_number_identifiable = s.condition_number_identifiable;
+  for (int k = 0; k < s.singular_values.size(); ++k)
+    r.singular_values_rel.push_back(s.singular_values(k) / s.singular_values(0));
+  r.residual = s.residual;
+  return r;
+}
+
+nlohmann::json residualJson(const ResidualStats& r, const char* unit) {
+  return {{"unit", unit},
+          {"rows", r.n_rows},
+          {"dof", r.dof},
+          {"rms", num(r.rms)},
+          {"mean", num(r.mean)},
+          {"max_abs", num(r.max_abs)},
+          {"rms_of_observations", num(r.rms_y)},
+          {"r_squared", num(r.r_squared)},
+          {"lag1_autocorrelation", num(r.lag1_autocorr)},
+          {"effective_rows", num(r.n_effective)}};
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+
+void IdentificationOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
+                                           const std::string& sec) {
+  rate_hz = ini.read_double(sec, "rate_hz", rate_hz);
+  cutoff_hz = ini.read_double(sec, "cutoff_hz", cutoff_hz);
+  omega_source = ini.read_string(sec, "omega_source", omega_source);
+  standstill_speed_m_s = ini.read_double(sec, "standstill_speed_m_s", standstill_speed_m_s);
+  edge_trim_s = ini.read_double(sec, "edge_trim_s", edge_trim_s);
+  max_gap_s = ini.read_double(sec, "max_gap_s", max_gap_s);
+  min_excitation_snr = ini.read_double(sec, "min_excitation_snr", min_excitation_snr);
+  hac_lag_factor = ini.read_double(sec, "hac_lag_factor", hac_lag_factor);
+  confidence = ini.read_double(sec, "confidence", confidence);
+  rank_tol = ini.read_double(sec, "rank_tol", rank_tol);
+  qs_max_vdot_m_s2 = ini.read_double(sec, "qs_max_vdot_m_s2", qs_max_vdot_m_s2);
+  qs_max_omegadot_rad_s2 = ini.read_double(sec, "qs_max_omegadot_rad_s2", qs_max_omegadot_rad_s2);
+  qs_min_duration_s = ini.read_double(sec, "qs_min_duration_s", qs_min_duration_s);
+  qs_min_wheel_speed_m_s = ini.read_double(sec, "qs_min_wheel_speed_m_s", qs_min_wheel_speed_m_s);
+  update_torque_constant = ini.read_bool(sec, "update_torque_constant", update_torque_constant);
+  validate("[" + sec + "]");
+}
+
+void IdentificationOptions::validate(const std::string& sec) const {
+  if (!(rate_hz > 0) || !(cutoff_hz > 0) || cutoff_hz >= 0.5 * rate_hz)
+    throw std::runtime_error(
+        fmt::format("{} cutoff_hz must be > 0 and below half of rate_hz (got {} and {})", sec,
+                    cutoff_hz, rate_hz));
+  if (omega_source != "encoders" && omega_source != "gyro")
+    throw std::runtime_error(
+        fmt::format("{} omega_source must be 'encoders' or 'gyro' (got '{}')", sec, omega_source));
+  if (!(confidence > 0 && confidence < 1))
+    throw std::runtime_error(fmt::format("{} confidence must be in (0, 1)", sec));
+}
+
+int IdentificationOptions::hacLags() const {
+  return std::max(1, static_cast<int>(std::lround(hac_lag_factor * rate_hz / cutoff_hz)));
+}
+
+nlohmann::json IdentificationOptions::toJson() const {
+  return {{"rate_hz", rate_hz},
+          {"cutoff_hz", cutoff_hz},
+          {"filter", "2nd-order Butterworth applied forward and backward (zero phase)"},
+          {"omega_source", omega_source},
+          {"standstill_speed_m_s", standstill_speed_m_s},
+          {"edge_trim_s", edge_trim_s},
+          {"max_gap_s", max_gap_s},
+          {"min_excitation_snr", min_excitation_snr},
+          {"hac_lag_factor", hac_lag_factor},
+          {"confidence", confidence},
+          {"rank_tol", rank_tol},
+          {"qs_max_vdot_m_s2", qs_max_vdot_m_s2},
+          {"qs_max_omegadot_rad_s2", qs_max_omegadot_rad_s2},
+          {"qs_min_duration_s", qs_min_duration_s},
+          {"qs_min_wheel_speed_m_s", qs_min_wheel_speed_m_s},
+          {"update_torque_constant", update_torque_constant}};
+}
+
+nlohmann::json Estimate::toJson(double z) const {
+  if (!identifiable)
+    return {{"value", nullptr}, {"se", nullptr}, {"identifiable", false}, {"reason", reason}};
+  nlohmann::json j = {{"value", num(value)},
+                      {"se", num(se)},
+                      {"se_naive_iid", num(se_naive)},
+                      {"identifiable", true},
+                      {"interval", {num(value - z * se), num(value + z * se)}}};
+  if (!reason.empty()) j["note"] = reason;
+  return j;
+}
+
+nlohmann::json RegressionReport::toJson() const {
+  return {{"columns", columns},
+          {"rank", rank},
+          {"condition_number_scaled", num(condition_number)},
+          {"condition_number_identifiable_subspace", num(condition_number_identifiable)},
+          {"singular_values_relative", singular_values_rel}};
+}
+
+Eigen::Matrix<double, 5, 1> d1Weights(const model::Geometry& g) {
+  const double r = g.wheel_radius_m, rG = g.gear_ratio, rho = r / rG;
+  Eigen::Matrix<double, 5, 1> w;
+  w << rho * (g.wheel_mass_kg + g.body_mass_kg / 2), 1 / rho, 1 / (r * rG), 0, 0;
+  return w;
+}
+
+Eigen::Matrix<double, 5, 1> d2Weights(const model::Geometry& g) {
+  const double r = g.wheel_radius_m, rG = g.gear_ratio, rho = r / rG, lw = g.track_width_m;
+  Eigen::Matrix<double, 5, 1> w;
+  w << rho * g.wheel_mass_kg * lw / 2, lw / (2 * rho), lw / (2 * r * rG), rho / lw, 0;
+  return w;
+}
+
+// ---------------------------------------------------------------------------------------
+
+PreparedData prepareSignals(const std::vector<io::Recording>& recs,
+                            const config::WheelchairConfig& cfg, const IdentificationOptions& o) {
+  const auto& g = cfg.vehicle.geom;
+  const double dt = 1.0 / o.rate_hz, lw = g.track_width_m;
+  const bool gyro = o.omega_source == "gyro";
+  PreparedData out;
+  double ss_v = 0, ss_w = 0;
+  std::size_t n_noise = 0;
+
+  for (std::size_t ri = 0; ri < recs.size(); ++ri) {
+    const auto& rec = recs[ri];
+    const EncoderStream enc = encoderStream(rec, cfg);
+    Stream mot;
+    mot.x.resize(4);
+    for (const auto& m : rec.motors) {
+      mot.t.push_back(m.t_s);
+      mot.x[0].push_back(m.current_right_A);
+      mot.x[1].push_back(m.current_left_A);
+      mot.x[2].push_back(m.vrc_right_V);
+      mot.x[3].push_back(m.vrc_left_V);
+    }
+    sanitize(mot);
+    Stream imu;
+    imu.x.resize(1);
+    for (const auto& s : rec.imu) {
+      imu.t.push_back(s.t_s);
+      imu.x[0].push_back(s.gyro_z_rad_s);
+    }
+    sanitize(imu);
+    if (enc.t.size() < 4 || mot.t.size() < 4 || (gyro && imu.t.size() < 4)) continue;
+
+    // Motor voltage U per side from the V_RC inverse, at the motor samples.
+    std::array<std::vector<double>, 2> U;
+    bool any_voltage = false;
+    for (int side = 0; side < 2; ++side) {
+      const auto& vrc = mot.x[2 + side];
+      U[side].resize(vrc.size());
+      for (std::size_t k = 0; k < vrc.size(); ++k) {
+        const std::size_t a = k == 0 ? 0 : k - 1, b = std::min(k + 1, vrc.size() - 1);
+        const double rate = (vrc[b] - vrc[a]) / (mot.t[b] - mot.t[a]);
+        // V_RC of a motor is the difference of its two wires' RC outputs, only one of which
+        // is driven at a time (docs/sensors.md): invert the magnitude, keep the sign.
+        const double sg = vrc[k] < 0 ? -1.0 : 1.0;
+        U[side][k] = sg * sensors::leadVoltageFromVrc(sg * vrc[k], sg * rate, cfg.motors.circuit);
+        any_voltage = any_voltage || vrc[k] != 0.0;
+      }
+    }
+    out.has_voltage = out.has_voltage || any_voltage;
+
+    double t_lo = std::max(enc.t.front(), mot.t.front());
+    double t_hi = std::min(enc.t.back(), mot.t.back());
+    if (gyro) t_lo = std::max(t_lo, imu.t.front()), t_hi = std::min(t_hi, imu.t.back());
+    if (!(t_hi > t_lo)) continue;
+    const long n_grid = static_cast<long>(std::floor((t_hi - t_lo) / dt)) + 1;
+    std::vector<char> ok(n_grid);
+    for (long k = 0; k < n_grid; ++k) {
+      const double t = t_lo + k * dt;
+      ok[k] = covered(enc.t, t, o.max_gap_s) && covered(mot.t, t, o.max_gap_s) &&
+              (!gyro || covered(imu.t, t, o.max_gap_s));
+    }
+    const long min_len = static_cast<long>(std::ceil((2 * o.edge_trim_s + 1.0) / dt));
+    for (long k0 = 0; k0 < n_grid;) {
+      if (!ok[k0]) {
+        ++k0;
+        continue;
+      }
+      long k1 = k0;
+      while (k1 < n_grid && ok[k1]) ++k1;
+      if (k1 - k0 >= min_len) {
+        PreparedSegment s;
+        s.recording = static_cast<int>(ri);
+        for (long k = k0; k < k1; ++k) s.t.push_back(t_lo + k * dt);
+        const auto ur_raw = resample(enc.t, enc.u_r, s.t);
+        const auto ul_raw = resample(enc.t, enc.u_l, s.t);
+        // Currents, voltages, gyro: interval means over the encoder intervals first.
+        auto viaEnc = [&](const Stream& st, const std::vector<double>& x) {
+          return resample(enc.t, intervalMeans(st.t, x, enc.t0, enc.t1), s.t);
+        };
+        s.u_r = filt(ur_raw, o);
+        s.u_l = filt(ul_raw, o);
+        s.i_r = filt(viaEnc(mot, mot.x[0]), o);
+        s.i_l = filt(viaEnc(mot, mot.x[1]), o);
+        s.U_r = filt(viaEnc(mot, U[0]), o);
+        s.U_l = filt(viaEnc(mot, U[1]), o);
+        const std::size_t n = s.t.size();
+        std::vector<double> v_raw(n), w_raw(n);
+        s.v.resize(n);
+        s.omega.resize(n);
+        for (std::size_t k = 0; k < n; ++k) {
+          v_raw[k] = 0.5 * (ur_raw[k] + ul_raw[k]);
+          w_raw[k] = (ur_raw[k] - ul_raw[k]) / lw;
+          s.v[k] = 0.5 * (s.u_r[k] + s.u_l[k]);
+          s.omega[k] = (s.u_r[k] - s.u_l[k]) / lw;
+        }
+        if (gyro) {
+          w_raw = viaEnc(imu, imu.x[0]);
+          s.omega = filt(w_raw, o);
+        }
+        s.vdot = centralDiff(s.v, dt);
+        s.omegadot = centralDiff(s.omega, dt);
+        s.interior.assign(n, 0);
+        s.moving.assign(n, 0);
+        const long trim = static_cast<long>(std::ceil(o.edge_trim_s / dt));
+        for (std::size_t k = 0; k < n; ++k) {
+          s.interior[k] = long(k) >= trim && long(k) < long(n) - trim;
+          s.moving[k] = std::max(std::abs(s.u_r[k]), std::abs(s.u_l[k])) >= o.standstill_speed_m_s;
+          if (s.interior[k]) {
+            ss_v += std::pow(v_raw[k] - s.v[k], 2);
+            ss_w += std::pow(w_raw[k] - s.omega[k], 2);
+            ++n_noise;
+          }
+        }
+        out.segments.push_back(std::move(s));
+      }
+      k0 = k1;
+    }
+  }
+  // Noise floors: raw-minus-filtered rms (the noise above the cut-off) times the noise gain
+  // of the filter (and of filter + central difference) for white noise.
+  if (n_noise > 0) {
+    const long half = static_cast<long>(std::ceil(20 * o.rate_hz / o.cutoff_hz));
+    std::vector<double> imp(2 * half + 1, 0.0);
+    imp[half] = 1.0;
+    const auto h = filt(imp, o);
+    const auto hd = centralDiff(h, dt);
+    double g0 = 0, gd = 0;
+    for (std::size_t k = 0; k < h.size(); ++k) g0 += h[k] * h[k], gd += hd[k] * hd[k];
+    g0 = std::sqrt(g0), gd = std::sqrt(gd);
+    // raw - filtered keeps the fraction (1 - g0^2) of white noise variance (approximately).
+    const double keep = std::max(1e-3, 1.0 - 2 * h[half] + g0 * g0);
+    const double sv = std::sqrt(ss_v / n_noise / keep), sw = std::sqrt(ss_w / n_noise / keep);
+    out.noise_v = sv * g0;
+    out.noise_omega = sw * g0;
+    out.noise_vdot = sv * gd;
+    out.noise_omegadot = sw * gd;
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------
+
+namespace {
+
+struct Row {
+  int seg;
+  long k;
+};
+
+std::string nullDescription(const Eigen::VectorXd& vs, const std::vector<Excitation>& ex) {
+  std::vector<int> part;
+  for (int j = 0; j < 5; ++j)
+    if (std::abs(vs(j)) > 0.05) part.push_back(j);
+  auto has = [&](int j) { return std::find(part.begin(), part.end(), j) != part.end(); };
+  const auto exc = [&](const std::string& s) {
+    for (const auto& e : ex)
+      if (e.signal == s) return e;
+    return Excitation{};
+  };
+  if (part.size() == 1 && part[0] == 3)
+    return fmt::format(
+        "yaw inertia theta_4 = I_zz/(eta_G k_m) is not identifiable: the drive has no angular "
+        "acceleration above the noise floor (omegadot SNR {:.2g} < threshold)",
+        exc("omegadot").snr);
+  if (part.size() == 1 && part[0] == 4)
+    return "viscous term theta_5 = B_m/k_m is not identifiable: the wheels hardly move";
+  if (part.size() == 2 && has(1) && has(2))
+    return "theta_2 (motor rotor inertia) and theta_3 (wheel inertia) are not separable: their "
+           "columns of Y are proportional for every drive (both multiply the rim acceleration "
+           "udot_i); only the reflected rotating inertia (r_G/r) theta_2 + theta_3/(r r_G) is "
+           "seen";
+  std::string names;
+  for (int j : part) names += (names.empty() ? "" : ", ") + std::string(kThetaNames[j]);
+  std::string s = fmt::format(
+      "the combination of {} along this direction leaves every current unchanged: columns of Y "
+      "are linearly dependent on this drive (y_i1, y_i2, y_i3 are all combinations of vdot and "
+      "s_i omegadot, y_i4 of omegadot); the currents only see D1 (coefficient of vdot)",
+      names);
+  s += exc("omegadot").excited ? ", D2 (coefficient of s_i omegadot)" : "";
+  s += " and theta_5";
+  if (!exc("vdot").excited) s += "; there is no linear acceleration above the noise floor";
+  if (!exc("omegadot").excited) s += "; there is no angular acceleration above the noise floor";
+  return s;
+}
+
+std::string thetaReason(int j, const std::vector<Excitation>& ex) {
+  bool wdot = false, vdot = false;
+  for (const auto& e : ex) {
+    if (e.signal == "omegadot") wdot = e.excited;
+    if (e.signal == "vdot") vdot = e.excited;
+  }
+  switch (j) {
+    case 0:
+      return std::string(
+                 "theta_1 = 1/(eta_G k_m) is not identifiable from currents and motion: "
+                 "it enters (2) only inside D1") +
+             (wdot ? " and D2" : "") +
+             ", together with the rotating-inertia terms theta_2, theta_3" +
+             (wdot ? " and theta_4" : "") +
+             " (the masses m_w, m_b are fixed by the configuration); see `combinations`";
+    case 1:
+    case 2:
+      return "theta_2 and theta_3 are never separable (proportional columns of Y: both multiply "
+             "udot_i) and are not separable from theta_1 either (all three multiply the linear "
+             "acceleration); only D1 = 1/(2 a1) is identifiable";
+    case 3:
+      if (!wdot)
+        return "yaw inertia theta_4 is not identifiable: the drive has no angular acceleration "
+               "above the noise floor";
+      return "theta_4 = I_zz/(eta_G k_m) enters only through D2 together with theta_1..theta_3; "
+             "it is not separable without knowing eta_G k_m";
+    default:
+      return vdot || wdot ? "theta_5 not determined" : "the wheels hardly move";
+  }
+}
+
+// Ratio fit y = k x through the origin over segments (weights = durations), with a
+// cluster-robust standard error (each segment one cluster).
+Estimate ratioThroughOrigin(const std::vector<double>& x, const std::vector<double>& y,
+                            const std::vector<double>& w, const std::string& what) {
+  Estimate e;
+  const std::size_t n = x.size();
+  if (n == 0) {
+    e.reason = what + ": no quasi-steady segment with this wheel moving";
+    return e;
+  }
+  double sxx = 0, sxy = 0;
+  for (std::size_t i = 0; i < n; ++i) sxx += w[i] * x[i] * x[i], sxy += w[i] * x[i] * y[i];
+  if (!(sxx > 0)) {
+    e.reason = what + ": motor speed is zero in every segment";
+    return e;
+  }
+  e.identifiable = true;
+  e.value = sxy / sxx;
+  if (n >= 2) {
+    double s = 0;
+    for (std::size_t i = 0; i < n; ++i) s += std::pow(w[i] * x[i] * (y[i] - e.value * x[i]), 2);
+    e.se = std::sqrt(s * double(n) / double(n - 1)) / sxx;
+  } else {
+    e.reason = "one segment only: no scatter to estimate the uncertainty from (se null)";
+  }
+  return e;
+}
+
+}  // namespace
+
+IdentificationResult identify(const std::vector<io::Recording>& recs,
+                              const config::WheelchairConfig& cfg, const IdentificationOptions& o,
+                              const std::vector<std::string>& sources) {
+  IdentificationResult res;
+  res.options = o;
+  res.config_origin = cfg.origin();
+  res.sources = sources;
+  res.hac_lags = o.hacLags();
+  res.z = normalQuantile(0.5 + o.confidence / 2);
+  const auto& g = cfg.vehicle.geom;
+  const double r = g.wheel_radius_m, rG = g.gear_ratio, lw = g.track_width_m;
+
+  const PreparedData data = prepareSignals(recs, cfg, o);
+  std::vector<Row> rows;
+  for (std::size_t si = 0; si < data.segments.size(); ++si) {
+    const auto& s = data.segments[si];
+    res.n_grid += s.t.size();
+    for (std::size_t k = 0; k < s.t.size(); ++k) {
+      if (!s.interior[k]) {
+        ++res.n_edge;
+        continue;
+      }
+      if (!s.moving[k]) {
+        ++res.n_standstill;
+        continue;
+      }
+      rows.push_back({static_cast<int>(si), static_cast<long>(k)});
+    }
+  }
+  res.n_used = rows.size();
+  if (rows.size() < 50)
+    throw std::runtime_error(fmt::format(
+        "identify: only {} usable samples (moving, away from segment edges and gaps); need a "
+        "recording with encoders and motor currents while the chair moves",
+        rows.size()));
+
+  // Excitation of each signal over the used samples.
+  auto rms = [&](auto member) {
+    double ss = 0;
+    for (const auto& rw : rows) ss += std::pow((data.segments[rw.seg].*member)[rw.k], 2);
+    return std::sqrt(ss / rows.size());
+  };
+  const struct {
+    const char* name;
+    std::vector<double> PreparedSegment::*m;
+    double noise;
+  } sig[4] = {{"v", &PreparedSegment::v, data.noise_v},
+              {"omega", &PreparedSegment::omega, data.noise_omega},
+              {"vdot", &PreparedSegment::vdot, data.noise_vdot},
+              {"omegadot", &PreparedSegment::omegadot, data.noise_omegadot}};
+  for (const auto& sg : sig) {
+    Excitation e;
+    e.signal = sg.name;
+    e.rms = rms(sg.m);
+    e.noise = std::max(sg.noise, 1e-12);
+    e.snr = e.rms / e.noise;
+    e.excited = e.snr >= o.min_excitation_snr;
+    res.excitation.push_back(e);
+  }
+  const bool ex_v = res.excitation[0].excited, ex_w = res.excitation[1].excited;
+  const bool ex_vd = res.excitation[2].excited, ex_wd = res.excitation[3].excited;
+  if (!ex_wd)
+    res.notes.push_back(fmt::format(
+        "angular acceleration not excited (omegadot rms {:.3g} rad/s^2, noise floor {:.3g}, SNR "
+        "{:.2g} < {}): yaw parameters (theta_4, D2, a2, a4) are not identifiable from this drive",
+        res.excitation[3].rms, res.excitation[3].noise, res.excitation[3].snr,
+        o.min_excitation_snr));
+  if (!ex_vd)
+    res.notes.push_back(
+        "linear acceleration not excited: D1, a1, a3 are not identifiable from this drive");
+
+  // Unexcited signals are set to zero in the regressors: their measured values are noise, and
+  // regressing on noise would produce a confident, attenuated (wrong) coefficient.
+  auto val = [&](const Row& rw, int which) {
+    const auto& s = data.segments[rw.seg];
+    switch (which) {
+      case 0:
+        return ex_v ? s.v[rw.k] : 0.0;
+      case 1:
+        return ex_w ? s.omega[rw.k] : 0.0;
+      case 2:
+        return ex_vd ? s.vdot[rw.k] : 0.0;
+      default:
+        return ex_wd ? s.omegadot[rw.k] : 0.0;
+    }
+  };
+  LsOptions lso;
+  lso.hac_lags = res.hac_lags;
+  lso.rank_tol = o.rank_tol;
+
+  // ---- theta: the 5-column form (2), right and left rows stacked ----
+  const std::size_t n = rows.size();
+  LsInput th;
+  th.X.resize(2 * n, 5);
+  th.y.resize(2 * n);
+  th.time_index.resize(2 * n);
+  th.block.resize(2 * n);
+  for (std::size_t q = 0; q < n; ++q) {
+    const auto& rw = rows[q];
+    const auto& s = data.segments[rw.seg];
+    const auto Y = model::regressor(g, val(rw, 0), val(rw, 2), val(rw, 1), val(rw, 3));
+    for (int i = 0; i < 2; ++i) {
+      th.X.row(2 * q + i) = Y.row(i);
+      th.y(2 * q + i) = i == 0 ? s.i_r[rw.k] : s.i_l[rw.k];
+      th.time_index[2 * q + i] = rw.k;
+      th.block[2 * q + i] = rw.seg;
+    }
+  }
+  const LsSolution ts = solveLeastSquares(th, lso);
+  res.theta_regression = report(ts, {"y_i1", "y_i2", "y_i3", "y_i4", "y_i5"});
+  // Null space in a canonical basis: the SVD returns an arbitrary rotation of it, so first
+  // pull out the directions with a known meaning (theta_2 vs theta_3, theta_4 alone,
+  // theta_5 alone) when they lie in it, then describe what remains.
+  {
+    const int p = 5, nn = p - ts.rank;
+    Eigen::MatrixXd Nb = ts.V.rightCols(nn);  // orthonormal, scaled coordinates
+    std::vector<Eigen::VectorXd> cand;
+    Eigen::VectorXd c(5);
+    c << 0, 1, -rG * rG, 0, 0;  // y_i2 = r_G^2 y_i3
+    cand.push_back(c);
+    cand.push_back(Eigen::VectorXd::Unit(5, 3));
+    cand.push_back(Eigen::VectorXd::Unit(5, 4));
+    std::vector<Eigen::VectorXd> basis;
+    for (const auto& d : cand) {
+      if (Nb.cols() == 0) break;
+      Eigen::VectorXd ds = d.cwiseProduct(ts.column_scale);
+      ds /= ds.norm();
+      const Eigen::VectorXd coef = Nb.transpose() * ds;
+      if (coef.norm() < 1 - 1e-6) continue;
+      basis.push_back(ds);
+      // Remove ds from the remaining null basis.
+      Eigen::MatrixXd R = Nb - ds * (ds.transpose() * Nb);
+      Eigen::JacobiSVD<Eigen::MatrixXd> sv(R, Eigen::ComputeThinU);
+      const int keep = static_cast<int>(Nb.cols()) - 1;
+      Nb = sv.matrixU().leftCols(keep);
+    }
+    for (int k = 0; k < Nb.cols(); ++k) basis.push_back(Nb.col(k));
+    for (const auto& vs : basis) {
+      NullDirection nd;
+      Eigen::VectorXd d = vs.cwiseQuotient(ts.column_scale);
+      d /= d.norm();
+      nd.direction.assign(d.data(), d.data() + 5);
+      nd.direction_scaled.assign(vs.data(), vs.data() + 5);
+      nd.singular_value_rel =  // ||X_s vs|| / sigma_max
+          (ts.singular_values.asDiagonal() * (ts.V.transpose() * vs)).norm() /
+          ts.singular_values(0);
+      nd.description = nullDescription(vs, res.excitation);
+      res.null_directions.push_back(nd);
+    }
+  }
+  for (int j = 0; j < 5; ++j) {
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(5);
+    e(j) = 1;
+    res.theta[j] = fromFunctional(ts, e, thetaReason(j, res.excitation));
+    guardPrecision(res.theta[j], kThetaNames[j]);
+  }
+  const Eigen::VectorXd w1 = d1Weights(g), w2 = d2Weights(g);
+  res.D1 = fromFunctional(ts, w1,
+                          "D1 needs linear acceleration: the drive has none above the noise floor");
+  res.D2 = fromFunctional(
+      ts, w2, "D2 needs angular acceleration: the drive has none above the noise floor");
+  guardPrecision(res.D1, "D1");
+  guardPrecision(res.D2, "D2");
+
+  // a1..a4 from theta (Appendix VI) with delta-method standard errors.
+  {
+    const double rho = r / rG;
+    Eigen::VectorXd e5 = Eigen::VectorXd::Zero(5);
+    e5(4) = 1;
+    auto fromGrad = [&](double value, const Eigen::VectorXd& grad) {
+      Estimate e;
+      e.identifiable = true;
+      e.value = value;
+      e.se = ts.standardError(grad);
+      e.se_naive = ts.standardErrorNaive(grad);
+      return e;
+    };
+    const auto& D1 = res.D1;
+    const auto& D2 = res.D2;
+    const auto& t5 = res.theta[4];
+    const std::string no1 = "a1 = 1/(2 D1) needs D1: " + D1.reason;
+    const std::string no2 = "a2 = 1/(2 D2) needs D2: " + D2.reason;
+    if (D1.identifiable)
+      res.a_from_theta[0] = fromGrad(0.5 / D1.value, -0.5 / (D1.value * D1.value) * w1);
+    else
+      res.a_from_theta[0].reason = no1;
+    if (D2.identifiable)
+      res.a_from_theta[1] = fromGrad(0.5 / D2.value, -0.5 / (D2.value * D2.value) * w2);
+    else
+      res.a_from_theta[1].reason = no2;
+    if (D1.identifiable && t5.identifiable)
+      res.a_from_theta[2] =
+          fromGrad(-t5.value / (rho * D1.value),
+                   -e5 / (rho * D1.value) + t5.value / (rho * D1.value * D1.value) * w1);
+    else
+      res.a_from_theta[2].reason = "a3 = -theta_5 r_G/(r D1) needs D1 and theta_5: " +
+                                   (D1.identifiable ? t5.reason : D1.reason);
+    if (D2.identifiable && t5.identifiable)
+      res.a_from_theta[3] = fromGrad(
+          -t5.value * lw / (2 * rho * D2.value),
+          -lw / (2 * rho * D2.value) * e5 + t5.value * lw / (2 * rho * D2.value * D2.value) * w2);
+    else
+      res.a_from_theta[3].reason = "a4 = -theta_5 l_w r_G/(2 r D2) needs D2 and theta_5: " +
+                                   (D2.identifiable ? t5.reason : D2.reason);
+  }
+
+  // ---- a1..a4 directly from the ODE form (6) ----
+  for (int eq = 0; eq < 2; ++eq) {
+    const bool excited = eq == 0 ? ex_vd : ex_wd;
+    const int ia = eq == 0 ? 0 : 1, ib = eq == 0 ? 2 : 3;  // current gain, damping
+    if (!excited) {
+      const std::string why = eq == 0
+                                  ? "the drive has no linear acceleration above the noise floor"
+                                  : "the drive has no angular acceleration above the noise floor";
+      res.a_direct[ia].reason = res.a_direct[ib].reason = why;
+      continue;
+    }
+    LsInput in;
+    in.X.resize(n, 2);
+    in.y.resize(n);
+    in.time_index.resize(n);
+    in.block.resize(n);
+    for (std::size_t q = 0; q < n; ++q) {
+      const auto& rw = rows[q];
+      const auto& s = data.segments[rw.seg];
+      const double isum = eq == 0 ? s.i_r[rw.k] + s.i_l[rw.k] : s.i_r[rw.k] - s.i_l[rw.k];
+      in.X(q, 0) = isum;
+      in.X(q, 1) = eq == 0 ? val(rw, 0) : val(rw, 1);
+      in.y(q) = eq == 0 ? s.vdot[rw.k] : s.omegadot[rw.k];
+      in.time_index[q] = rw.k;
+      in.block[q] = rw.seg;
+    }
+    const LsSolution sol = solveLeastSquares(in, lso);
+    (eq == 0 ? res.direct_v : res.direct_omega) =
+        report(sol, eq == 0 ? std::vector<std::string>{"i_R + i_L", "v"}
+                            : std::vector<std::string>{"i_R - i_L", "omega"});
+    const char* nm[4] = {"a1", "a2", "a3", "a4"};
+    for (int c = 0; c < 2; ++c) {
+      Eigen::VectorXd e = Eigen::VectorXd::Zero(2);
+      e(c) = 1;
+      const int idx = c == 0 ? ia : ib;
+      res.a_direct[idx] = fromFunctional(sol, e, "column not excited");
+      guardPrecision(res.a_direct[idx], nm[idx]);
+    }
+  }
+
+  // ---- per-side regression: i_i = D1_i vdot + s_i D2_i omegadot + theta5_i (r_G/r) u_i ----
+  for (int side = 0; side < 2; ++side) {
+    const double sgn = side == 0 ? 1.0 : -1.0;
+    LsInput in;
+    in.X.resize(n, 3);
+    in.y.resize(n);
+    in.time_index.resize(n);
+    in.block.resize(n);
+    for (std::size_t q = 0; q < n; ++q) {
+      const auto& rw = rows[q];
+      const auto& s = data.segments[rw.seg];
+      in.X(q, 0) = val(rw, 2);
+      in.X(q, 1) = sgn * val(rw, 3);
+      in.X(q, 2) = rG / r * (val(rw, 0) + sgn * lw / 2 * val(rw, 1));
+      in.y(q) = side == 0 ? s.i_r[rw.k] : s.i_l[rw.k];
+      in.time_index[q] = rw.k;
+      in.block[q] = rw.seg;
+    }
+    const LsSolution sol = solveLeastSquares(in, lso);
+    res.per_side[side] = report(sol, {"vdot", "s_i omegadot", "(r_G/r) u_i"});
+    auto& m = res.motor[side];
+    Eigen::Vector3d e0(1, 0, 0), e1(0, 1, 0), e2(0, 0, 1);
+    m.D1 = fromFunctional(sol, e0, "no linear acceleration above the noise floor");
+    m.D2 = fromFunctional(sol, e1, "no angular acceleration above the noise floor");
+    m.theta5 = fromFunctional(sol, e2, "the wheel hardly moves");
+    guardPrecision(m.D1, "D1 of this side");
+    guardPrecision(m.D2, "D2 of this side");
+    guardPrecision(m.theta5, "theta_5 of this side");
+  }
+
+  // ---- quasi-steady segments: per-motor k/eta (eq. 4) and back-EMF constant ----
+  std::array<std::vector<double>, 2> xs, y_ratio, y_emf, wts;
+  for (std::size_t si = 0; si < data.segments.size(); ++si) {
+    const auto& s = data.segments[si];
+    const std::size_t N = s.t.size();
+    auto steady = [&](std::size_t k) {
+      return s.interior[k] && s.moving[k] && std::abs(s.vdot[k]) < o.qs_max_vdot_m_s2 &&
+             std::abs(s.omegadot[k]) < o.qs_max_omegadot_rad_s2;
+    };
+    for (std::size_t k0 = 0; k0 < N;) {
+      if (!steady(k0)) {
+        ++k0;
+        continue;
+      }
+      std::size_t k1 = k0;
+      while (k1 < N && steady(k1)) ++k1;
+      const double dur = (k1 - k0) / o.rate_hz;
+      if (dur >= o.qs_min_duration_s) {
+        QuasiSteadySegment q;
+        q.recording = s.recording;
+        q.t_start_s = s.t[k0];
+        q.t_end_s = s.t[k1 - 1];
+        const double m = double(k1 - k0);
+        std::array<double, 2> umin{1e300, 1e300}, umax{-1e300, -1e300};
+        for (std::size_t k = k0; k < k1; ++k) {
+          q.v_m_s += s.v[k] / m;
+          q.omega_rad_s += s.omega[k] / m;
+          const double u[2] = {s.u_r[k], s.u_l[k]};
+          const double cur[2] = {s.i_r[k], s.i_l[k]};
+          const double U[2] = {s.U_r[k], s.U_l[k]};
+          for (int i = 0; i < 2; ++i) {
+            q.current_A[i] += cur[i] / m;
+            q.voltage_V[i] += U[i] / m;
+            q.motor_speed_rad_s[i] += rG / r * u[i] / m;
+            umin[i] = std::min(umin[i], u[i]);
+            umax[i] = std::max(umax[i], u[i]);
+          }
+        }
+        for (int i = 0; i < 2; ++i) {
+          q.used[i] = data.has_voltage &&
+                      (umin[i] >= o.qs_min_wheel_speed_m_s || umax[i] <= -o.qs_min_wheel_speed_m_s);
+          if (!q.used[i]) continue;
+          xs[i].push_back(q.motor_speed_rad_s[i]);
+          y_ratio[i].push_back(q.voltage_V[i]);
+          y_emf[i].push_back(q.voltage_V[i] - cfg.vehicle.armature_resistance_ohm * q.current_A[i]);
+          wts[i].push_back(dur);
+        }
+        res.segments.push_back(q);
+      }
+      k0 = k1;
+    }
+  }
+  for (int i = 0; i < 2; ++i) {
+    auto& m = res.motor[i];
+    m.n_segments = static_cast<int>(xs[i].size());
+    if (!data.has_voltage) {
+      m.k_over_eta.reason = m.back_emf_k.reason =
+          "the recordings hold no V_RC voltage (all zero): motor constants need it";
+      continue;
+    }
+    m.k_over_eta = ratioThroughOrigin(xs[i], y_ratio[i], wts[i], "k/eta (eq. 4)");
+    m.back_emf_k = ratioThroughOrigin(xs[i], y_emf[i], wts[i], "back-EMF constant");
+  }
+  if (res.segments.empty())
+    res.notes.push_back(fmt::format(
+        "no quasi-steady segment (|vdot| < {} m/s^2, |omegadot| < {} rad/s^2 for >= {} s while "
+        "moving): per-motor constants not identified",
+        o.qs_max_vdot_m_s2, o.qs_max_omegadot_rad_s2, o.qs_min_duration_s));
+
+  res.notes.push_back(fmt::format(
+      "standard errors: Newey-West HAC (Bartlett kernel, {} lags = {} x rate/cutoff) over "
+      "per-time-step scores; intervals are value +- {:.3f} se ({:.0f} % two-sided); on average "
+      "they are {:.2f} x the iid standard errors (se_naive_iid, reported only for comparison)",
+      res.hac_lags, o.hac_lag_factor, res.z, 100 * o.confidence,
+      std::sqrt(double(ts.residual.n_rows) / std::max(1.0, ts.residual.n_effective))));
+  if (!ex_v && !ex_w) res.notes.push_back("the chair hardly moves: nothing is identifiable");
+  return res;
+}
+
+// ---------------------------------------------------------------------------------------
+
+nlohmann::json IdentificationResult::toJson() const {
+  using nlohmann::json;
+  json j;
+  j["tool"] = "wheelchair identify";
+  j["config"] = config_origin;
+  j["recordings"] = sources;
+  j["options"] = options.toJson();
+  j["confidence"] = {
+      {"level", options.confidence},
+      {"z", z},
+      {"se_method", fmt::format("Newey-West HAC, Bartlett kernel, {} lags", hac_lags)}};
+  j["samples"] = {{"grid", n_grid},
+                  {"used", n_used},
+                  {"excluded_standstill", n_standstill},
+                  {"excluded_segment_edges", n_edge},
+                  {"standstill_rule", fmt::format("both filtered rim speeds |u_R|, |u_L| < {} m/s",
+                                                  options.standstill_speed_m_s)}};
+  json ex = json::object();
+  for (const auto& e : excitation)
+    ex[e.signal] = {
+        {"rms", e.rms}, {"noise_floor", e.noise}, {"snr", e.snr}, {"excited", e.excited}};
+  j["excitation"] = ex;
+
+  json tr = theta_regression.toJson();
+  tr["residual"] = residualJson(theta_regression.residual, "A");
+  json nds = json::array();
+  for (const auto& nd : null_directions)
+    nds.push_back({{"direction_theta", nd.direction},
+                   {"direction_scaled", nd.direction_scaled},
+                   {"singular_value_relative", nd.singular_value_rel},
+                   {"description", nd.description}});
+  tr["not_identifiable_directions"] = nds;
+  j["theta_regression"] = tr;
+
+  json th = json::object();
+  for (int k = 0; k < 5; ++k) {
+    json e = theta[k].toJson(z);
+    e["meaning"] = kThetaMeaning[k];
+    e["unit"] = kThetaUnit[k];
+    th[kThetaNames[k]] = e;
+  }
+  j["theta"] = th;
+  json c1 = D1.toJson(z), c2 = D2.toJson(z);
+  c1["definition"] = "(r/r_G)(m_w + m_b/2) theta_1 + (r_G/r) theta_2 + theta_3/(r r_G) = 1/(2 a1)";
+  c1["unit"] = "A s^2/m";
+  c2["definition"] =
+      "(r/r_G)(m_w l_w/2 theta_1 + theta_4/l_w) + (l_w/2)((r_G/r) theta_2 + theta_3/(r r_G)) = "
+      "1/(2 a2)";
+  c2["unit"] = "A s^2/rad";
+  j["combinations"] = {{"D1", c1}, {"D2", c2}};
+
+  const char* an[4] = {"a1", "a2", "a3", "a4"};
+  const char* au[4] = {"m/s^2 per A", "rad/s^2 per A", "1/s", "1/s"};
+  json ft = json::object(), dr = json::object();
+  for (int k = 0; k < 4; ++k) {
+    ft[an[k]] = a_from_theta[k].toJson(z);
+    ft[an[k]]["unit"] = au[k];
+    dr[an[k]] = a_direct[k].toJson(z);
+    dr[an[k]]["unit"] = au[k];
+  }
+  json dv = direct_v.toJson(), dw = direct_omega.toJson();
+  if (!direct_v.columns.empty()) dv["residual"] = residualJson(direct_v.residual, "m/s^2");
+  if (!direct_omega.columns.empty())
+    dw["residual"] = residualJson(direct_omega.residual, "rad/s^2");
+  j["ode"] = {{"from_theta", ft},
+              {"direct", dr},
+              {"direct_regression_v", dv},
+              {"direct_regression_omega", dw}};
+
+  json pm = json::object();
+  const char* sn[2] = {"right", "left"};
+  for (int i = 0; i < 2; ++i) {
+    json rs = per_side[i].toJson();
+    rs["residual"] = residualJson(per_side[i].residual, "A");
+    rs["D1"] = motor[i].D1.toJson(z);
+    rs["D2"] = motor[i].D2.toJson(z);
+    rs["theta_5"] = motor[i].theta5.toJson(z);
+    pm[sn[i]] = {{"k_over_eta_eq4", motor[i].k_over_eta.toJson(z)},
+                 {"back_emf_constant_Nm_A", motor[i].back_emf_k.toJson(z)},
+                 {"quasi_steady_segments_used", motor[i].n_segments},
+                 {"regression", rs}};
+  }
+  auto ratio = [&](const Estimate& a, const Estimate& b) -> json {
+    if (!a.identifiable || !b.identifiable) return nullptr;
+    return a.value / b.value;
+  };
+  pm["ratio_right_over_left"] = {{"k_over_eta", ratio(motor[0].k_over_eta, motor[1].k_over_eta)},
+                                 {"back_emf_k", ratio(motor[0].back_emf_k, motor[1].back_emf_k)},
+                                 {"theta_5", ratio(motor[0].theta5, motor[1].theta5)},
+                                 {"D1", ratio(motor[0].D1, motor[1].D1)}};
+  j["per_motor"] = pm;
+
+  json segs = json::array();
+  for (const auto& q : segments)
+    segs.push_back({{"recording", q.recording},
+                    {"t_start_s", q.t_start_s},
+                    {"t_end_s", q.t_end_s},
+                    {"v_m_s", q.v_m_s},
+                    {"omega_rad_s", q.omega_rad_s},
+                    {"current_A", q.current_A},
+                    {"voltage_V", q.voltage_V},
+                    {"motor_speed_rad_s", q.motor_speed_rad_s},
+                    {"used_right", q.used[0]},
+                    {"used_left", q.used[1]}});
+  j["quasi_steady_segments"] = segs;
+  j["notes"] = notes;
+  return j;
+}
+
+// ---------------------------------------------------------------------------------------
+
+config::WheelchairConfig identifiedConfig(const config::WheelchairConfig& base,
+                                          const IdentificationResult& res,
+                                          std::vector<std::string>* changes) {
+  config::WheelchairConfig cfg = base;
+  auto& v = cfg.vehicle;
+  const auto& g = v.geom;
+  const double r = g.wheel_radius_m, rG = g.gear_ratio, rho = r / rG, lw = g.track_width_m;
+  const double k0 = v.torque_constant_Nm_A, eta0 = v.gearbox_efficiency;
+  const double B0 = v.motor_viscous_Nm_s_rad, Izz0 = v.yaw_inertia_kg_m2;
+  std::vector<std::string> log;
+  auto note = [&](const std::string& key, double from, double to, const std::string& why) {
+    log.push_back(fmt::format("[vehicle] {}: {:.6g} -> {:.6g} ({})", key, from, to, why));
+  };
+
+  double k = k0;
+  {
+    double sum = 0;
+    int cnt = 0;
+    for (const auto& m : res.motor)
+      if (m.back_emf_k.identifiable) sum += m.back_emf_k.value, ++cnt;
+    if (res.options.update_torque_constant && cnt > 0) k = sum / cnt;
+  }
+  const double J_rot = v.motor_inertia_kg_m2 / rho + v.wheel_inertia_kg_m2 / (r * rG);
+  double etak = eta0 * k0;  // keeps the old eta_G k_m when D1 is not identified
+  if (res.D1.identifiable && res.D1.value > 0)
+    etak = (rho * (g.wheel_mass_kg + g.body_mass_kg / 2) + J_rot) / res.D1.value;
+  v.torque_constant_Nm_A = k;
+  v.gearbox_efficiency = etak / k;
+  if (k != k0) note("torque_constant_Nm_A", k0, k, "mean back-EMF constant of the two motors");
+  if (v.gearbox_efficiency != eta0)
+    note("gearbox_efficiency", eta0, v.gearbox_efficiency,
+         res.D1.identifiable ? "eta_G k_m reproduces the identified D1 = 1/(2 a1)"
+                             : "keeps eta_G k_m with the new k_m");
+  if (v.gearbox_efficiency > 1)
+    log.push_back(fmt::format(
+        "warning: gearbox_efficiency {:.3g} > 1: the configured masses/inertias or k_m do not "
+        "match the data; the model only uses the product eta_G k_m = {:.4g}",
+        v.gearbox_efficiency, etak));
+  if (res.D2.identifiable) {
+    const double Izz =
+        lw / rho * (res.D2.value * etak - rho * g.wheel_mass_kg * lw / 2 - lw / 2 * J_rot);
+    if (Izz > 0) {
+      v.yaw_inertia_kg_m2 = Izz;
+      note("yaw_inertia_kg_m2", Izz0, Izz, "reproduces the identified D2 = 1/(2 a2)");
+    } else {
+      log.push_back("yaw_inertia_kg_m2 kept: the identified D2 would need I_zz <= 0");
+    }
+  }
+  if (res.theta[4].identifiable) {
+    v.motor_viscous_Nm_s_rad = res.theta[4].value * k;
+    note("motor_viscous_Nm_s_rad", B0, v.motor_viscous_Nm_s_rad, "B_m = theta_5 k_m");
+  } else if (k != k0) {
+    v.motor_viscous_Nm_s_rad = B0 * k / k0;
+    note("motor_viscous_Nm_s_rad", B0, v.motor_viscous_Nm_s_rad, "keeps B_m/k_m with the new k_m");
+  }
+  cfg.syncToIni();
+
+  // [identified]: the estimates themselves (a1..a4 consistent with [vehicle] above).
+  const auto a = model::odeCoefficients(g, model::lumpedTheta(v));
+  auto put = [&](const std::string& key, double x) {
+    cfg.set("identified", key, fmt::format("{}", x));
+  };
+  put("a1", a.a1);
+  put("a2", a.a2);
+  put("a3", a.a3);
+  put("a4", a.a4);
+  const char* an[4] = {"a1", "a2", "a3", "a4"};
+  for (int i = 0; i < 4; ++i) {
+    if (res.a_from_theta[i].identifiable) put(std::string(an[i]) + "_se", res.a_from_theta[i].se);
+    cfg.set("identified", std::string(an[i]) + "_identified",
+            res.a_from_theta[i].identifiable ? "1" : "0");
+    if (res.a_direct[i].identifiable) put(std::string(an[i]) + "_direct", res.a_direct[i].value);
+  }
+  const char* sn[2] = {"right", "left"};
+  for (int i = 0; i < 2; ++i) {
+    if (res.motor[i].back_emf_k.identifiable)
+      put(fmt::format("back_emf_k_{}_Nm_A", sn[i]), res.motor[i].back_emf_k.value);
+    if (res.motor[i].k_over_eta.identifiable)
+      put(fmt::format("k_over_eta_{}", sn[i]), res.motor[i].k_over_eta.value);
+  }
+  std::string src;
+  for (const auto& s : res.sources) src += (src.empty() ? "" : " ") + s;
+  cfg.set("identified", "sources", src.empty() ? "-" : src);
+  cfg.set("identified", "cutoff_hz", fmt::format("{}", res.options.cutoff_hz));
+  if (changes) *changes = log;
+  return cfg;
+}
+
+}  // namespace wheelchair::identification

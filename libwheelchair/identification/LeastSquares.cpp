@@ -1,0 +1,173 @@
+#include "libwheelchair/identification/LeastSquares.h"
+
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <stdexcept>
+
+namespace wheelchair::identification {
+
+namespace {
+
+// Per-block dense score matrices (p x T), time steps without rows hold zeros.
+struct BlockSeries {
+  long t0 = 0;
+  Eigen::MatrixXd G;
+};
+
+std::map<int, BlockSeries> scoreSeries(const Eigen::MatrixXd& X, const Eigen::VectorXd& e,
+                                       const std::vector<long>& ti, const std::vector<int>& blk) {
+  std::map<int, std::pair<long, long>> range;
+  for (std::size_t r = 0; r < ti.size(); ++r) {
+    auto it = range.find(blk[r]);
+    if (it == range.end())
+      range[blk[r]] = {ti[r], ti[r]};
+    else {
+      it->second.first = std::min(it->second.first, ti[r]);
+      it->second.second = std::max(it->second.second, ti[r]);
+    }
+  }
+  std::map<int, BlockSeries> out;
+  for (auto& [b, rg] : range) {
+    BlockSeries s;
+    s.t0 = rg.first;
+    s.G = Eigen::MatrixXd::Zero(X.cols(), rg.second - rg.first + 1);
+    out[b] = std::move(s);
+  }
+  for (std::size_t r = 0; r < ti.size(); ++r) {
+    auto& s = out[blk[r]];
+    s.G.col(ti[r] - s.t0) += X.row(r).transpose() * e(r);
+  }
+  return out;
+}
+
+}  // namespace
+
+Eigen::MatrixXd hacScoreCovariance(const Eigen::MatrixXd& X, const Eigen::VectorXd& e,
+                                   const std::vector<long>& ti, const std::vector<int>& blk,
+                                   int lags) {
+  const auto series = scoreSeries(X, e, ti, blk);
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(X.cols(), X.cols());
+  for (const auto& [b, s] : series) {
+    const long T = s.G.cols();
+    S += s.G * s.G.transpose();
+    for (long l = 1; l <= lags && l < T; ++l) {
+      const double w = 1.0 - double(l) / (lags + 1);
+      const Eigen::MatrixXd C = s.G.leftCols(T - l) * s.G.rightCols(T - l).transpose();
+      S += w * (C + C.transpose());
+    }
+  }
+  return S;
+}
+
+Eigen::MatrixXd LsSolution::nullDirections() const {
+  const int p = static_cast<int>(V.cols());
+  Eigen::MatrixXd N(p, p - rank);
+  for (int k = rank; k < p; ++k) {
+    Eigen::VectorXd d = V.col(k).cwiseQuotient(column_scale);
+    N.col(k - rank) = d / d.norm();
+  }
+  return N;
+}
+
+bool LsSolution::isEstimable(const Eigen::VectorXd& w, double tol) const {
+  const Eigen::VectorXd ws = w.cwiseQuotient(column_scale);
+  const double n = ws.norm();
+  if (n == 0) return true;
+  const int p = static_cast<int>(V.cols());
+  if (rank == p) return true;
+  const Eigen::VectorXd proj = V.rightCols(p - rank).transpose() * ws;
+  return proj.norm() <= tol * n;
+}
+
+double LsSolution::standardError(const Eigen::VectorXd& w) const {
+  return std::sqrt(std::max(0.0, w.dot(cov * w)));
+}
+
+double LsSolution::standardErrorNaive(const Eigen::VectorXd& w) const {
+  return std::sqrt(std::max(0.0, w.dot(cov_naive * w)));
+}
+
+LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt) {
+  const long n = in.X.rows(), p = in.X.cols();
+  if (in.y.size() != n || long(in.time_index.size()) != n || long(in.block.size()) != n)
+    throw std::invalid_argument("solveLeastSquares: inconsistent input sizes");
+  if (n < p) throw std::invalid_argument("solveLeastSquares: fewer rows than parameters");
+
+  LsSolution s;
+  // Column equilibration: unit 2-norm columns (an all-zero column keeps scale 1 and shows up
+  // as a zero singular value, i.e. an undetermined parameter).
+  s.column_scale = in.X.colwise().norm().transpose();
+  for (long j = 0; j < p; ++j)
+    if (!(s.column_scale(j) > 0)) s.column_scale(j) = 1.0;
+  const Eigen::MatrixXd Xs = in.X * s.column_scale.cwiseInverse().asDiagonal();
+
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(Xs, Eigen::ComputeThinU | Eigen::ComputeFullV);
+  s.singular_values = svd.singularValues();
+  s.V = svd.matrixV();
+  const double smax = s.singular_values(0);
+  s.rank = 0;
+  for (long k = 0; k < p; ++k)
+    if (s.singular_values(k) > opt.rank_tol * smax) ++s.rank;
+  const double smin = s.singular_values(p - 1);
+  s.condition_number = smin > 0 ? smax / smin : std::numeric_limits<double>::infinity();
+  s.condition_number_identifiable =
+      s.rank > 0 ? smax / s.singular_values(s.rank - 1) : std::numeric_limits<double>::infinity();
+
+  const int r = s.rank;
+  const Eigen::MatrixXd Vr = s.V.leftCols(r);
+  const Eigen::VectorXd sr = s.singular_values.head(r);
+  const Eigen::VectorXd beta_s =
+      Vr * (sr.cwiseInverse().asDiagonal() * (svd.matrixU().leftCols(r).transpose() * in.y));
+  s.beta = beta_s.cwiseQuotient(s.column_scale);
+
+  s.residuals = in.y - Xs * beta_s;
+  auto& rs = s.residual;
+  rs.n_rows = static_cast<std::size_t>(n);
+  rs.dof = static_cast<int>(n - r);
+  rs.rms = std::sqrt(s.residuals.squaredNorm() / n);
+  rs.mean = s.residuals.mean();
+  rs.max_abs = s.residuals.cwiseAbs().maxCoeff();
+  rs.rms_y = std::sqrt(in.y.squaredNorm() / n);
+  rs.r_squared = 1.0 - s.residuals.squaredNorm() / std::max(in.y.squaredNorm(), 1e-300);
+
+  // (X_s'X_s)^+ on the retained subspace.
+  const Eigen::MatrixXd P = Vr * sr.array().pow(-2).matrix().asDiagonal() * Vr.transpose();
+  const double sigma2 = s.residuals.squaredNorm() / std::max<long>(1, n - r);
+  const Eigen::MatrixXd cov_naive_s = sigma2 * P;
+  const Eigen::MatrixXd S =
+      hacScoreCovariance(Xs, s.residuals, in.time_index, in.block, std::max(0, opt.hac_lags));
+  const double small_sample = double(n) / std::max<long>(1, n - r);
+  const Eigen::MatrixXd cov_s = small_sample * P * S * P;
+  const Eigen::MatrixXd Dinv = s.column_scale.cwiseInverse().asDiagonal();
+  s.cov = Dinv * cov_s * Dinv;
+  s.cov_naive = Dinv * cov_naive_s * Dinv;
+
+  // Effective number of rows: how much the autocorrelation inflates the variance.
+  double ratio = 0;
+  for (int k = 0; k < r; ++k) {
+    const double vh = Vr.col(k).dot(cov_s * Vr.col(k));
+    const double vn = Vr.col(k).dot(cov_naive_s * Vr.col(k));
+    ratio += vh > 0 ? vn / vh : 1.0;
+  }
+  rs.n_effective = r > 0 ? n * ratio / r : 0;
+
+  // Lag-1 autocorrelation of the per-time-step residual sum, within blocks.
+  {
+    Eigen::MatrixXd ones = Eigen::MatrixXd::Ones(n, 1);
+    const auto series = scoreSeries(ones, s.residuals, in.time_index, in.block);
+    double c0 = 0, c1 = 0;
+    for (const auto& [b, ser] : series) {
+      const Eigen::RowVectorXd g = ser.G.row(0);
+      c0 += g.squaredNorm();
+      if (g.size() > 1) c1 += g.head(g.size() - 1).dot(g.tail(g.size() - 1));
+    }
+    rs.lag1_autocorr = c0 > 0 ? c1 / c0 : 0;
+  }
+  return s;
+}
+
+}  // namespace wheelchair::identification

@@ -1,0 +1,89 @@
+// Linear least squares done carefully: column equilibration, a rank-revealing SVD, the
+// minimum-norm solution on the numerically identifiable subspace, and standard errors that
+// survive coloured (autocorrelated) residuals.
+//
+// Why not (Y'Y)^-1 Y'l as in eq. (5): forming Y'Y squares the condition number, and the
+// paper's 5-column regressor is rank-deficient by construction (docs/identification.md), so
+// Y'Y is singular in exact arithmetic; no amount of extra precision makes theta_2 and
+// theta_3 separable. The SVD of the equilibrated matrix tells which directions are
+// determined and which are not, and the solution is reported only on the former.
+//
+// Standard errors: rows come from signals filtered at a few Hz and sampled at 50-100 Hz, so
+// neighbouring residuals are strongly correlated and the textbook sigma^2 (X'X)^-1 is far too
+// small. The covariance here is the Newey-West (Bartlett kernel) HAC sandwich
+//   Cov = (X'X)^+ S (X'X)^+,  S = sum_{|l|<=L} (1 - |l|/(L+1)) sum_t g_t g_{t-l}',
+//   g_t = sum over the rows of time step t of x_r e_r,
+// with lags taken only within one block (a recording segment); rows of the same time step
+// (the right and left motor) are grouped, so their correlation is accounted for too.
+//
+// Example:
+//   LsInput in{X, y, time_index, block};
+//   LsSolution s = solveLeastSquares(in, LsOptions{.hac_lags = 200});
+//   if (s.isEstimable(w)) double est = w.dot(s.beta), se = std::sqrt(w.dot(s.cov * w));
+#pragma once
+
+#include <Eigen/Core>
+
+#include <string>
+#include <vector>
+
+namespace wheelchair::identification {
+
+struct LsInput {
+  Eigen::MatrixXd X;             ///< n x p regressor
+  Eigen::VectorXd y;             ///< n observations
+  std::vector<long> time_index;  ///< per row: time-step index (rows of one step share it)
+  std::vector<int> block;        ///< per row: block id; no correlation across blocks
+};
+
+struct LsOptions {
+  int hac_lags = 200;      ///< Bartlett bandwidth L in time steps (0: White / iid)
+  double rank_tol = 1e-9;  ///< singular values below rank_tol * sigma_max are treated as 0
+};
+
+struct ResidualStats {
+  std::size_t n_rows = 0;
+  int dof = 0;     ///< n_rows - rank
+  double rms = 0;  ///< root mean square residual (units of y)
+  double mean = 0;
+  double max_abs = 0;
+  double rms_y = 0;          ///< rms of y, for reference
+  double r_squared = 0;      ///< 1 - RSS/TSS (TSS about zero: the model has no intercept)
+  double lag1_autocorr = 0;  ///< of the per-time-step summed residual, within blocks
+  double n_effective = 0;    ///< n_rows * (naive variance / HAC variance), averaged over
+                             ///< estimable coordinates: how many independent rows the data
+                             ///< are worth
+};
+
+struct LsSolution {
+  Eigen::VectorXd beta;             ///< minimum-norm solution (in the scaled metric)
+  Eigen::MatrixXd cov;              ///< HAC covariance of beta (valid for estimable w'beta)
+  Eigen::MatrixXd cov_naive;        ///< sigma^2 (X'X)^+ (iid assumption), for comparison
+  Eigen::VectorXd column_scale;     ///< the 2-norm of each column (0 for an all-zero column)
+  Eigen::VectorXd singular_values;  ///< of the equilibrated matrix, descending
+  Eigen::MatrixXd V;                ///< its right singular vectors (columns), scaled coords
+  int rank = 0;
+  double condition_number = 0;               ///< sigma_max / sigma_min of the equilibrated matrix
+                                             ///< (inf when rank-deficient)
+  double condition_number_identifiable = 0;  ///< sigma_max / sigma_rank (retained subspace)
+  ResidualStats residual;
+  Eigen::VectorXd residuals;
+
+  /// Null-space basis in parameter coordinates (unit-norm columns, scaled metric mapped
+  /// back: direction d of beta such that X d ~ 0).
+  Eigen::MatrixXd nullDirections() const;
+  /// True when w'beta does not depend on the undetermined directions (relative tolerance).
+  bool isEstimable(const Eigen::VectorXd& w, double tol = 1e-6) const;
+  double estimate(const Eigen::VectorXd& w) const { return w.dot(beta); }
+  double standardError(const Eigen::VectorXd& w) const;
+  double standardErrorNaive(const Eigen::VectorXd& w) const;
+};
+
+LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt = {});
+
+/// Newey-West S matrix of per-time-step scores (helper, exposed for tests).
+Eigen::MatrixXd hacScoreCovariance(const Eigen::MatrixXd& X, const Eigen::VectorXd& e,
+                                   const std::vector<long>& time_index,
+                                   const std::vector<int>& block, int lags);
+
+}  // namespace wheelchair::identification

@@ -1,0 +1,113 @@
+// Rawlogs: MRPT's native binary log (a gzip-compressed stream of serialized observations,
+// "observations-only" format), readable by RawLogViewer and rawlog-edit.
+//
+// Every stream is stored in a standard MRPT class with a sensorLabel (docs/rawlog-mapping.md):
+//   ENCODERS      CObservationOdometry  hasEncodersInfo, absolute ticks (right/left)
+//   IMU           CObservationIMU       IMU_WZ (+ IMU_WX, IMU_WY, IMU_{X,Y,Z}_ACC if recorded)
+//   MOTORS        CObservationRawDAQ    AIN_double = {current_right_A, current_left_A,
+//                                                     vrc_right_V, vrc_left_V}
+//   SONAR         CObservationRange     one measurement; sensor pose, cone and limits from
+//                                       the configuration; a 0 reading kept as recorded
+//   POZYX         CObservationRobotPose position in the anchor frame, covariance from the
+//                                       configuration (z variance 1e6 m^2 when z not recorded)
+//   JOYSTICK      CObservationRawDAQ    AIN_double = {v_cmd_m_s, omega_cmd_rad_s}
+//   GROUND_TRUTH  CObservationRobotPose motion-capture pose (x, y, yaw)
+//   LANDMARKS     CObservationBearingRange  one sighting: landmarkID, range, yaw
+// The first record is a CObservationComment (label META) holding the recording's meta.ini
+// keys and the configuration the file was written with.
+//
+// Writing goes to PATH.tmp and is renamed on commit(): a failed run never leaves a half
+// file. Reading is streamed record by record; a truncated or corrupt file yields every
+// complete record, then reports the record index and byte offset where it broke.
+#pragma once
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/io/Samples.h"
+
+#include <mrpt/io/CFileGZInputStream.h>
+#include <mrpt/io/CFileGZOutputStream.h>
+#include <mrpt/obs/CObservation.h>
+
+#include <memory>
+#include <optional>
+#include <string>
+
+namespace wheelchair::io {
+
+/// Builds the MRPT observation for a sample (sensor geometry from `cfg`).
+mrpt::obs::CObservation::Ptr toObservation(const AnySample& s, const config::WheelchairConfig& cfg);
+/// The sample an observation holds; nullopt for observations that are not ours (unknown
+/// label/class combination, or the META comment).
+std::optional<AnySample> fromObservation(const mrpt::obs::CObservation& obs);
+
+class RawlogWriter {
+ public:
+  /// compression_level: 0 none .. 9 best (1 = fast, MRPT's default for grabbers).
+  explicit RawlogWriter(const std::string& path, int compression_level = 1);
+  ~RawlogWriter();  // removes the temporary file unless committed
+  void write(const mrpt::serialization::CSerializable& obj);
+  void write(const AnySample& s, const config::WheelchairConfig& cfg);
+  void writeHeader(const std::map<std::string, std::string>& meta,
+                   const config::WheelchairConfig& cfg, double t_s);
+  std::size_t count() const { return count_; }
+  void commit();
+
+ private:
+  std::string path_, tmp_;
+  std::unique_ptr<mrpt::io::CFileGZOutputStream> out_;
+  std::size_t count_ = 0;
+  bool committed_ = false;
+};
+
+/// Where a rawlog stopped being readable.
+struct RawlogBreak {
+  std::size_t record_index = 0;   ///< 0-based index of the first unreadable record
+  uint64_t byte_offset = 0;       ///< uncompressed offset where it started
+  std::string what;
+};
+
+class RawlogReader {
+ public:
+  explicit RawlogReader(const std::string& path);
+  /// Next record; false at a clean end of file or at the first broken record (see error()).
+  bool next(mrpt::serialization::CSerializable::Ptr& obj);
+  const std::optional<RawlogBreak>& error() const { return error_; }
+  std::size_t recordsRead() const { return index_; }
+  /// Bytes of the file (compressed) and uncompressed position (for progress bars).
+  uint64_t fileSize() const { return file_size_; }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  mrpt::io::CFileGZInputStream in_;
+  std::size_t index_ = 0;
+  uint64_t file_size_ = 0;
+  std::optional<RawlogBreak> error_;
+};
+
+/// Writes a whole recording (time-ordered merge of its streams) with a META header.
+void writeRawlog(const Recording& rec, const std::string& path, const config::WheelchairConfig& cfg);
+
+struct RawlogReadReport {
+  std::size_t records = 0;
+  std::size_t ignored = 0;             ///< records that are not ours (other labels/classes)
+  std::optional<RawlogBreak> broken;   ///< set when the file is truncated/corrupt
+  std::string header_text;             ///< META comment text (meta keys + configuration)
+};
+
+/// Reads a whole rawlog into memory. Throws on a broken file unless `allow_truncated`,
+/// in which case every complete record is returned and the break is in the report.
+Recording readRawlog(const std::string& path, RawlogReadReport* report = nullptr,
+                     bool allow_truncated = false);
+
+/// If `obj` is our header record (a CObservationComment written by writeHeader; MRPT does
+/// not serialize a comment's sensorLabel, so it is recognised by its first line), returns its
+/// text.
+std::optional<std::string> headerText(const mrpt::serialization::CSerializable& obj);
+/// The `[recording]` keys (meta.ini) stored in a header text.
+std::map<std::string, std::string> headerMeta(const std::string& header_text);
+
+/// Human-readable "file: record N at byte B: what" for a break.
+std::string describeBreak(const std::string& path, const RawlogBreak& b);
+
+}  // namespace wheelchair::io

@@ -1,0 +1,108 @@
+// The plain-text recording format (docs/recording-format.md): a directory with one CSV file
+// per stream (encoders.csv, imu.csv, motors.csv required; sonar.csv, pozyx.csv,
+// joystick.csv optional; meta.ini kept as-is).
+//
+// Reading is streamed: TextRecordingReader merges the files in time order one row at a time,
+// so memory stays flat whatever the file size. Every error names the file and line.
+// Writing goes to a temporary directory that is renamed into place on commit(), so a failed
+// export never leaves a half-written recording.
+//
+// Example:
+//   TextRecordingReader in("datasets/three_task");
+//   AnySample s;
+//   while (in.next(s)) { ... }
+//   for (auto& w : in.warnings()) std::cerr << w << "\n";
+#pragma once
+
+#include "libwheelchair/io/Samples.h"
+
+#include <fstream>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace wheelchair::io {
+
+/// Thrown for malformed input; what() names the file and line.
+struct FormatError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// Streams the rows of one CSV file of the format.
+class CsvStreamReader {
+ public:
+  CsvStreamReader(const std::string& path, StreamKind kind);
+  /// Reads the next row; false at end of file. Throws FormatError on a malformed row.
+  bool next(AnySample& out);
+  const std::string& path() const { return path_; }
+  std::size_t line() const { return line_no_; }
+  /// Columns present in the header (e.g. imu.csv's optional ones).
+  const std::vector<std::string>& columns() const { return columns_; }
+
+ private:
+  std::string path_;
+  StreamKind kind_;
+  std::ifstream in_;
+  std::size_t line_no_ = 0;
+  std::vector<std::string> columns_;
+  std::string buf_;
+  std::vector<double> values_;
+};
+
+/// Per-stream timestamp health, collected while reading (see also RecordingStats.h).
+struct TimestampIssues {
+  std::size_t out_of_order = 0;
+  std::size_t duplicates = 0;
+  std::size_t first_bad_line = 0;
+};
+
+class TextRecordingReader {
+ public:
+  explicit TextRecordingReader(const std::string& dir);
+  ~TextRecordingReader();
+  /// Next sample over all files in time order (file order kept within a file).
+  bool next(AnySample& out);
+  /// meta.ini [recording] keys.
+  const std::map<std::string, std::string>& meta() const { return meta_; }
+  /// Human-readable warnings (missing optional files, timestamp issues), filled as read.
+  std::vector<std::string> warnings() const;
+  /// Columns of each present file.
+  std::map<StreamKind, std::vector<std::string>> columns() const;
+
+ private:
+  struct Source;
+  std::vector<std::unique_ptr<Source>> sources_;
+  std::map<std::string, std::string> meta_;
+  std::vector<std::string> missing_optional_;
+};
+
+/// Whole recording in memory (for moderate sizes; use TextRecordingReader to stream).
+Recording readTextRecording(const std::string& dir, std::vector<std::string>* warnings = nullptr);
+
+/// Streams samples into a recording directory; files appear only on commit().
+class TextRecordingWriter {
+ public:
+  explicit TextRecordingWriter(const std::string& dir);
+  ~TextRecordingWriter();  // removes the temporary directory unless committed
+  void write(const AnySample& s);
+  void setMeta(const std::map<std::string, std::string>& meta) { meta_ = meta; }
+  /// Optional streams are written only if they had samples; required ones always.
+  void commit();
+
+ private:
+  std::ofstream& fileFor(StreamKind k, const AnySample& first);
+  std::string dir_, tmp_dir_;
+  std::map<StreamKind, std::ofstream> files_;
+  std::map<std::string, std::string> meta_;
+  bool committed_ = false;
+};
+
+void writeTextRecording(const Recording& rec, const std::string& dir);
+
+/// Formats a value with the shortest representation that reads back identically.
+std::string formatNumber(double x);
+/// Timestamps are exported at 1 microsecond resolution (MRPT clock ticks are 100 ns).
+std::string formatTime(double t_s);
+
+}  // namespace wheelchair::io

@@ -1,0 +1,687 @@
+#include "libwheelchair/simulation/Simulator.h"
+
+#include "libwheelchair/model/DriveDynamics.h"
+#include "libwheelchair/model/Kinematics.h"
+#include "libwheelchair/sensors/Encoders.h"
+#include "libwheelchair/sensors/VoltageCircuit.h"
+#include "libwheelchair/simulation/Random.h"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace wheelchair::simulation {
+
+namespace {
+
+constexpr double kDeg = M_PI / 180.0;
+
+enum Stream { kEncoders, kImu, kMotors, kSonar, kPozyx, kJoystick, kNumStreams };
+const char* const kStreamNames[kNumStreams] = {"encoders", "imu",   "motors",
+                                               "sonar",    "pozyx", "joystick"};
+
+int streamIndex(const std::string& name) {
+  for (int i = 0; i < kNumStreams; ++i)
+    if (name == kStreamNames[i]) return i;
+  throw std::invalid_argument("unknown sensor stream '" + name + "'");
+}
+
+/// Sampling instants of one stream: nominal grid with a per-seed phase plus uniform jitter.
+class StreamClock {
+ public:
+  StreamClock(double rate_hz, double jitter_s, uint64_t seed, const std::string& name)
+      : rng_(seed, name + ".time") {
+    if (!(rate_hz > 0)) {
+      next_ = std::numeric_limits<double>::infinity();
+      return;
+    }
+    period_ = 1.0 / rate_hz;
+    jitter_ = std::clamp(jitter_s, 0.0, 0.4 * period_);
+    nominal_ = jitter_ + rng_.uniform(0, period_);
+    draw();
+  }
+  double next() const { return next_; }
+  void advance() {
+    nominal_ += period_;
+    draw();
+  }
+
+ private:
+  void draw() { next_ = nominal_ + (jitter_ > 0 ? rng_.uniform(-jitter_, jitter_) : 0.0); }
+  Rng rng_;
+  double period_ = 0, jitter_ = 0, nominal_ = 0;
+  double next_ = 0;
+};
+
+/// Mechanical state integrated by RK4.
+struct Mech {
+  double x = 0, y = 0, phi = 0, v = 0, om = 0, psiR = 0, psiL = 0;
+  Mech operator+(const Mech& o) const {
+    return {x + o.x, y + o.y, phi + o.phi, v + o.v, om + o.om, psiR + o.psiR, psiL + o.psiL};
+  }
+  Mech operator*(double a) const {
+    return {x * a, y * a, phi * a, v * a, om * a, psiR * a, psiL * a};
+  }
+};
+
+Mech derivative(const Mech& s, const model::DriveTrain& dt, const Eigen::Vector2d& I) {
+  const Eigen::Vector2d acc = dt.acceleration({s.v, s.om, s.phi}, I);
+  const double r = dt.geom.wheel_radius_m, lw = dt.geom.track_width_m;
+  return {s.v * std::cos(s.phi),     s.v * std::sin(s.phi),    s.om, acc(0), acc(1),
+          (s.v + lw * s.om / 2) / r, (s.v - lw * s.om / 2) / r};
+}
+
+Mech rk4(const Mech& s, const model::DriveTrain& dt, const Eigen::Vector2d& I, double h) {
+  const Mech k1 = derivative(s, dt, I);
+  const Mech k2 = derivative(s + k1 * (h / 2), dt, I);
+  const Mech k3 = derivative(s + k2 * (h / 2), dt, I);
+  const Mech k4 = derivative(s + k3 * h, dt, I);
+  return s + (k1 + k2 * 2 + k3 * 2 + k4) * (h / 6);
+}
+
+/// The sensors' view of the truth at one instant (linear interpolation within a step).
+struct Snap {
+  double x, y, phi, v, om, psiR, psiL, vrcR, vrcL;
+};
+
+int32_t wrapInt32(int64_t x) {
+  return static_cast<int32_t>(static_cast<uint32_t>(x));
+}
+
+/// Everything effects change on the sensor side.
+struct SensorEffects {
+  double encoder_scale[2] = {1, 1};
+  double gyro_bias = 0, gyro_scale = 1;
+  double delay[kNumStreams] = {0, 0, 0, 0, 0, 0};
+  double dropout_probability = 0, dropout_burst = 3;
+  double outlier_rate = 0, outlier_magnitude = 1;
+};
+
+double parseNumber(const std::string& text, const std::string& where) {
+  const char* s = text.c_str();
+  char* end = nullptr;
+  errno = 0;
+  const double x = std::strtod(s, &end);
+  while (end && (*end == ' ' || *end == '\t' || *end == '\r')) ++end;
+  if (end == s || *end != '\0' || errno == ERANGE || !std::isfinite(x))
+    throw std::runtime_error(where + ": '" + text + "' is not a finite number");
+  return x;
+}
+
+std::string trimmed(std::string s) {
+  const auto b = s.find_first_not_of(" \t\r\n\"");
+  if (b == std::string::npos) return "";
+  const auto e = s.find_last_not_of(" \t\r\n\"");
+  return s.substr(b, e - b + 1);
+}
+
+void writeAtomically(const std::string& path, const std::string& content) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error(path + ": cannot write");
+    out << content;
+    out.flush();
+    if (!out) throw std::runtime_error(path + ": write failed");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error(path + ": cannot rename temporary file");
+  }
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------------------------------
+void SimulationOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
+                                       const std::string& sec) {
+  auto raw = [&](const char* key) { return trimmed(ini.read_string(sec, key, "", false)); };
+  auto where = [&](const char* key) { return "[" + sec + "] " + key; };
+  auto D = [&](const char* key, double& v) {
+    const std::string t = raw(key);
+    if (!t.empty()) v = parseNumber(t, where(key));
+  };
+  auto B = [&](const char* key, bool& v) {
+    const std::string t = raw(key);
+    if (t.empty()) return;
+    if (t == "true" || t == "on" || t == "yes")
+      v = true;
+    else if (t == "false" || t == "off" || t == "no")
+      v = false;
+    else
+      v = parseNumber(t, where(key)) != 0;
+  };
+  auto I = [&](const char* key, int64_t& v) {
+    const std::string t = raw(key);
+    if (t.empty()) return;
+    const double x = parseNumber(t, where(key));
+    if (x != std::floor(x)) throw std::runtime_error(where(key) + ": expected an integer");
+    v = static_cast<int64_t>(x);
+  };
+  auto P = [&](const char* key, double& v) {  // strictly positive
+    D(key, v);
+    if (!(v > 0)) throw std::runtime_error(where(key) + ": must be > 0");
+  };
+  auto O = [&](const char* key, std::vector<Obstacle>& v, double radius) {
+    const std::string t = raw(key);
+    if (t.empty()) return;
+    std::string norm = t;
+    for (char& c : norm)
+      if (c == ',' || c == ';') c = ' ';
+    std::istringstream ss(norm);
+    std::vector<double> xs;
+    std::string tok;
+    while (ss >> tok) xs.push_back(parseNumber(tok, where(key)));
+    if (xs.size() % 2) throw std::runtime_error(where(key) + ": expected pairs 'x y x y ...' (m)");
+    v.clear();
+    for (std::size_t i = 0; i + 1 < xs.size(); i += 2) v.push_back({xs[i], xs[i + 1], radius});
+  };
+  P("step_s", step_s);
+  P("truth_rate_hz", truth_rate_hz);
+  D("start_time_s", start_time_s);
+  D("timestamp_jitter_s", timestamp_jitter_s);
+  P("max_accel_m_s2", power.max_accel_m_s2);
+  P("max_decel_m_s2", power.max_decel_m_s2);
+  P("max_angular_accel_rad_s2", power.max_angular_accel_rad_s2);
+  D("actuator_delay_s", power.delay_s);
+  D("actuator_time_constant_s", power.time_constant_s);
+  D("speed_kp_A_s_m", power.speed_kp_A_s_m);
+  D("speed_ki_A_m", power.speed_ki_A_m);
+  P("current_limit_A", power.current_limit_A);
+  P("battery_voltage_V", power.battery_voltage_V);
+  P("coulomb_smoothing_m_s", coulomb_smoothing_m_s);
+  B("pozyx_anchor_random", pozyx_anchor_random);
+  D("pozyx_anchor_max_offset_m", pozyx_anchor_max_offset_m);
+  D("pozyx_anchor_x_m", pozyx_anchor_x_m);
+  D("pozyx_anchor_y_m", pozyx_anchor_y_m);
+  D("pozyx_anchor_yaw_deg", pozyx_anchor_yaw_deg);
+  I("encoder_initial_ticks_right", encoder_initial_ticks_right);
+  I("encoder_initial_ticks_left", encoder_initial_ticks_left);
+  P("footprint_front_m", footprint.front_m);
+  P("footprint_rear_m", footprint.rear_m);
+  P("footprint_half_width_m", footprint.half_width_m);
+  B("supervisory", supervisory.enabled);
+  D("supervisory_slow_distance_m", supervisory.slow_distance_m);
+  D("supervisory_stop_distance_m", supervisory.stop_distance_m);
+  P("supervisory_horizon_s", supervisory.horizon_s);
+  P("supervisory_prediction_step_s", supervisory.prediction_step_s);
+  D("supervisory_margin_m", supervisory.margin_m);
+  P("supervisory_rate_hz", supervisory.rate_hz);
+  B("record_ground_truth", record_ground_truth);
+  auto& sc = scenario;
+  D("start_pause_s", sc.start_pause_s);
+  P("driver_max_speed_m_s", sc.max_speed_m_s);
+  P("driver_max_turn_rate_rad_s", sc.max_turn_rate_rad_s);
+  P("driver_decel_m_s2", sc.comfort_decel_m_s2);
+  P("driver_angular_decel_rad_s2", sc.comfort_angular_decel_rad_s2);
+  P("driver_heading_gain_1_s", sc.heading_gain_1_s);
+  P("three_task_length_m", sc.three_task_length_m);
+  P("square_side_m", sc.square_side_m);
+  D("excite_mean_speed_m_s", sc.excite_mean_speed_m_s);
+  D("obstacles_v_cmd_m_s", sc.field_v_m_s);
+  D("obstacles_omega_cmd_rad_s", sc.field_omega_rad_s);
+  P("obstacles_drive_s", sc.field_drive_s);
+  P("obstacle_radius_m", sc.obstacle_radius_m);
+  for (auto& o : sc.three_task_obstacles) o.radius_m = sc.obstacle_radius_m;
+  O("three_task_obstacles_xy_m", sc.three_task_obstacles, sc.obstacle_radius_m);
+  O("obstacle_field_xy_m", sc.field_obstacles, sc.obstacle_radius_m);
+  if (supervisory.stop_distance_m >= supervisory.slow_distance_m)
+    throw std::runtime_error("[" + sec +
+                             "] supervisory_stop_distance_m must be < supervisory_slow_distance_m");
+}
+
+// ------------------------------------------------------------------------------------------
+SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string& scenario_name,
+                          uint64_t seed, double duration_s, const std::vector<EffectSpec>& effects,
+                          const SimulationOptions& opt) {
+  for (const auto& e : effects) validateEffect(e);
+  if (!(opt.step_s > 0 && opt.step_s <= 0.01))
+    throw std::invalid_argument("simulation step_s must be in (0, 0.01] s");
+
+  Scenario sc = makeScenario(scenario_name, seed, opt.scenario, duration_s);
+  const double T = sc.duration_s;
+  const double h = opt.step_s;
+
+  // --- the true vehicle: nominal configuration + physical effects -------------------------
+  model::DriveTrain dt = model::DriveTrain::symmetric(cfg.vehicle);
+  dt.coulomb_smoothing_m_s = opt.coulomb_smoothing_m_s;
+  PowerModuleParams pmp = opt.power;
+  SensorEffects se;
+  for (const auto& e : effects) {
+    if (e.id == "motor_asymmetry") {
+      for (int s : effectSides(e)) {
+        dt.side[s].motor_viscous_Nm_s_rad *= e.number("friction_ratio");
+        dt.side[s].torque_constant_Nm_A *= e.number("km_ratio");
+      }
+    } else if (e.id == "encoder_scale") {
+      for (int s : effectSides(e)) se.encoder_scale[s] *= e.number("scale");
+    } else if (e.id == "gyro_bias") {
+      se.gyro_bias += e.number("bias_rad_s");
+    } else if (e.id == "gyro_scale") {
+      se.gyro_scale *= e.number("scale");
+    } else if (e.id == "coulomb_friction") {
+      for (int s : effectSides(e)) dt.side[s].coulomb_A += e.number("current_A");
+    } else if (e.id == "ground_slope") {
+      dt.slope_rad = e.number("angle_deg") * kDeg;
+      dt.downhill_heading_rad = e.number("downhill_heading_deg") * kDeg;
+    } else if (e.id == "sensor_delay") {
+      se.delay[streamIndex(e.text("sensor"))] += e.number("delay_s");
+    } else if (e.id == "payload_mass") {
+      dt.geom.body_mass_kg = e.number("body_mass_kg");
+    } else if (e.id == "actuator_lag") {
+      if (e.has("delay_s")) pmp.delay_s = e.number("delay_s");
+      if (e.has("time_constant_s")) pmp.time_constant_s = e.number("time_constant_s");
+    } else if (e.id == "sonar_dropout") {
+      se.dropout_probability = e.number("probability");
+      se.dropout_burst = e.number("burst_length");
+    } else if (e.id == "pozyx_outliers") {
+      se.outlier_rate = e.number("rate");
+      se.outlier_magnitude = e.number("magnitude_m");
+    }
+  }
+  const double r = dt.geom.wheel_radius_m, lw = dt.geom.track_width_m, rG = dt.geom.gear_ratio;
+  const double Rm = cfg.vehicle.armature_resistance_ohm;
+  const double km[2] = {dt.side[0].torque_constant_Nm_A, dt.side[1].torque_constant_Nm_A};
+
+  // --- sensors ----------------------------------------------------------------------------
+  const sensors::EncoderParams& enc = cfg.encoders.params;
+  const sensors::VoltageCircuitParams& vc = cfg.motors.circuit;
+  const double R13 = vc.R1_ohm * vc.R3_ohm / (vc.R1_ohm + vc.R3_ohm);
+  const double R24 = vc.R2_ohm * vc.R4_ohm / (vc.R2_ohm + vc.R4_ohm);
+  const double tau_rc = R13 * R24 / (R13 + R24) * vc.C_F;
+  const int rc_substeps =
+      tau_rc > 0 ? std::max(1, static_cast<int>(std::ceil(h / (0.25 * tau_rc)))) : 1;
+  const auto& son = cfg.sonar;
+  const auto& poz = cfg.pozyx;
+
+  StreamClock clocks[kNumStreams] = {
+      {cfg.encoders.rate_hz, opt.timestamp_jitter_s, seed, "encoders"},
+      {cfg.imu.rate_hz, opt.timestamp_jitter_s, seed, "imu"},
+      {cfg.motors.rate_hz, opt.timestamp_jitter_s, seed, "motors"},
+      {son.rate_hz, opt.timestamp_jitter_s, seed, "sonar"},
+      {poz.rate_hz, opt.timestamp_jitter_s, seed, "pozyx"},
+      {cfg.joystick.rate_hz, opt.timestamp_jitter_s, seed, "joystick"}};
+  Rng gyro_noise(seed, "imu.noise"), cur_noise(seed, "motors.current_noise"),
+      vrc_noise(seed, "motors.vrc_noise"), sonar_noise(seed, "sonar.noise"),
+      sonar_fail(seed, "sonar.dropout"), pozyx_noise(seed, "pozyx.noise"),
+      pozyx_out(seed, "pozyx.outliers");
+  bool in_burst = false;
+
+  AnchorFrame anchor;
+  if (opt.pozyx_anchor_random) {
+    Rng a(seed, "pozyx.anchor");
+    anchor.x_m = a.uniform(-opt.pozyx_anchor_max_offset_m, opt.pozyx_anchor_max_offset_m);
+    anchor.y_m = a.uniform(-opt.pozyx_anchor_max_offset_m, opt.pozyx_anchor_max_offset_m);
+    anchor.yaw_rad = a.uniform(-M_PI, M_PI);
+  } else {
+    anchor = {opt.pozyx_anchor_x_m, opt.pozyx_anchor_y_m, opt.pozyx_anchor_yaw_deg * kDeg};
+  }
+
+  SimulationResult res;
+  res.scenario = scenario_name;
+  res.seed = seed;
+  res.duration_s = T;
+  res.effects = effects;
+  res.supervisory = opt.supervisory.enabled;
+  res.config_text = cfg.text();
+  res.truth.obstacles = sc.obstacles;
+  res.truth.pozyx_anchor = anchor;
+  io::Recording& rec = res.recording;
+  const double t0 = opt.start_time_s;
+  {
+    std::string eff;
+    for (const auto& e : effects) eff += (eff.empty() ? "" : " ") + formatEffect(e);
+    rec.meta["source"] = "wheelchair simulate (libwheelchair truth simulator)";
+    rec.meta["scenario"] = scenario_name;
+    rec.meta["seed"] = std::to_string(seed);
+    rec.meta["effects"] = eff.empty() ? "none" : eff;
+    rec.meta["supervisory"] = opt.supervisory.enabled ? "on" : "off";
+    std::ostringstream d;
+    d << T;
+    rec.meta["duration_s"] = d.str();
+  }
+
+  // --- state ------------------------------------------------------------------------------
+  Mech s;
+  PowerModule pm(pmp, lw, h);
+  double wire[2][2] = {{0, 0}, {0, 0}};  // V_RC of wire 1 (U > 0) and wire 2 (U < 0), per motor
+  for (auto& m : wire)
+    for (double& w : m) w = sensors::steadyStateVrc(0.0, vc);
+  auto vrcOf = [&](int m) { return wire[m][0] - wire[m][1]; };
+  std::vector<bool> hit(sc.obstacles.size(), false);
+  double sup_scale = 1.0, next_sup = 0.0;
+  const long n_steps = static_cast<long>(std::ceil(T / h - 1e-9));
+  const long truth_stride = std::max(1L, std::lround(1.0 / (opt.truth_rate_hz * h)));
+
+  for (long k = 0; k <= n_steps; ++k) {
+    const double t = k * h;
+    // Driver and supervisor see the true state.
+    const JoystickDemand joy = sc.driver->demand({t, s.x, s.y, s.phi, s.v, s.om});
+    if (opt.supervisory.enabled && t >= next_sup - 1e-12) {
+      sup_scale = supervisoryScale(opt.supervisory, opt.footprint, s.x, s.y, s.phi, joy.v_m_s,
+                                   joy.omega_rad_s, sc.obstacles);
+      next_sup += 1.0 / opt.supervisory.rate_hz;
+    }
+    const JoystickDemand cmd{joy.v_m_s * sup_scale, joy.omega_rad_s * sup_scale};
+    // Power module: currents within the current limit and what the battery can drive.
+    const Eigen::Vector2d rim(s.v + lw * s.om / 2, s.v - lw * s.om / 2);
+    Eigen::Vector2d i_lo, i_hi;
+    for (int m = 0; m < 2; ++m) {
+      const double emf = km[m] * rG * rim(m) / r;
+      i_lo(m) = (-pmp.battery_voltage_V - emf) / Rm;
+      i_hi(m) = (pmp.battery_voltage_V - emf) / Rm;
+    }
+    const Eigen::Vector2d I = pm.step(cmd, rim, i_lo, i_hi);
+    double U[2];
+    for (int m = 0; m < 2; ++m) U[m] = Rm * I(m) + km[m] * rG * rim(m) / r;
+
+    if (k % truth_stride == 0) {
+      TruthSample ts;
+      ts.t_s = t0 + t;
+      ts.x_m = s.x, ts.y_m = s.y, ts.phi_rad = s.phi, ts.v_m_s = s.v, ts.omega_rad_s = s.om;
+      ts.wheel_speed_right_rad_s = rim(0) / r;
+      ts.wheel_speed_left_rad_s = rim(1) / r;
+      ts.wheel_angle_right_rad = s.psiR, ts.wheel_angle_left_rad = s.psiL;
+      ts.current_right_A = I(0), ts.current_left_A = I(1);
+      ts.voltage_right_V = U[0], ts.voltage_left_V = U[1];
+      ts.v_demand_m_s = joy.v_m_s, ts.omega_demand_rad_s = joy.omega_rad_s;
+      ts.v_ref_m_s = pm.vRef(), ts.omega_ref_rad_s = pm.omegaRef();
+      ts.supervisory_scale = sup_scale;
+      res.truth.samples.push_back(ts);
+    }
+    if (k == n_steps) break;
+
+    // Mechanics over [t, t + h] with the currents held.
+    const Mech s_prev = s;
+    const double vrc_prev[2] = {vrcOf(0), vrcOf(1)};
+    s = rk4(s, dt, I, h);
+    // Voltage circuit (11) on each wire, sub-stepped (tau_rc ~ 0.17 ms << h).
+    const double hs = h / rc_substeps;
+    for (int m = 0; m < 2; ++m) {
+      const double Uend =
+          Rm * I(m) + km[m] * rG * ((m == 0 ? s.v + lw * s.om / 2 : s.v - lw * s.om / 2)) / r;
+      for (int j = 0; j < rc_substeps; ++j) {
+        const double a = (j + 0.5) / rc_substeps;
+        const double Um = (1 - a) * U[m] + a * Uend;
+        const double Vw[2] = {std::max(Um, 0.0), std::max(-Um, 0.0)};
+        for (int w = 0; w < 2; ++w) {
+          double& x = wire[m][w];
+          const double k1 = sensors::vrcRate(x, Vw[w], vc);
+          const double k2 = sensors::vrcRate(x + hs / 2 * k1, Vw[w], vc);
+          const double k3 = sensors::vrcRate(x + hs / 2 * k2, Vw[w], vc);
+          const double k4 = sensors::vrcRate(x + hs * k3, Vw[w], vc);
+          x += hs / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
+        }
+      }
+    }
+    // Collisions: an obstacle centre inside the footprint.
+    for (std::size_t o = 0; o < sc.obstacles.size(); ++o) {
+      if (!hit[o] &&
+          opt.footprint.contains(s.x, s.y, s.phi, sc.obstacles[o].x_m, sc.obstacles[o].y_m)) {
+        hit[o] = true;
+        res.truth.collided_obstacles.push_back(static_cast<int>(o));
+      }
+    }
+
+    // Sensors sampled in (t, t + h].
+    auto snapAt = [&](double tm) {
+      const double a = std::clamp((tm - t) / h, 0.0, 1.0);
+      auto L = [a](double p, double q) { return p + a * (q - p); };
+      return Snap{L(s_prev.x, s.x),       L(s_prev.y, s.y),         L(s_prev.phi, s.phi),
+                  L(s_prev.v, s.v),       L(s_prev.om, s.om),       L(s_prev.psiR, s.psiR),
+                  L(s_prev.psiL, s.psiL), L(vrc_prev[0], vrcOf(0)), L(vrc_prev[1], vrcOf(1))};
+    };
+    const double t_end = t + h;
+    for (int st = 0; st < kNumStreams; ++st) {
+      StreamClock& clk = clocks[st];
+      while (clk.next() <= t_end) {
+        const double tm = clk.next();
+        clk.advance();
+        const Snap q = snapAt(tm);
+        const double stamp = t0 + tm + se.delay[st];
+        switch (st) {
+          case kEncoders: {
+            const int64_t tr =
+                static_cast<int64_t>(sensors::wheelAngleToTicks(se.encoder_scale[0] * q.psiR, enc));
+            const int64_t tl =
+                static_cast<int64_t>(sensors::wheelAngleToTicks(se.encoder_scale[1] * q.psiL, enc));
+            rec.encoders.push_back({stamp, wrapInt32(opt.encoder_initial_ticks_right + tr),
+                                    wrapInt32(opt.encoder_initial_ticks_left + tl)});
+            break;
+          }
+          case kImu: {
+            io::ImuSample is;
+            is.t_s = stamp;
+            is.gyro_z_rad_s = se.gyro_scale * q.om + se.gyro_bias +
+                              cfg.imu.gyro_noise_rad_s * gyro_noise.normal();
+            rec.imu.push_back(is);
+            break;
+          }
+          case kMotors: {
+            io::MotorSample ms;
+            ms.t_s = stamp;
+            ms.current_right_A = I(0) + cfg.motors.current_noise_A * cur_noise.normal();
+            ms.current_left_A = I(1) + cfg.motors.current_noise_A * cur_noise.normal();
+            ms.vrc_right_V = q.vrcR + cfg.motors.vrc_noise_V * vrc_noise.normal();
+            ms.vrc_left_V = q.vrcL + cfg.motors.vrc_noise_V * vrc_noise.normal();
+            rec.motors.push_back(ms);
+            break;
+          }
+          case kSonar: {
+            // Sonar pose in the start frame.
+            const double c = std::cos(q.phi), sn = std::sin(q.phi);
+            const double sx = q.x + c * son.x_m - sn * son.y_m;
+            const double sy = q.y + sn * son.x_m + c * son.y_m;
+            const double syaw = q.phi + son.yaw_deg * kDeg;
+            double best = std::numeric_limits<double>::infinity();
+            for (const auto& o : sc.obstacles) {
+              const double dx = o.x_m - sx, dy = o.y_m - sy;
+              const double d = std::hypot(dx, dy);
+              if (d <= o.radius_m) {
+                best = 0;
+                continue;
+              }
+              const double bearing = std::abs(model::wrapAngle(std::atan2(dy, dx) - syaw));
+              const double half = son.cone_half_angle_deg * kDeg + std::asin(o.radius_m / d);
+              if (bearing <= half) best = std::min(best, d - o.radius_m);
+            }
+            const double n = son.noise_m * sonar_noise.normal();  // drawn for every reading
+            double range = 0;
+            if (std::isfinite(best) && best >= son.min_range_m && best <= son.max_range_m)
+              range = std::max(0.0, best + n);
+            // Dropouts: two-state Markov chain with mean burst length L and long-run
+            // failure fraction p (enter a burst with p / (L (1 - p))).
+            const double u = sonar_fail.uniform();
+            if (se.dropout_probability > 0) {
+              const double L = std::max(1.0, se.dropout_burst);
+              const double p = se.dropout_probability;
+              in_burst = in_burst ? (u >= 1.0 / L) : (u < std::min(1.0, p / (L * (1 - p))));
+              if (in_burst) range = 0;
+            }
+            rec.sonar.push_back({stamp, range});
+            break;
+          }
+          case kPozyx: {
+            const double c = std::cos(q.phi), sn = std::sin(q.phi);
+            const double tx = q.x + c * poz.lever_x_m - sn * poz.lever_y_m;
+            const double ty = q.y + sn * poz.lever_x_m + c * poz.lever_y_m;
+            const double ca = std::cos(anchor.yaw_rad), sa = std::sin(anchor.yaw_rad);
+            io::PozyxSample ps;
+            ps.t_s = stamp;
+            ps.x_m = anchor.x_m + ca * tx - sa * ty + poz.noise_m * pozyx_noise.normal();
+            ps.y_m = anchor.y_m + sa * tx + ca * ty + poz.noise_m * pozyx_noise.normal();
+            const double u = pozyx_out.uniform(), dir = pozyx_out.uniform(0, 2 * M_PI),
+                         mag = pozyx_out.uniform(0.5, 1.5);
+            if (u < se.outlier_rate) {
+              ps.x_m += se.outlier_magnitude * mag * std::cos(dir);
+              ps.y_m += se.outlier_magnitude * mag * std::sin(dir);
+            }
+            rec.pozyx.push_back(ps);
+            break;
+          }
+          case kJoystick:
+            rec.joystick.push_back({stamp, joy.v_m_s, joy.omega_rad_s});
+            break;
+        }
+      }
+    }
+  }
+  res.collisions = static_cast<int>(res.truth.collided_obstacles.size());
+  if (opt.record_ground_truth)
+    for (const auto& ts : res.truth.samples)
+      rec.ground_truth.push_back({ts.t_s, ts.x_m, ts.y_m, ts.phi_rad});
+  return res;
+}
+
+// ------------------------------------------------------------------------------------------
+namespace {
+
+using nlohmann::json;
+
+#define WC_TRUTH_COLUMNS(X)                                                         \
+  X(t_s)                                                                            \
+  X(x_m) X(y_m) X(phi_rad) X(v_m_s) X(omega_rad_s) X(wheel_speed_right_rad_s)       \
+      X(wheel_speed_left_rad_s) X(wheel_angle_right_rad) X(wheel_angle_left_rad)    \
+          X(current_right_A) X(current_left_A) X(voltage_right_V) X(voltage_left_V) \
+              X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) X(omega_ref_rad_s) \
+                  X(supervisory_scale)
+
+std::string fmtNum(double x) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", x);
+  // shortest round-trip representation
+  for (int p = 6; p <= 17; ++p) {
+    char b2[40];
+    std::snprintf(b2, sizeof b2, "%.*g", p, x);
+    if (std::strtod(b2, nullptr) == x) return b2;
+  }
+  return buf;
+}
+
+}  // namespace
+
+void SimulationResult::writeTruth(const std::string& path) const {
+  const bool csv = path.size() >= 4 && path.compare(path.size() - 4, 4, ".csv") == 0;
+  if (csv) {
+    std::string out;
+#define WC_HDR(c) out += std::string(out.empty() ? "" : ",") + #c;
+    WC_TRUTH_COLUMNS(WC_HDR)
+#undef WC_HDR
+    out += "\n";
+    for (const auto& s : truth.samples) {
+      std::string row;
+#define WC_ROW(c) row += (row.empty() ? "" : ",") + fmtNum(s.c);
+      WC_TRUTH_COLUMNS(WC_ROW)
+#undef WC_ROW
+      out += row + "\n";
+    }
+    writeAtomically(path, out);
+    return;
+  }
+  json j;
+  j["format"] = "libwheelchair-truth-1";
+  j["scenario"] = scenario;
+  j["seed"] = seed;
+  j["duration_s"] = duration_s;
+  j["supervisory"] = supervisory;
+  j["collisions"] = collisions;
+  j["collided_obstacles"] = truth.collided_obstacles;
+  json eff = json::array();
+  for (const auto& e : effects) {
+    json je;
+    je["id"] = e.id;
+    je["params"] = e.params;
+    je["text"] = formatEffect(e);
+    eff.push_back(je);
+  }
+  j["effects"] = eff;
+  json obs = json::array();
+  for (const auto& o : truth.obstacles)
+    obs.push_back({{"x_m", o.x_m}, {"y_m", o.y_m}, {"radius_m", o.radius_m}});
+  j["obstacles"] = obs;
+  j["frames"] = {{"trajectory", "start frame: body frame at t = 0, x forward, y left"},
+                 {"pozyx_anchor", "p_anchor = R(yaw_rad) p_start + (x_m, y_m)"}};
+  j["pozyx_anchor"] = {{"x_m", truth.pozyx_anchor.x_m},
+                       {"y_m", truth.pozyx_anchor.y_m},
+                       {"yaw_rad", truth.pozyx_anchor.yaw_rad}};
+  json traj;
+#define WC_COL(c)                                           \
+  {                                                         \
+    std::vector<double> col;                                \
+    col.reserve(truth.samples.size());                      \
+    for (const auto& s : truth.samples) col.push_back(s.c); \
+    traj[#c] = col;                                         \
+  }
+  WC_TRUTH_COLUMNS(WC_COL)
+#undef WC_COL
+  j["trajectory"] = traj;
+  j["config"] = config_text;
+  // One top-level key per line (readable header, compact columns).
+  std::string out = "{\n";
+  bool first = true;
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    out += (first ? "" : ",\n") + json(it.key()).dump() + ": " + it.value().dump();
+    first = false;
+  }
+  writeAtomically(path, out + "\n}\n");
+}
+
+SimulationResult readTruth(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot open truth file");
+  json j;
+  try {
+    in >> j;
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path + ": not a truth JSON file: " + e.what());
+  }
+  if (j.value("format", "") != "libwheelchair-truth-1")
+    throw std::runtime_error(path + ": not a libwheelchair truth file");
+  SimulationResult r;
+  try {
+    r.scenario = j.at("scenario").get<std::string>();
+    r.seed = j.at("seed").get<uint64_t>();
+    r.duration_s = j.at("duration_s").get<double>();
+    r.supervisory = j.value("supervisory", false);
+    r.collisions = j.at("collisions").get<int>();
+    r.truth.collided_obstacles = j.at("collided_obstacles").get<std::vector<int>>();
+    for (const auto& je : j.at("effects"))
+      r.effects.push_back({je.at("id").get<std::string>(),
+                           je.at("params").get<std::map<std::string, std::string>>()});
+    for (const auto& o : j.at("obstacles"))
+      r.truth.obstacles.push_back(
+          {o.at("x_m").get<double>(), o.at("y_m").get<double>(), o.at("radius_m").get<double>()});
+    const auto& a = j.at("pozyx_anchor");
+    r.truth.pozyx_anchor = {a.at("x_m").get<double>(), a.at("y_m").get<double>(),
+                            a.at("yaw_rad").get<double>()};
+    const auto& tr = j.at("trajectory");
+    const std::size_t n = tr.at("t_s").size();
+    r.truth.samples.resize(n);
+#define WC_RD(c)                                                                     \
+  {                                                                                  \
+    const auto& col = tr.at(#c);                                                     \
+    if (col.size() != n) throw std::runtime_error("column " #c " has wrong length"); \
+    for (std::size_t i = 0; i < n; ++i) r.truth.samples[i].c = col[i].get<double>(); \
+  }
+    WC_TRUTH_COLUMNS(WC_RD)
+#undef WC_RD
+    r.config_text = j.value("config", "");
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path + ": malformed truth file: " + e.what());
+  }
+  return r;
+}
+
+}  // namespace wheelchair::simulation
