@@ -85,9 +85,8 @@ CaptureSession::CaptureSession(CaptureOptions opt) : opt_(std::move(opt)) {
     try {
       src->loadConfig(ini, sec);
     } catch (const std::exception& e) {
-      std::string what = e.what();
-      if (const auto nl = what.find("\n"); nl != std::string::npos && what.rfind("====", 0) == 0)
-        what = what.substr(0, nl);
+      // MRPT wraps the driver's exception in its own report: use the driver's message.
+      const std::string what = src->configError().empty() ? e.what() : src->configError();
       throw std::invalid_argument(fmt::format("{}: {}", opt_.config_path, what));
     }
     if (seen.count(src->kind()))

@@ -37,6 +37,17 @@ void CaptureSource::setVehicleConfig(const config::WheelchairConfig& cfg) {
 
 void CaptureSource::loadConfig_sensorSpecific(const mrpt::config::CConfigFileBase& ini,
                                               const std::string& section) {
+  config_error_.clear();
+  try {
+    loadCommonConfig(ini, section);
+  } catch (const std::exception& e) {
+    config_error_ = e.what();
+    throw;
+  }
+}
+
+void CaptureSource::loadCommonConfig(const mrpt::config::CConfigFileBase& ini,
+                                     const std::string& section) {
   section_ = section;
   auto where = [&](const char* key) { return fmt::format("[{}] {}", section, key); };
   if (m_sensorLabel != io::streamLabel(kind_))

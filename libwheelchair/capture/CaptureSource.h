@@ -70,10 +70,13 @@ class CaptureSource : public mrpt::hwdrivers::CGenericSensor {
   virtual std::string deviceName() const = 0;
   TimeSource timeSource() const { return time_source_; }
   void logEvent(const std::string& text, bool error = false);
+  /// The message of the last configuration error (loadConfig() throws it wrapped by MRPT).
+  const std::string& configError() const { return config_error_; }
 
  protected:
   void loadConfig_sensorSpecific(const mrpt::config::CConfigFileBase& ini,
                                  const std::string& section) override;
+  void loadCommonConfig(const mrpt::config::CConfigFileBase& ini, const std::string& section);
   /// Source-specific keys; called by loadConfig_sensorSpecific after the common ones.
   virtual void loadSourceConfig(const mrpt::config::CConfigFileBase& ini,
                                 const std::string& section) = 0;
@@ -97,6 +100,7 @@ class CaptureSource : public mrpt::hwdrivers::CGenericSensor {
   TimeSource time_source_ = TimeSource::Arrival;
   double latency_s_ = 0;
   double reconnect_min_s_ = 0.2, reconnect_max_s_ = 2.0, stall_timeout_s_ = 2.0;
+  std::string config_error_;
 
  private:
   mutable std::mutex mtx_;

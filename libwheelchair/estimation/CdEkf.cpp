@@ -178,6 +178,10 @@ void CdEkf::propagate(double t1_s, const InputFunction& u) {
   }
   // Never step past t1: u(t) is only defined on [t0, t1].
   check(CVodeSetStopTime(mem, t1_s), "CVodeSetStopTime");
+  // Intervals between measurements are short against the model's time constants: try the
+  // whole interval as the first step (CVODE's error test shrinks it when needed) instead of
+  // CVODE's cautious restart heuristic, which costs ~10 steps per interval.
+  if (opt_.first_step_whole_interval) check(CVodeSetInitStep(mem, dt), "CVodeSetInitStep");
   double tret = t_;
   const int flag = CVode(mem, t1_s, cv_->y, &tret, CV_NORMAL);
   u_ = nullptr;
@@ -198,28 +202,35 @@ double CdEkf::nis(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,
   return y.dot(S.ldlt().solve(y));
 }
 
-UpdateResult CdEkf::update(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,
-                           const Eigen::MatrixXd& R, double gate) {
+UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
+                          const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate) {
+  const int n = static_cast<int>(x.size());
   UpdateResult r;
   r.dof = static_cast<int>(y.size());
   r.innovation = y;
-  const Eigen::MatrixXd PHt = P_ * H.transpose();
+  const Eigen::MatrixXd PHt = P * H.transpose();
   r.S = H * PHt + R;
   r.S = 0.5 * (r.S + r.S.transpose());
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(r.S);
   if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0))
-    throw std::runtime_error("CdEkf::update: innovation covariance is not positive definite");
+    throw std::runtime_error("josephUpdate: innovation covariance is not positive definite");
   r.nis = y.dot(ldlt.solve(y));
   if (gate > 0 && !(r.nis <= gate)) {
     r.accepted = false;
     return r;
   }
   const Eigen::MatrixXd K = ldlt.solve(PHt.transpose()).transpose();  // P H' S^-1
-  x_ += K * y;
-  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n_, n_) - K * H;
-  setCovariance(IKH * P_ * IKH.transpose() + K * R * K.transpose());
+  x += K * y;
+  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
+  const Eigen::MatrixXd Pn = IKH * P * IKH.transpose() + K * R * K.transpose();
+  P = 0.5 * (Pn + Pn.transpose());
   r.accepted = true;
   return r;
+}
+
+UpdateResult CdEkf::update(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,
+                           const Eigen::MatrixXd& R, double gate) {
+  return josephUpdate(x_, P_, y, H, R, gate);
 }
 
 }  // namespace wheelchair::estimation

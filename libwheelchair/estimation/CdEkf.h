@@ -55,12 +55,15 @@ using InputFunction = std::function<Eigen::VectorXd(double t_s)>;
 struct CvodeOptions {
   enum class Method { Adams, Bdf };
   Method method = Method::Adams;  ///< Adams + fixed-point iteration, or BDF + dense Newton
-  double rel_tol = 1e-8;          ///< relative tolerance (-)
-  double abs_tol_state = 1e-10;   ///< absolute tolerance on the state (state units)
-  double abs_tol_cov = 1e-14;     ///< absolute tolerance on covariance entries (state units^2)
+  double rel_tol = 1e-6;          ///< relative tolerance (-)
+  double abs_tol_state = 1e-8;   ///< absolute tolerance on the state (state units)
+  double abs_tol_cov = 1e-9;     ///< absolute tolerance on covariance entries (state units^2)
   long max_num_steps = 50000;     ///< per interval
   double max_step_s = 0.0;        ///< 0: no limit
   int max_order = 0;              ///< 0: CVODE's default (12 Adams, 5 BDF)
+  /// First step of every interval = the whole interval (CVODE shrinks it if the error test
+  /// fails); false: CVODE's own initial-step heuristic.
+  bool first_step_whole_interval = false;
 };
 
 /// Result of one measurement update.
@@ -132,6 +135,12 @@ class CdEkf {
   std::unique_ptr<Cvode> cv_;
   CvodeStats stats_;
 };
+
+/// Joseph-form measurement update of (x, P) with innovation y, gated at NIS <= gate (gate <= 0:
+/// always applied). Used by CdEkf::update and by the discrete baseline filter. Throws
+/// std::runtime_error when S = H P H' + R is not positive definite.
+UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
+                          const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate);
 
 /// Packed lower triangle (column-major) size of an n x n symmetric matrix.
 inline int packedSize(int n) { return n * (n + 1) / 2; }

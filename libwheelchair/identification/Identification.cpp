@@ -326,10 +326,8 @@ PreparedData prepareSignals(const std::vector<io::Recording>& recs,
       for (std::size_t k = 0; k < vrc.size(); ++k) {
         const std::size_t a = k == 0 ? 0 : k - 1, b = std::min(k + 1, vrc.size() - 1);
         const double rate = (vrc[b] - vrc[a]) / (mot.t[b] - mot.t[a]);
-        // V_RC of a motor is the difference of its two wires' RC outputs, only one of which
-        // is driven at a time (docs/sensors.md): invert the magnitude, keep the sign.
-        const double sg = vrc[k] < 0 ? -1.0 : 1.0;
-        U[side][k] = sg * sensors::leadVoltageFromVrc(sg * vrc[k], sg * rate, cfg.motors.circuit);
+        // Differential V_RC of one motor -> U = V_w1 - V_w2 (inverse of (11) with the knee).
+        U[side][k] = sensors::motorVoltageFromVrc(vrc[k], rate, cfg.motors.circuit);
         any_voltage = any_voltage || vrc[k] != 0.0;
       }
     }

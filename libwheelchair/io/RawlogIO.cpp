@@ -22,6 +22,10 @@ namespace wheelchair::io {
 
 namespace {
 
+// MRPT stores sonar ranges and landmark sightings as float: read them back as the decimal
+// value the float prints as (shortest representation), which is what was recorded.
+double floatAsDecimal(float x) { return std::strtod(fmt::format("{}", x).c_str(), nullptr); }
+
 constexpr double kUnknownZVariance_m2 = 1e6;
 constexpr const char* kHeaderFirstLine = "# libwheelchair recording";
 const mrpt::obs::TIMUDataIndex kImuExtra[5] = {IMU_WX, IMU_WY, IMU_X_ACC, IMU_Y_ACC, IMU_Z_ACC};
@@ -130,7 +134,7 @@ std::optional<AnySample> fromObservation(const CObservation& obs) {
   }
   if (auto o = dynamic_cast<const CObservationRange*>(&obs); o && label == "SONAR" &&
                                                               !o->sensedData.empty()) {
-    return SonarSample{t, static_cast<double>(o->sensedData.front().sensedDistance)};
+    return SonarSample{t, floatAsDecimal(o->sensedData.front().sensedDistance)};
   }
   if (auto o = dynamic_cast<const CObservationRobotPose*>(&obs)) {
     const auto& m = o->pose.mean;
@@ -144,7 +148,7 @@ std::optional<AnySample> fromObservation(const CObservation& obs) {
   if (auto o = dynamic_cast<const CObservationBearingRange*>(&obs); o && label == "LANDMARKS" &&
                                                                      !o->sensedData.empty()) {
     const auto& m = o->sensedData.front();
-    return LandmarkSample{t, m.landmarkID, m.range, m.yaw};
+    return LandmarkSample{t, m.landmarkID, floatAsDecimal(m.range), floatAsDecimal(m.yaw)};
   }
   return std::nullopt;
 }

@@ -50,7 +50,9 @@ int64_t TickUnwrapper::unwrap(int32_t raw) {
   return count_;
 }
 
-void TickUnwrapper::reset() { *this = TickUnwrapper{}; }
+void TickUnwrapper::reset() {
+  *this = TickUnwrapper{};
+}
 
 UnwrappedTicks unwrapTicks(const std::vector<io::EncoderSample>& enc) {
   UnwrappedTicks out;
@@ -67,9 +69,8 @@ UnwrappedTicks unwrapTicks(const std::vector<io::EncoderSample>& enc) {
 }
 
 std::vector<WheelSpeedInterval> wheelSpeedsFromTicks(const std::vector<io::EncoderSample>& enc,
-                                                     const EncoderParams& p,
-                                                     double wheel_radius_m, double track_width_m,
-                                                     WheelSpeedStats* stats) {
+                                                     const EncoderParams& p, double wheel_radius_m,
+                                                     double track_width_m, WheelSpeedStats* stats) {
   if (!(track_width_m > 0)) throw std::invalid_argument("wheelSpeedsFromTicks: track width <= 0");
   WheelSpeedStats st;
   std::vector<WheelSpeedInterval> out;
@@ -112,8 +113,7 @@ std::vector<WheelSpeedInterval> wheelSpeedsFromTicks(const std::vector<io::Encod
 }
 
 std::vector<WheelSpeedInterval> wheelSpeedsFromTicks(const std::vector<io::EncoderSample>& enc,
-                                                     const EncoderParams& p,
-                                                     double wheel_radius_m,
+                                                     const EncoderParams& p, double wheel_radius_m,
                                                      double track_width_m) {
   return wheelSpeedsFromTicks(enc, p, wheel_radius_m, track_width_m, nullptr);
 }

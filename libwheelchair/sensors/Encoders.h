@@ -73,16 +73,16 @@ class TickUnwrapper {
 
 /// Mean rim and body speeds over one interval between consecutive encoder samples.
 struct WheelSpeedInterval {
-  double t0_s = 0, t1_s = 0;            ///< interval ends
+  double t0_s = 0, t1_s = 0;               ///< interval ends
   double u_right_m_s = 0, u_left_m_s = 0;  ///< mean rim speeds over [t0, t1]
-  double v_m_s = 0, omega_rad_s = 0;    ///< mean body speeds: v=(uR+uL)/2, omega=(uR-uL)/l_w
+  double v_m_s = 0, omega_rad_s = 0;       ///< mean body speeds: v=(uR+uL)/2, omega=(uR-uL)/l_w
   double tMid() const { return 0.5 * (t0_s + t1_s); }
   double dt() const { return t1_s - t0_s; }
 };
 
 /// Counters of wheelSpeedsFromTicks.
 struct WheelSpeedStats {
-  std::size_t intervals = 0;             ///< intervals returned
+  std::size_t intervals = 0;               ///< intervals returned
   std::size_t skipped_nonpositive_dt = 0;  ///< samples not later than the last accepted one
 };
 
@@ -92,14 +92,12 @@ struct WheelSpeedStats {
 /// counted; its counts still feed the unwrapper, and the next interval starts at the last
 /// accepted sample. Fewer than two samples give an empty result.
 std::vector<WheelSpeedInterval> wheelSpeedsFromTicks(const std::vector<io::EncoderSample>& enc,
-                                                     const EncoderParams& p,
-                                                     double wheel_radius_m,
+                                                     const EncoderParams& p, double wheel_radius_m,
                                                      double track_width_m);
 /// Same, reporting the counters in `stats` (may be null).
 std::vector<WheelSpeedInterval> wheelSpeedsFromTicks(const std::vector<io::EncoderSample>& enc,
-                                                     const EncoderParams& p,
-                                                     double wheel_radius_m, double track_width_m,
-                                                     WheelSpeedStats* stats);
+                                                     const EncoderParams& p, double wheel_radius_m,
+                                                     double track_width_m, WheelSpeedStats* stats);
 /// Same, with r and l_w from the vehicle geometry.
 std::vector<WheelSpeedInterval> wheelSpeedsFromTicks(const std::vector<io::EncoderSample>& enc,
                                                      const EncoderParams& p,

@@ -10,7 +10,9 @@ namespace {
 constexpr double kPi = 3.141592653589793238462643383279;
 }  // namespace
 
-double Biquad::dcGain() const { return (b0 + b1 + b2) / (1.0 + a1 + a2); }
+double Biquad::dcGain() const {
+  return (b0 + b1 + b2) / (1.0 + a1 + a2);
+}
 
 Biquad butter2Lowpass(double cutoff_hz, double sample_rate_hz) {
   if (!(sample_rate_hz > 0) || !(cutoff_hz > 0) || !(cutoff_hz < 0.5 * sample_rate_hz))
@@ -28,8 +30,7 @@ Biquad butter2Lowpass(double cutoff_hz, double sample_rate_hz) {
   return f;
 }
 
-std::vector<double> biquadFilter(const Biquad& f, const std::vector<double>& x,
-                                 bool steady_start) {
+std::vector<double> biquadFilter(const Biquad& f, const std::vector<double>& x, bool steady_start) {
   std::vector<double> y(x.size());
   if (x.empty()) return y;
   double z1 = 0, z2 = 0;
@@ -49,12 +50,19 @@ std::vector<double> biquadFilter(const Biquad& f, const std::vector<double>& x,
   return y;
 }
 
+std::size_t filtfiltPadLength(std::size_t n, double cutoff_hz, double sample_rate_hz) {
+  if (n < 2) return 0;
+  const double periods = std::ceil(3.0 * sample_rate_hz / cutoff_hz);
+  const std::size_t want = std::max<std::size_t>(9, static_cast<std::size_t>(periods));
+  return std::min(want, n - 1);
+}
+
 std::vector<double> filtfiltButter2(const std::vector<double>& x, double cutoff_hz,
                                     double sample_rate_hz) {
   const Biquad f = butter2Lowpass(cutoff_hz, sample_rate_hz);  // validates the arguments
   const std::size_t n = x.size();
   if (n < 2) return x;
-  const std::size_t pad = std::min<std::size_t>(9, n - 1);
+  const std::size_t pad = filtfiltPadLength(n, cutoff_hz, sample_rate_hz);
   std::vector<double> ext;
   ext.reserve(n + 2 * pad);
   for (std::size_t k = pad; k >= 1; --k) ext.push_back(2.0 * x[0] - x[k]);

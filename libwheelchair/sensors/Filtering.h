@@ -15,6 +15,7 @@
 //   auto xd = centralDerivative(t, xs);                  // d x / d t
 #pragma once
 
+#include <cstddef>
 #include <vector>
 
 namespace wheelchair::sensors {
@@ -37,12 +38,19 @@ std::vector<double> biquadFilter(const Biquad& f, const std::vector<double>& x,
 
 /// Zero-phase 2nd-order Butterworth low-pass: the filter applied forward then backward on the
 /// series extended at both ends by odd reflection (2 x[0] - x[k], 2 x[n-1] - x[n-1-k]) over
-/// padlen = min(9, n - 1) samples (scipy's default 3 * max(len(a), len(b))), each pass started
-/// at its steady state. Assumes uniform sampling at sample_rate_hz. Series shorter than 2
-/// samples are returned unchanged. Throws std::invalid_argument unless
-/// 0 < cutoff_hz < sample_rate_hz / 2.
+/// filtfiltPadLength samples, each pass started at its steady state for its first input
+/// (scipy's lfilter_zi). Odd reflection continues the value and slope across the ends, so
+/// constants and ramps come out unchanged up to the ends. Assumes uniform sampling at
+/// sample_rate_hz. Series shorter than 2 samples are returned unchanged. Throws
+/// std::invalid_argument unless 0 < cutoff_hz < sample_rate_hz / 2.
 std::vector<double> filtfiltButter2(const std::vector<double>& x, double cutoff_hz,
                                     double sample_rate_hz);
+
+/// Padding used by filtfiltButter2: min(n - 1, max(9, ceil(3 fs / fc))), i.e. three periods
+/// of the cut-off (about 13 decay time constants of the filter, so the start-up transient is
+/// ~1e-6 of the edge slope by the time it reaches the data). scipy's default is 9 samples
+/// (3 * max(len(a), len(b))), too short when fc << fs.
+std::size_t filtfiltPadLength(std::size_t n, double cutoff_hz, double sample_rate_hz);
 
 /// filtfiltButter2 for a series on an uneven (strictly increasing) time base: resampled
 /// linearly onto a uniform grid with the median sample spacing, filtered, and interpolated back
@@ -65,8 +73,7 @@ std::vector<double> resampleLinear(const std::vector<double>& t_src,
 /// h- = t_i - t_{i-1}, h+ = t_{i+1} - t_i, and the second-order one-sided three-point formula
 /// at both ends (a plain difference when n = 2; zeros when n < 2). Throws
 /// std::invalid_argument if the sizes differ or the time base is not strictly increasing.
-std::vector<double> centralDerivative(const std::vector<double>& t_s,
-                                      const std::vector<double>& x);
+std::vector<double> centralDerivative(const std::vector<double>& t_s, const std::vector<double>& x);
 
 /// Median of the positive sample spacings of t_s (0 if there are none).
 double medianSpacing(const std::vector<double>& t_s);

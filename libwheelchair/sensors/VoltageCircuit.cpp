@@ -14,8 +14,12 @@ namespace {
 constexpr double kPi = 3.141592653589793238462643383279;
 constexpr double kMaxExp = 700.0;  // exp(700) ~ 1e304: large but finite
 
-double clampedExp(double a) { return std::exp(std::min(a, kMaxExp)); }
-double parallel(double a, double b) { return a * b / (a + b); }
+double clampedExp(double a) {
+  return std::exp(std::min(a, kMaxExp));
+}
+double parallel(double a, double b) {
+  return a * b / (a + b);
+}
 
 /// Reverse (Zener) branch with explicit parameters.
 double reverseCurrent(double v, double i_knee, double v_d, double slope) {
@@ -23,15 +27,21 @@ double reverseCurrent(double v, double i_knee, double v_d, double slope) {
 }
 }  // namespace
 
-double VoltageCircuitParams::R13_ohm() const { return parallel(R1_ohm, R3_ohm); }
-double VoltageCircuitParams::R24_ohm() const { return parallel(R2_ohm, R4_ohm); }
+double VoltageCircuitParams::R13_ohm() const {
+  return parallel(R1_ohm, R3_ohm);
+}
+double VoltageCircuitParams::R24_ohm() const {
+  return parallel(R2_ohm, R4_ohm);
+}
 double VoltageCircuitParams::dividerRatio() const {
   return R24_ohm() / (R13_ohm() + R24_ohm());
 }
 double VoltageCircuitParams::theveninResistance_ohm() const {
   return parallel(R13_ohm(), R24_ohm());
 }
-double VoltageCircuitParams::timeConstant_s() const { return theveninResistance_ohm() * C_F; }
+double VoltageCircuitParams::timeConstant_s() const {
+  return theveninResistance_ohm() * C_F;
+}
 double VoltageCircuitParams::cutoffFrequency_Hz() const {
   return 1.0 / (2.0 * kPi * timeConstant_s());
 }
@@ -50,9 +60,9 @@ double zenerConductance(double v, const VoltageCircuitParams& p) {
   const double a_fwd = -v / p.zener_forward_slope_V;
   const double g_rev =
       a_rev < kMaxExp ? p.zener_current_at_knee_A * std::exp(a_rev) / p.zener_slope_V : 0.0;
-  const double g_fwd = a_fwd < kMaxExp ? p.zener_forward_saturation_A * std::exp(a_fwd) /
-                                             p.zener_forward_slope_V
-                                       : 0.0;
+  const double g_fwd =
+      a_fwd < kMaxExp ? p.zener_forward_saturation_A * std::exp(a_fwd) / p.zener_forward_slope_V
+                      : 0.0;
   return g_rev + g_fwd;
 }
 
@@ -77,8 +87,17 @@ double clampedVoltage(double v_open, const VoltageCircuitParams& p) {
         p.zener_knee_V + p.zener_slope_V * std::log(v_open / (R * p.zener_current_at_knee_A));
     if (vz > lo && vz < hi && g(vz) <= 0) hi = vz;
   }
+  if (v_open < 0 && p.zener_forward_saturation_A > 0) {
+    // Where the forward branch alone carries all of -v_open/R.
+    const double vf =
+        -p.zener_forward_slope_V * std::log1p(-v_open / (R * p.zener_forward_saturation_A));
+    if (vf > lo && vf < hi && g(vf) >= 0) lo = vf;
+  }
+  // Safeguarded Newton (Numerical Recipes' rtsafe): bisect whenever the Newton step leaves
+  // the bracket or does not at least halve the previous step (slow on the exponentials).
   double x = std::clamp(v_open, lo, hi);
-  for (int it = 0; it < 200; ++it) {
+  double dx_old = hi - lo, dx = dx_old;
+  for (int it = 0; it < 300; ++it) {
     const double gx = g(x);
     if (gx == 0) return x;
     if (gx > 0)
@@ -86,9 +105,18 @@ double clampedVoltage(double v_open, const VoltageCircuitParams& p) {
     else
       hi = x;
     const double d = dg(x);
-    double xn = x - gx / d;
-    if (!(xn > lo && xn < hi)) xn = 0.5 * (lo + hi);  // Newton left the bracket: bisect
-    if (std::abs(xn - x) <= 1e-14 * (1.0 + std::abs(x)) || hi - lo <= 1e-14 * (1.0 + std::abs(x)))
+    const double newton = x - gx / d;
+    double xn;
+    if (!(newton > lo && newton < hi) || std::abs(2.0 * gx) > std::abs(dx_old * d)) {
+      xn = 0.5 * (lo + hi);
+      dx_old = dx;
+      dx = xn - x;
+    } else {
+      xn = newton;
+      dx_old = dx;
+      dx = xn - x;
+    }
+    if (std::abs(dx) <= 1e-15 * (1.0 + std::abs(x)) || hi - lo <= 4e-16 * (1.0 + std::abs(x)))
       return xn;
     x = xn;
   }
@@ -182,7 +210,7 @@ ZenerFit fitZenerSoftKnee(const std::vector<double>& v_open, const std::vector<d
         const double irev =
             reverseCurrent(V, p.zener_current_at_knee_A, p.zener_knee_V, p.zener_slope_V);
         const double denom = 1.0 / R + zenerConductance(V, p);
-        (*J)(j, 0) = -irev / denom;                                           // d/d ln I_k
+        (*J)(j, 0) = -irev / denom;                                              // d/d ln I_k
         (*J)(j, 1) = -irev * (-(V - p.zener_knee_V) / p.zener_slope_V) / denom;  // d/d ln V_s
       }
     }

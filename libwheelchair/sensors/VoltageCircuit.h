@@ -16,7 +16,7 @@
 //
 // Example:
 //   VoltageCircuitParams c;                           // Table III + Zener fit
-//   double vrc = steadyStateVrc(29.2, c);             // ~ 4.70 V (Table II: 4.684)
+//   double vrc = steadyStateVrc(29.2, c);             // ~ 4.69 V (Table II: 4.684)
 //   double Vw  = leadVoltageFromVrc(vrc, 0.0, c);     // ~ 29.2 V
 #pragma once
 
@@ -26,23 +26,23 @@ namespace wheelchair::sensors {
 
 struct VoltageCircuitParams {
   double R1_ohm = 30220, R2_ohm = 6980, R3_ohm = 3835, R4_ohm = 807;  ///< Table III measured
-  double C_F = 280e-9;                                              ///< Table III nominal
+  double C_F = 280e-9;                                                ///< Table III nominal
   bool has_zener = true;
   double zener_knee_V = 5.1;  ///< V_d (nominal, Table III)
   /// Soft-knee model I_z(V) = I_knee exp((V - V_d) / V_slope), fitted to Table II's V_RCZ
   /// column with Table II's V_RC,exp as the Thevenin voltage (docs/sensors.md, "Zener fit").
-  double zener_current_at_knee_A = 2.375e-3;
-  double zener_slope_V = 0.3379;
+  double zener_current_at_knee_A = 2.397e-3;
+  double zener_slope_V = 0.3364;
   /// Forward branch I = -I_fwd (exp(-V / V_fwd) - 1), a generic silicon junction (not fitted).
   double zener_forward_saturation_A = 1e-12;
   double zener_forward_slope_V = 0.04;
 
   double R13_ohm() const;                 ///< R_{1||3} = 3403.13 ohm
-  double R24_ohm() const;                 ///< R_{2||4} = 723.36 ohm
+  double R24_ohm() const;                 ///< R_{2||4} = 723.367 ohm (printed 723.36)
   double dividerRatio() const;            ///< R_{2||4}/(R_{1||3}+R_{2||4}), eq. (10)
   double theveninResistance_ohm() const;  ///< R_|| = 596.56 ohm
-  double timeConstant_s() const;          ///< R_|| C (166.9 us)
-  double cutoffFrequency_Hz() const;      ///< 1 / (2 pi R_|| C) (953.6 Hz)
+  double timeConstant_s() const;          ///< R_|| C (167.04 us with C = 280 nF)
+  double cutoffFrequency_Hz() const;      ///< 1 / (2 pi R_|| C) (952.8 Hz)
 };
 
 /// Diode current I_z(V) at capacitor voltage V (A, positive from the node to ground); 0 when

@@ -124,6 +124,14 @@ class FixedJoystick : public Driver {
 
 }  // namespace
 
+std::vector<Obstacle> defaultThreeTaskObstacles() {
+  std::vector<Obstacle> o(1);
+  o[0].x_m = 11.8;
+  o[0].y_m = 0.25;
+  o[0].radius_m = 0.05;
+  return o;
+}
+
 std::vector<Obstacle> fieldLattice(double radius_m) {
   std::vector<Obstacle> o;
   for (int i = 0; i < 5; ++i)

@@ -56,6 +56,9 @@ class Driver {
   virtual bool finished() const { return false; }
 };
 
+/// The three_task post: (11.8, 0.25) m, radius 5 cm, ahead of the 10 m mark.
+std::vector<Obstacle> defaultThreeTaskObstacles();
+
 /// Scenario settings ([simulation] keys, see SimulationOptions::loadFromConfig).
 struct ScenarioSettings {
   double start_pause_s = 1.0;        ///< standstill before the driver moves (gyro bias!)
@@ -65,7 +68,7 @@ struct ScenarioSettings {
   double comfort_angular_decel_rad_s2 = 0.6;
   double heading_gain_1_s = 1.5;  ///< pilot's steering: omega = gain * heading error
   double three_task_length_m = 10.0;
-  std::vector<Obstacle> three_task_obstacles{{11.8, 0.25, 0.05}};
+  std::vector<Obstacle> three_task_obstacles = defaultThreeTaskObstacles();
   double square_side_m = 3.0;
   double excite_mean_speed_m_s = 0.35;
   std::vector<Obstacle> field_obstacles;  ///< empty: the default 1 m lattice (fieldLattice)

@@ -94,10 +94,6 @@ struct Snap {
   double x, y, phi, v, om, psiR, psiL, vrcR, vrcL;
 };
 
-int32_t wrapInt32(int64_t x) {
-  return static_cast<int32_t>(static_cast<uint32_t>(x));
-}
-
 /// Everything effects change on the sensor side.
 struct SensorEffects {
   double encoder_scale[2] = {1, 1};
@@ -298,11 +294,11 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   // --- sensors ----------------------------------------------------------------------------
   const sensors::EncoderParams& enc = cfg.encoders.params;
   const sensors::VoltageCircuitParams& vc = cfg.motors.circuit;
-  const double R13 = vc.R1_ohm * vc.R3_ohm / (vc.R1_ohm + vc.R3_ohm);
-  const double R24 = vc.R2_ohm * vc.R4_ohm / (vc.R2_ohm + vc.R4_ohm);
-  const double tau_rc = R13 * R24 / (R13 + R24) * vc.C_F;
-  const int rc_substeps =
-      tau_rc > 0 ? std::max(1, static_cast<int>(std::ceil(h / (0.25 * tau_rc)))) : 1;
+  // (11) with no lead voltage: steady state and decay over one step.
+  const double rc_ss0 = sensors::steadyStateVrc(0.0, vc);
+  const double rc_decay0 = std::exp(
+      h * (sensors::vrcRate(rc_ss0 + 1e-4, 0.0, vc) - sensors::vrcRate(rc_ss0 - 1e-4, 0.0, vc)) /
+      2e-4);
   const auto& son = cfg.sonar;
   const auto& poz = cfg.pozyx;
 
@@ -407,23 +403,25 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     const Mech s_prev = s;
     const double vrc_prev[2] = {vrcOf(0), vrcOf(1)};
     s = rk4(s, dt, I, h);
-    // Voltage circuit (11) on each wire, sub-stepped (tau_rc ~ 0.17 ms << h).
-    const double hs = h / rc_substeps;
+    // Voltage circuit (11) on each wire. Its time constant (R_par C = 0.17 ms) is shorter
+    // than the step, so it is integrated exponentially (exact for the linear part) around
+    // the steady state of the end-of-step lead voltage, with the local rate constant of
+    // (11) there (the Zener conductance included).
     for (int m = 0; m < 2; ++m) {
-      const double Uend =
-          Rm * I(m) + km[m] * rG * ((m == 0 ? s.v + lw * s.om / 2 : s.v - lw * s.om / 2)) / r;
-      for (int j = 0; j < rc_substeps; ++j) {
-        const double a = (j + 0.5) / rc_substeps;
-        const double Um = (1 - a) * U[m] + a * Uend;
-        const double Vw[2] = {std::max(Um, 0.0), std::max(-Um, 0.0)};
-        for (int w = 0; w < 2; ++w) {
-          double& x = wire[m][w];
-          const double k1 = sensors::vrcRate(x, Vw[w], vc);
-          const double k2 = sensors::vrcRate(x + hs / 2 * k1, Vw[w], vc);
-          const double k3 = sensors::vrcRate(x + hs / 2 * k2, Vw[w], vc);
-          const double k4 = sensors::vrcRate(x + hs * k3, Vw[w], vc);
-          x += hs / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
+      const double u_end = m == 0 ? s.v + lw * s.om / 2 : s.v - lw * s.om / 2;
+      const double Uend = Rm * I(m) + km[m] * rG * u_end / r;
+      const double Vw[2] = {std::max(Uend, 0.0), std::max(-Uend, 0.0)};
+      for (int w = 0; w < 2; ++w) {
+        double& x = wire[m][w];
+        if (Vw[w] == 0.0) {
+          x = rc_ss0 + (x - rc_ss0) * rc_decay0;
+          continue;
         }
+        const double xs = sensors::steadyStateVrc(Vw[w], vc);
+        const double lam =
+            (sensors::vrcRate(xs + 1e-4, Vw[w], vc) - sensors::vrcRate(xs - 1e-4, Vw[w], vc)) /
+            2e-4;
+        x = xs + (x - xs) * std::exp(lam * h);
       }
     }
     // Collisions: an obstacle centre inside the footprint.
@@ -453,12 +451,14 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
         const double stamp = t0 + tm + se.delay[st];
         switch (st) {
           case kEncoders: {
-            const int64_t tr =
-                static_cast<int64_t>(sensors::wheelAngleToTicks(se.encoder_scale[0] * q.psiR, enc));
-            const int64_t tl =
-                static_cast<int64_t>(sensors::wheelAngleToTicks(se.encoder_scale[1] * q.psiL, enc));
-            rec.encoders.push_back({stamp, wrapInt32(opt.encoder_initial_ticks_right + tr),
-                                    wrapInt32(opt.encoder_initial_ticks_left + tl)});
+            // The counter holds whole edges: floor of the continuous count of (9).
+            const auto tr = static_cast<int64_t>(
+                std::floor(sensors::wheelAngleToTicks(se.encoder_scale[0] * q.psiR, enc)));
+            const auto tl = static_cast<int64_t>(
+                std::floor(sensors::wheelAngleToTicks(se.encoder_scale[1] * q.psiL, enc)));
+            rec.encoders.push_back(
+                {stamp, sensors::toHardwareCounter(opt.encoder_initial_ticks_right + tr),
+                 sensors::toHardwareCounter(opt.encoder_initial_ticks_left + tl)});
             break;
           }
           case kImu: {
@@ -550,13 +550,15 @@ namespace {
 
 using nlohmann::json;
 
-#define WC_TRUTH_COLUMNS(X)                                                         \
-  X(t_s)                                                                            \
-  X(x_m) X(y_m) X(phi_rad) X(v_m_s) X(omega_rad_s) X(wheel_speed_right_rad_s)       \
-      X(wheel_speed_left_rad_s) X(wheel_angle_right_rad) X(wheel_angle_left_rad)    \
-          X(current_right_A) X(current_left_A) X(voltage_right_V) X(voltage_left_V) \
-              X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) X(omega_ref_rad_s) \
-                  X(supervisory_scale)
+#define WC_TRUTH_COLUMNS(X)                                                                       \
+  X(t_s)                                                                                          \
+  X(x_m)                                                                                          \
+  X(y_m)                                                                                          \
+  X(phi_rad)                                                                                      \
+  X(v_m_s) X(omega_rad_s) X(wheel_speed_right_rad_s) X(wheel_speed_left_rad_s)                    \
+      X(wheel_angle_right_rad) X(wheel_angle_left_rad) X(current_right_A) X(current_left_A)       \
+          X(voltage_right_V) X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) \
+              X(omega_ref_rad_s) X(supervisory_scale)
 
 std::string fmtNum(double x) {
   char buf[40];

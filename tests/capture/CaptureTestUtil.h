@@ -81,11 +81,11 @@ inline io::Recording captureRecording(double duration_s = 4.0) {
     r.motors.push_back({t0 + 0.007 + 0.01 * k, ci.toPhysical(540 + (k * 7) % 90), cl.toPhysical(535 + (k * 5) % 80),
                         vr.toPhysical(300 + (k * 3) % 200), vl.toPhysical(290 + (k * 11) % 210)});
   for (int k = 0; k * 0.1 <= duration_s; ++k)
-    r.sonar.push_back({t0 + 0.05 + 0.1 * k, (k % 6 == 2) ? 0.0 : 3.2 - 0.04 * k});
+    r.sonar.push_back({t0 + 0.05 + 0.1 * k, (k % 6 == 2) ? 0.0 : 3.2 - 0.04 * (k % 50)});
   for (int k = 0; k * 0.1 <= duration_s; ++k)
     r.pozyx.push_back({t0 + 0.033 + 0.1 * k, 4.25 + 0.031 * k, -1.5 + 0.017 * k, false, 0.0});
   for (int k = 0; k * 0.02 <= duration_s; ++k)
-    r.joystick.push_back({t0 + 0.011 + 0.02 * k, 0.5 * std::min(1.0, k * 0.02), (k > 80) ? 0.25 : 0.0});
+    r.joystick.push_back({t0 + 0.011 + 0.02 * k, 0.5 * std::min(1.0, k * 0.02), (k % 200 > 80) ? 0.25 : 0.0});
   r.meta["operator"] = "capture-test";
   return r;
 }

@@ -32,7 +32,7 @@ inline io::Recording syntheticRecording(double duration_s = 4.0, bool imu_extra 
   for (int k = 0; k * 0.01 <= duration_s; ++k)
     r.motors.push_back({t0 + 0.005 + 0.01 * k, 4.0 + 0.125 * (k % 8), 3.75, 2.5 + 0.001 * k, 2.4});
   for (int k = 0; k * 0.1 <= duration_s; ++k)
-    r.sonar.push_back({t0 + 0.05 + 0.1 * k, (k % 7 == 3) ? 0.0 : 3.5 - 0.05 * k});
+    r.sonar.push_back({t0 + 0.05 + 0.1 * k, (k % 7 == 3) ? 0.0 : (3500 - 50 * k) / 1000.0});  // mm resolution
   for (int k = 0; k * 0.1 <= duration_s; ++k)
     r.pozyx.push_back({t0 + 0.07 + 0.1 * k, 12.5 + 0.02 * k, -3.25, pozyx_z, pozyx_z ? 1.2 : 0.0});
   for (int k = 0; k * 0.02 <= duration_s; ++k)

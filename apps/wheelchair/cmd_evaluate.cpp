@@ -1,0 +1,86 @@
+// wheelchair evaluate FILES... [--config F] [-j N] [--csv OUT.csv] [--json OUT.json]
+//                     [--markdown OUT.md] [--alignment none|origin|se2|se2-first:SECONDS]
+//                     [--no-baseline]
+// Trajectory metrics of every recording and variant (ekf, encoders, encoders_gyro, baseline)
+// against the recording's ground truth (libwheelchair/evaluation/Batch.h). Without an output
+// option the CSV goes to stdout. Exit 1 when any recording (or variant) failed.
+#include "Command.h"
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/evaluation/Batch.h"
+
+#include <fmt/core.h>
+
+#include <iostream>
+#include <memory>
+
+#include <unistd.h>
+
+namespace wheelchair::cli {
+namespace {
+
+struct EvaluateOptions {
+  std::vector<std::string> files;
+  std::string config_path, csv, json, markdown, alignment = "se2";
+  unsigned jobs = 0;
+  bool no_baseline = false, quiet = false;
+};
+
+int runEvaluate(const EvaluateOptions& o) {
+  evaluation::BatchOptions bo;
+  try {
+    evaluation::parseAlignment(o.alignment, bo.metrics);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "wheelchair evaluate: " << e.what() << "\n";
+    return kExitUsage;
+  }
+  const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
+                                         : config::WheelchairConfig::load(o.config_path);
+  bo.jobs = o.jobs;
+  bo.baseline = !o.no_baseline;
+  if (!o.quiet && isatty(STDERR_FILENO)) {
+    bo.progress = [](std::size_t done, std::size_t total, const std::string& file) {
+      const int width = 30;
+      const int filled = static_cast<int>(width * done / (total ? total : 1));
+      fmt::print(stderr, "\r[{}{}] {}/{} {:<40.40}", std::string(filled, '#'),
+                 std::string(width - filled, '.'), done, total, file);
+      if (done == total) fmt::print(stderr, "\n");
+      std::fflush(stderr);
+    };
+  }
+  const auto res = evaluation::runBatch(o.files, cfg, bo);
+  if (!o.csv.empty()) evaluation::writeBatchCsv(o.csv, res, cfg);
+  if (!o.json.empty()) evaluation::writeBatchJson(o.json, res, cfg);
+  if (!o.markdown.empty()) evaluation::writeBatchMarkdown(o.markdown, res, cfg);
+  if (o.csv.empty() && o.json.empty() && o.markdown.empty()) std::cout << evaluation::batchCsv(res);
+  for (const auto& r : res.rows)
+    if (!r.error.empty())
+      std::cerr << "wheelchair evaluate: " << r.recording << (r.variant.empty() ? "" : " [" + r.variant + "]")
+                << ": " << r.error << "\n";
+  if (!o.quiet)
+    fmt::print(stderr, "evaluated {} recording(s), {} failed\n", res.recordings,
+               res.failed_recordings);
+  return res.anyFailed() ? kExitBadInput : kExitOk;
+}
+
+const RegisterCommand reg{Command{
+    "evaluate",
+    "Trajectory metrics (ATE, RPE, drift) of recordings' estimates against ground truth",
+    [](CLI::App& sub) -> std::function<int()> {
+      auto o = std::make_shared<EvaluateOptions>();
+      sub.add_option("files", o->files, "Rawlog recordings")->required();
+      sub.add_option("--config", o->config_path, "Configuration INI (default: nominal vehicle)");
+      sub.add_option("-j,--jobs", o->jobs, "Parallel jobs (default: all cores)")
+          ->check(CLI::NonNegativeNumber);
+      sub.add_option("--csv", o->csv, "CSV output (+ OUT.csv.config.ini with the configuration)");
+      sub.add_option("--json", o->json, "JSON output (includes the full configuration)");
+      sub.add_option("--markdown", o->markdown, "Markdown table (includes the configuration)");
+      sub.add_option("--alignment", o->alignment, "none | origin | se2 | se2-first:SECONDS")
+          ->default_val("se2");
+      sub.add_flag("--no-baseline", o->no_baseline, "Skip the baseline filter");
+      sub.add_flag("-q,--quiet", o->quiet, "No progress bar or summary on stderr");
+      return [o] { return runEvaluate(*o); };
+    }}};
+
+}  // namespace
+}  // namespace wheelchair::cli

@@ -1,0 +1,204 @@
+#include "libwheelchair/diagnosis/Campaign.h"
+
+#include "libwheelchair/simulation/Simulator.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <limits>
+#include <set>
+
+namespace wheelchair::diagnosis {
+
+namespace {
+double U(std::mt19937_64& rng, double a, double b) {
+  return std::uniform_real_distribution<double>(a, b)(rng);
+}
+double sgn(std::mt19937_64& rng) { return U(rng, 0, 1) < 0.5 ? -1.0 : 1.0; }
+std::string side(std::mt19937_64& rng) { return U(rng, 0, 1) < 0.5 ? "right" : "left"; }
+double median(std::vector<double> v) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+double quantile(std::vector<double> v, double q) {
+  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
+}
+}  // namespace
+
+simulation::EffectSpec randomEffect(const std::string& id, std::mt19937_64& rng) {
+  auto f = [](double x) { return fmt::format("{:.6g}", x); };
+  simulation::EffectSpec e;
+  e.id = id;
+  if (id == "gyro_bias") e.params["bias_rad_s"] = f(sgn(rng) * U(rng, 0.003, 0.02));
+  if (id == "gyro_scale") e.params["scale"] = f(1 + sgn(rng) * U(rng, 0.01, 0.05));
+  if (id == "encoder_scale") e.params = {{"side", side(rng)}, {"scale", f(1 + sgn(rng) * U(rng, 0.01, 0.05))}};
+  if (id == "sensor_delay") {
+    const char* s[] = {"imu", "encoders", "motors"};
+    e.params = {{"sensor", s[std::uniform_int_distribution<int>(0, 2)(rng)]}, {"delay_s", f(U(rng, 0.03, 0.1))}};
+  }
+  if (id == "motor_asymmetry") e.params = {{"side", side(rng)}, {"friction_ratio", f(U(rng, 1.15, 1.5))}};
+  if (id == "coulomb_friction") e.params["current_A"] = f(U(rng, 0.2, 0.6));
+  if (id == "ground_slope") e.params = {{"angle_deg", f(U(rng, 1.0, 3.0))}, {"downhill_heading_deg", f(U(rng, -180, 180))}};
+  if (id == "payload_mass") e.params["body_mass_kg"] = f(130 + sgn(rng) * U(rng, 25, 60));
+  return e;
+}
+
+double parameterError(const simulation::EffectSpec& t, const Finding& f, const config::WheelchairConfig& cfg) {
+  auto num = [&](const char* k) { return f.parameters.contains(k) && f.parameters[k].is_number() ? f.parameters[k].get<double>() : std::nan(""); };
+  auto str = [&](const char* k) { return f.parameters.contains(k) && f.parameters[k].is_string() ? f.parameters[k].get<std::string>() : std::string(); };
+  auto rel = [](double est, double tru) { return std::abs(est - tru) / std::abs(tru); };
+  const double nan = std::nan("");
+  if (t.id == "gyro_bias") return rel(num("bias_rad_s"), t.number("bias_rad_s"));
+  if (t.id == "gyro_scale") return rel(num("scale") - 1, t.number("scale") - 1);
+  if (t.id == "encoder_scale") return str("side") == t.text("side") ? rel(num("scale") - 1, t.number("scale") - 1) : 1.0;
+  if (t.id == "sensor_delay") return str("sensor") == t.text("sensor") ? rel(num("delay_s"), t.number("delay_s")) : 1.0;
+  if (t.id == "motor_asymmetry") return str("side") == t.text("side") ? rel(num("friction_ratio") - 1, t.number("friction_ratio") - 1) : 1.0;
+  if (t.id == "coulomb_friction") return rel(num("current_A"), t.number("current_A"));
+  if (t.id == "ground_slope") {
+    double a = t.number("angle_deg") * M_PI / 180, h = t.number("downhill_heading_deg") * M_PI / 180;
+    double ae = num("angle_deg") * M_PI / 180, he = num("downhill_heading_deg") * M_PI / 180;
+    // error of the slope vector relative to its length
+    return std::hypot(std::sin(ae) * std::cos(he) - std::sin(a) * std::cos(h), std::sin(ae) * std::sin(he) - std::sin(a) * std::sin(h)) / std::sin(a);
+  }
+  if (t.id == "payload_mass") {
+    double m0 = cfg.vehicle.geom.body_mass_kg;
+    return rel(num("body_mass_kg") - m0, t.number("body_mass_kg") - m0);
+  }
+  return nan;
+}
+
+nlohmann::json CaseResult::toJson() const {
+  nlohmann::json j;
+  std::vector<std::string> t;
+  for (auto& e : truth) t.push_back(simulation::formatEffect(e));
+  j["truth"] = t;
+  j["reported"] = reported;
+  j["correct"] = correct;
+  j["param_errors"] = param_errors;
+  j["val_rms_before"] = val_rms_before;
+  j["val_rms_after"] = val_rms_after;
+  j["runtime_s"] = runtime_s;
+  return j;
+}
+
+CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scenario, uint64_t seed,
+                   double duration_s, const std::vector<simulation::EffectSpec>& effects,
+                   const DiagnosisOptions& dopt) {
+  CaseResult c;
+  c.truth = effects;
+  simulation::SimulationOptions so;
+  so.loadFromConfig(cfg.ini());
+  so.record_ground_truth = true;
+  auto sim = simulation::simulate(cfg, scenario, seed, scenario == "excite" ? duration_s : 0, effects, so);
+  auto t0 = std::chrono::steady_clock::now();
+  DiagnosisReport rep = diagnose({sim.recording}, {}, cfg, dopt);
+  c.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::multiset<std::string> rs, ts;
+  for (auto& f : rep.findings) c.reported.push_back(f.effect + (f.effectText().empty() ? "" : " " + f.effectText())), rs.insert(f.effect);
+  for (auto& e : effects) ts.insert(e.id);
+  std::set<std::string> rset(rs.begin(), rs.end()), tset(ts.begin(), ts.end());
+  c.correct = rset == tset;
+  for (auto& e : effects) {
+    double err = 1.0;
+    for (auto& f : rep.findings)
+      if (f.effect == e.id) err = std::min(err, parameterError(e, f, cfg));
+    c.param_errors.push_back(err);
+  }
+  auto rmsPair = [&](const char* when) {
+    double s = 0;
+    int n = 0;
+    for (auto ch : {"current_right", "current_left"})
+      if (rep.channels.contains(ch) && rep.channels[ch][when].contains("rms"))
+        s += std::pow(rep.channels[ch][when]["rms"].get<double>(), 2), ++n;
+    return n ? std::sqrt(s / n) : 0.0;
+  };
+  c.val_rms_before = rmsPair("before");
+  c.val_rms_after = rmsPair("after");
+  return c;
+}
+
+nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOptions& opt,
+                           const DiagnosisOptions& dopt) {
+  std::mt19937_64 rng(opt.seed);
+  nlohmann::json out, cases = nlohmann::json::array();
+  auto pickScenario = [&]() {
+    return opt.scenarios[std::uniform_int_distribution<size_t>(0, opt.scenarios.size() - 1)(rng)];
+  };
+  auto log = [&](const std::string& label, const CaseResult& c) {
+    if (opt.verbose) std::cerr << label << (c.correct ? " OK  " : " FAIL") << " " << c.toJson().dump() << "\n";
+  };
+  nlohmann::json single = nlohmann::json::object();
+  int tot = 0, totc = 0;
+  for (auto& id : opt.effects) {
+    int n = 0, ok = 0;
+    std::vector<double> errs;
+    for (int k = 0; k < opt.runs_per_effect; ++k) {
+      auto e = randomEffect(id, rng);
+      std::string sc = pickScenario();
+      uint64_t seed = rng();
+      CaseResult c = runCase(cfg, sc, seed % 1000000, opt.duration_s, {e}, dopt);
+      log(sc, c);
+      ++n, ok += c.correct;
+      errs.push_back(c.param_errors[0]);
+      auto j = c.toJson();
+      j["scenario"] = sc, j["seed"] = seed % 1000000, j["kind"] = "single";
+      cases.push_back(j);
+    }
+    tot += n, totc += ok;
+    int within = 0;
+    for (double e : errs) within += e <= 0.25;
+    single[id] = {{"runs", n}, {"correct", ok}, {"rate", n ? double(ok) / n : 0},
+                  {"median_param_error", median(errs)}, {"p90_param_error", quantile(errs, 0.9)},
+                  {"within_25pct", within}};
+  }
+  out["single"] = single;
+  out["single_rate"] = tot ? double(totc) / tot : 0;
+  {
+    int n = 0, ok = 0;
+    std::vector<double> errs;
+    for (int k = 0; k < opt.pair_runs && opt.effects.size() >= 2; ++k) {
+      size_t a = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng), b = a;
+      while (b == a) b = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng);
+      auto ea = randomEffect(opt.effects[a], rng), eb = randomEffect(opt.effects[b], rng);
+      std::string sc = pickScenario();
+      uint64_t seed = rng() % 1000000;
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {ea, eb}, dopt);
+      log(sc, c);
+      ++n, ok += c.correct;
+      for (double e : c.param_errors) errs.push_back(e);
+      auto j = c.toJson();
+      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "pair";
+      cases.push_back(j);
+    }
+    int within = 0;
+    for (double e : errs) within += e <= 0.25;
+    out["pairs"] = {{"runs", n}, {"correct", ok}, {"rate", n ? double(ok) / n : 0},
+                    {"median_param_error", median(errs)}, {"within_25pct", within}, {"params", errs.size()}};
+  }
+  {
+    int n = 0, alarms = 0;
+    for (int k = 0; k < opt.clean_runs; ++k) {
+      std::string sc = pickScenario();
+      uint64_t seed = rng() % 1000000;
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {}, dopt);
+      log(sc, c);
+      ++n, alarms += !c.correct;
+      auto j = c.toJson();
+      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "clean";
+      cases.push_back(j);
+    }
+    out["clean"] = {{"runs", n}, {"false_alarms", alarms}, {"rate", n ? double(alarms) / n : 0}};
+  }
+  out["cases"] = cases;
+  return out;
+}
+
+}  // namespace wheelchair::diagnosis

@@ -1,0 +1,709 @@
+#include "libwheelchair/diagnosis/CommandResponse.h"
+
+#include "libwheelchair/diagnosis/Statistics.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+
+namespace wheelchair::diagnosis {
+
+using model::CommandKind;
+using model::CommandResponseParams;
+using model::CommandSignal;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+double wrap(double a) { return std::remainder(a, 2 * kPi); }
+
+struct Window {
+  double t0, t1, v, w;
+};
+
+struct Prep {
+  CommandSignal raw, clean;
+  const io::Recording* rec = nullptr;
+  std::vector<Window> win;
+  double g0 = 0, g1 = 0;  // simulation grid range
+};
+
+// Mean velocities over windows of Vicon poses (exact: differences of poses).
+std::vector<Window> velocityWindows(const std::vector<io::GroundTruthPoseSample>& gt, double c0,
+                                    double c1, double T) {
+  std::vector<Window> out;
+  std::size_t i = 0;
+  while (i < gt.size()) {
+    std::size_t j = i + 1;
+    while (j < gt.size() && gt[j].t_s - gt[i].t_s < T) ++j;
+    if (j >= gt.size()) break;
+    const double dt = gt[j].t_s - gt[i].t_s;
+    if (dt <= 2 * T && gt[i].t_s >= c0 && gt[j].t_s <= c1) {
+      const double dphi = wrap(gt[j].phi_rad - gt[i].phi_rad);
+      const double dx = gt[j].x_m - gt[i].x_m, dy = gt[j].y_m - gt[i].y_m;
+      const double d = std::hypot(dx, dy);
+      const double arc = std::abs(dphi) > 1e-9 ? d * (dphi / 2) / std::sin(dphi / 2) : d;
+      const double pm = gt[i].phi_rad + dphi / 2;
+      const double sign = dx * std::cos(pm) + dy * std::sin(pm) >= 0 ? 1.0 : -1.0;
+      out.push_back({gt[i].t_s, gt[j].t_s, sign * arc / dt, dphi / dt});
+    }
+    i = j;
+  }
+  return out;
+}
+
+Prep prepare(const io::Recording& rec, const CommandResponseOptions& o) {
+  Prep p;
+  p.rec = &rec;
+  p.raw = commandSignal(rec, false, o.max_zero_run_s);
+  p.clean = commandSignal(rec, true, o.max_zero_run_s);
+  p.win = velocityWindows(rec.ground_truth, p.raw.startTime(), p.raw.endTime(), o.window_s);
+  p.g0 = p.raw.startTime();
+  p.g1 = p.win.empty() ? p.g0 : std::max(p.win.back().t1, p.g0);
+  return p;
+}
+
+// Model of one channel (0 = v, 1 = omega).
+struct ChannelModel {
+  bool lag = false;
+  double delay = 0, tau = 0;
+  bool db_on = false;
+  double db = 0;
+  std::array<bool, 4> free{};
+  std::array<double, 4> gain{1, 1, 1, 1};
+};
+
+// Walks a command signal at increasing query times.
+class Cursor {
+ public:
+  explicit Cursor(const CommandSignal& s) : s_(s.samples()) {}
+  Eigen::Vector2d at(double t) {
+    while (i_ < s_.size() && s_[i_].t_s <= t) ++i_;
+    if (i_ == 0) return Eigen::Vector2d::Zero();
+    return {s_[i_ - 1].v_m_s, s_[i_ - 1].omega_rad_s};
+  }
+
+ private:
+  const std::vector<model::CommandSample>& s_;
+  std::size_t i_ = 0;
+};
+
+double interpCum(const std::vector<double>& C, double g0, double dt, double t) {
+  const double u = (t - g0) / dt;
+  if (u <= 0) return C.front() + u * 0;  // before the grid: nothing accumulated
+  const std::size_t k = static_cast<std::size_t>(u);
+  if (k + 1 >= C.size()) return C.back();
+  const double a = u - k;
+  return (1 - a) * C[k] + a * C[k + 1];
+}
+
+// Window means of the lag response to the command restricted to each kind (n_win x 4).
+Eigen::MatrixXd kindColumns(const Prep& p, int ch, const ChannelModel& m, bool clean,
+                            const CommandResponseOptions& o) {
+  const CommandSignal& sig = clean ? p.clean : p.raw;
+  const double dt = o.grid_dt_s;
+  const std::size_t N = static_cast<std::size_t>(std::ceil((p.g1 - p.g0) / dt)) + 1;
+  std::vector<double> C[4];
+  for (auto& c : C) c.assign(N + 1, 0.0);
+  double y[4] = {0, 0, 0, 0};
+  const bool lag = m.lag && m.tau > 0;
+  const double a = lag ? std::exp(-dt / m.tau) : 0, b = lag ? m.tau * (1 - a) : 0;
+  CommandResponseParams kp;  // kind thresholds
+  Cursor cur(sig);
+  for (std::size_t k = 0; k < N; ++k) {
+    const double tq = p.g0 + (k + 0.5) * dt - (m.lag ? m.delay : 0.0);
+    const Eigen::Vector2d c = cur.at(tq);
+    const int kind = static_cast<int>(model::classifyCommand(c(0), c(1), kp));
+    double val = c(ch);
+    if (m.db_on && std::abs(val) <= m.db) val = 0;
+    for (int j = 0; j < 4; ++j) {
+      const double in = j == kind ? val : 0.0;
+      double integral;
+      if (lag) {
+        integral = in * dt + (y[j] - in) * b;
+        y[j] = in + (y[j] - in) * a;
+      } else {
+        integral = in * dt;
+        y[j] = in;
+      }
+      C[j][k + 1] = C[j][k] + integral;
+    }
+  }
+  Eigen::MatrixXd X(p.win.size(), 4);
+  for (std::size_t i = 0; i < p.win.size(); ++i) {
+    const auto& w = p.win[i];
+    for (int j = 0; j < 4; ++j)
+      X(i, j) = (interpCum(C[j], p.g0, dt, w.t1) - interpCum(C[j], p.g0, dt, w.t0)) / (w.t1 - w.t0);
+  }
+  return X;
+}
+
+struct ChannelFit {
+  double rss = 0;
+  Eigen::VectorXd resid;
+};
+
+// Fits the free gains by least squares for the given lag/deadband; returns the residual.
+ChannelFit fitChannel(const std::vector<Prep>& preps, int ch, ChannelModel& m, bool clean,
+                      const CommandResponseOptions& o, bool fit_gains = true) {
+  std::size_t n = 0;
+  for (const auto& p : preps) n += p.win.size();
+  Eigen::MatrixXd X(n, 4);
+  Eigen::VectorXd y(n);
+  std::size_t r = 0;
+  for (const auto& p : preps) {
+    const Eigen::MatrixXd Xp = kindColumns(p, ch, m, clean, o);
+    for (std::size_t i = 0; i < p.win.size(); ++i, ++r) {
+      X.row(r) = Xp.row(i);
+      y(r) = ch == 0 ? p.win[i].v : p.win[i].w;
+    }
+  }
+  std::vector<int> fr;
+  Eigen::VectorXd target = y;
+  for (int j = 0; j < 4; ++j) {
+    if (fit_gains && m.free[j] && X.col(j).squaredNorm() > 1e-12)
+      fr.push_back(j);
+    else
+      target -= m.gain[j] * X.col(j);
+  }
+  if (!fr.empty()) {
+    Eigen::MatrixXd A(n, fr.size());
+    for (std::size_t q = 0; q < fr.size(); ++q) A.col(q) = X.col(fr[q]);
+    const Eigen::VectorXd g = A.colPivHouseholderQr().solve(target);
+    for (std::size_t q = 0; q < fr.size(); ++q) {
+      m.gain[fr[q]] = g(q);
+      target -= g(q) * X.col(fr[q]);
+    }
+  }
+  return {target.squaredNorm(), target};
+}
+
+// Optimises delay/tau (if lag) and the deadband (if on), gains by least squares inside.
+ChannelFit optimiseChannel(const std::vector<Prep>& preps, int ch, ChannelModel& m, bool clean,
+                           const CommandResponseOptions& o, bool coarse_lag) {
+  const auto eval = [&](ChannelModel& mm) { return fitChannel(preps, ch, mm, clean, o).rss; };
+  const std::vector<double> db_grid =
+      ch == 0 ? std::vector<double>{0.005, 0.01, 0.015, 0.02, 0.03, 0.04, 0.05}
+              : std::vector<double>{0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3};
+  for (int round = 0; round < (m.db_on && m.lag ? 2 : 1); ++round) {
+    if (m.db_on) {
+      double best = std::numeric_limits<double>::infinity(), bdb = m.db;
+      for (double d : db_grid) {
+        ChannelModel t = m;
+        t.db = d;
+        const double s = eval(t);
+        if (s < best) best = s, bdb = d;
+      }
+      m.db = bdb;
+    }
+    if (m.lag) {
+      double best = std::numeric_limits<double>::infinity();
+      if (coarse_lag && round == 0) {
+        for (double d = 0; d <= o.max_delay_s + 1e-9; d += 0.04)
+          for (double tau = 0; tau <= o.max_time_constant_s + 1e-9; tau += 0.05) {
+            ChannelModel t = m;
+            t.delay = d;
+            t.tau = tau;
+            const double s = eval(t);
+            if (s < best) best = s, m.delay = d, m.tau = tau;
+          }
+      } else {
+        best = eval(m);
+      }
+      double sd = 0.02, st = 0.025;
+      while (sd > 0.002) {
+        bool moved = false;
+        for (int dim = 0; dim < 2; ++dim)
+          for (int sgn : {-1, 1}) {
+            ChannelModel t = m;
+            if (dim == 0)
+              t.delay = std::clamp(m.delay + sgn * sd, 0.0, o.max_delay_s);
+            else
+              t.tau = std::clamp(m.tau + sgn * st, 0.0, o.max_time_constant_s);
+            const double s = eval(t);
+            if (s < best - 1e-15) best = s, m.delay = t.delay, m.tau = t.tau, moved = true;
+          }
+        if (!moved) sd /= 2, st /= 2;
+      }
+    }
+  }
+  return fitChannel(preps, ch, m, clean, o);
+}
+
+struct FullModel {
+  ChannelModel ch[2];
+  bool zero = false;
+};
+
+CommandResponseParams toParams(const FullModel& M) {
+  CommandResponseParams p;
+  if (M.ch[0].lag) p.v.delay_s = M.ch[0].delay, p.v.time_constant_s = M.ch[0].tau;
+  if (M.ch[1].lag) p.omega.delay_s = M.ch[1].delay, p.omega.time_constant_s = M.ch[1].tau;
+  if (M.ch[0].db_on) p.v.deadband = M.ch[0].db;
+  if (M.ch[1].db_on) p.omega.deadband = M.ch[1].db;
+  for (int j = 0; j < 4; ++j) {
+    p.v_gain[j] = M.ch[0].free[j] ? M.ch[0].gain[j] : 1.0;
+    p.omega_gain[j] = M.ch[1].free[j] ? M.ch[1].gain[j] : 1.0;
+  }
+  return p;
+}
+
+struct Candidate {
+  std::string effect;
+  int ch;    // 0 v, 1 omega, -1 both
+  int kind;  // command kind for command_gain
+  int k;     // parameters added
+};
+
+bool isActive(const FullModel& M, const Candidate& c) {
+  if (c.effect == "actuator_lag") return M.ch[c.ch].lag;
+  if (c.effect == "deadband") return M.ch[c.ch].db_on;
+  if (c.effect == "command_gain") return M.ch[c.ch].free[c.kind];
+  return M.zero;
+}
+
+void setActive(FullModel& M, const Candidate& c, bool on) {
+  if (c.effect == "actuator_lag") {
+    M.ch[c.ch].lag = on;
+    if (!on) M.ch[c.ch].delay = M.ch[c.ch].tau = 0;
+  } else if (c.effect == "deadband") {
+    M.ch[c.ch].db_on = on;
+  } else if (c.effect == "command_gain") {
+    M.ch[c.ch].free[c.kind] = on;
+    if (!on) M.ch[c.ch].gain[c.kind] = 1;
+  } else {
+    M.zero = on;
+  }
+}
+
+const char* channelName(int ch) { return ch == 0 ? "v" : ch == 1 ? "omega" : "v+omega"; }
+
+Groups groupsOf(const std::vector<Prep>& preps) {
+  Groups g;
+  int s = 0;
+  for (const auto& p : preps) {
+    const int n = static_cast<int>(p.win.size());
+    if (n > 0) g.push_back({s, s + n});
+    s += n;
+  }
+  return g;
+}
+
+// Validation RSS of a channel with fixed parameters (no refit).
+double fixedRss(const std::vector<Prep>& preps, int ch, const FullModel& M,
+                const CommandResponseOptions& o) {
+  ChannelModel m = M.ch[ch];
+  return fitChannel(preps, ch, m, M.zero, o, /*fit_gains=*/false).rss;
+}
+
+// Ground-truth pose interpolated at t; false if outside or in a gap.
+bool gtAt(const std::vector<io::GroundTruthPoseSample>& gt, double t, double max_gap,
+          double& x, double& y, double& phi) {
+  if (gt.empty() || t < gt.front().t_s || t > gt.back().t_s) return false;
+  auto it = std::lower_bound(gt.begin(), gt.end(), t,
+                             [](const io::GroundTruthPoseSample& s, double tt) { return s.t_s < tt; });
+  if (it == gt.begin()) {
+    x = it->x_m, y = it->y_m, phi = it->phi_rad;
+    return true;
+  }
+  const auto& b = *it;
+  const auto& a = *(it - 1);
+  if (b.t_s - a.t_s > max_gap) return false;
+  const double u = (t - a.t_s) / (b.t_s - a.t_s);
+  x = a.x_m + u * (b.x_m - a.x_m);
+  y = a.y_m + u * (b.y_m - a.y_m);
+  phi = a.phi_rad + u * wrap(b.phi_rad - a.phi_rad);
+  return true;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+nlohmann::json driftJson(const DriftMetrics& d) {
+  return {{"drift_10s_m", d.drift_10s_m},
+          {"drift_60s_m", d.drift_60s_m},
+          {"heading_drift_10s_deg", d.heading_drift_10s_deg},
+          {"heading_drift_60s_deg", d.heading_drift_60s_deg},
+          {"n_windows_10s", d.n_10s},
+          {"n_windows_60s", d.n_60s}};
+}
+
+// Window means of command features for the unmodeled-term library.
+Eigen::MatrixXd libraryFeatures(const Prep& p, bool clean) {
+  const CommandSignal& s = clean ? p.clean : p.raw;
+  Eigen::MatrixXd F(p.win.size(), 5);
+  for (std::size_t i = 0; i < p.win.size(); ++i) {
+    Eigen::Matrix<double, 5, 1> acc = Eigen::Matrix<double, 5, 1>::Zero();
+    constexpr int K = 10;
+    for (int q = 0; q < K; ++q) {
+      const double t = p.win[i].t0 + (q + 0.5) / K * (p.win[i].t1 - p.win[i].t0);
+      const Eigen::Vector2d c = s.at(t);
+      acc += (Eigen::Matrix<double, 5, 1>() << 1, c(0), c(1), std::abs(c(1)),
+              c(0) * std::abs(c(1)))
+                 .finished();
+    }
+    F.row(i) = acc.transpose() / K;
+  }
+  return F;
+}
+const char* kLibraryNames[5] = {"1", "v_cmd", "omega_cmd", "|omega_cmd|", "v_cmd*|omega_cmd|"};
+
+}  // namespace
+
+bool hasCommandResponseData(const io::Recording& rec) {
+  return rec.joystick.size() >= 2 && rec.ground_truth.size() >= 2;
+}
+
+model::CommandSignal commandSignal(const io::Recording& rec, bool ignore_zero_runs,
+                                   double max_zero_run_s) {
+  std::vector<model::CommandSample> rows;
+  rows.reserve(rec.joystick.size());
+  for (const auto& j : rec.joystick) rows.push_back({j.t_s, j.v_cmd_m_s, j.omega_cmd_rad_s});
+  model::CommandSignalOptions opt;
+  opt.drop_short_zero_runs = ignore_zero_runs;
+  opt.max_zero_run_s = max_zero_run_s;
+  return model::CommandSignal(rows, opt);
+}
+
+DriftMetrics openLoopDrift(const std::vector<io::Recording>& recs,
+                           const CommandResponseParams& params, bool ignore_zero_runs,
+                           const CommandResponseOptions& o) {
+  const model::CommandDrivenModel mdl(params);
+  std::vector<double> e10, e60, h10, h60;
+  const double dt = o.grid_dt_s;
+  for (const auto& rec : recs) {
+    if (!hasCommandResponseData(rec)) continue;
+    const CommandSignal sig = commandSignal(rec, ignore_zero_runs, o.max_zero_run_s);
+    const auto& gt = rec.ground_truth;
+    const double g0 = sig.startTime();
+    const double g1 = std::min(sig.endTime(), gt.back().t_s);
+    if (g1 <= g0) continue;
+    const std::size_t N = static_cast<std::size_t>((g1 - g0) / dt);
+    std::vector<double> ds(N), dphi(N);
+    Cursor cv(sig), cw(sig);
+    double yv = 0, yw = 0;
+    const double tv = params.v.time_constant_s, tw = params.omega.time_constant_s;
+    for (std::size_t k = 0; k < N; ++k) {
+      const double tm = g0 + (k + 0.5) * dt;
+      const Eigen::Vector2d u = mdl.target(cv.at(tm - params.v.delay_s), cw.at(tm - params.omega.delay_s));
+      const auto sv = model::lagStep(yv, u(0), dt, tv), sw = model::lagStep(yw, u(1), dt, tw);
+      yv = sv.y_next, yw = sw.y_next;
+      ds[k] = sv.integral, dphi[k] = sw.integral;
+    }
+    for (double W : {10.0, 60.0}) {
+      for (double t0 = std::max(g0, gt.front().t_s); t0 + W <= g1; t0 += o.drift_start_every_s) {
+        double x, y, phi, xe, ye, phie;
+        if (!gtAt(gt, t0, o.max_gt_gap_s, x, y, phi) || !gtAt(gt, t0 + W, o.max_gt_gap_s, xe, ye, phie))
+          continue;
+        const std::size_t k0 = static_cast<std::size_t>(std::llround((t0 - g0) / dt));
+        const std::size_t k1 = std::min(N, static_cast<std::size_t>(std::llround((t0 + W - g0) / dt)));
+        for (std::size_t k = k0; k < k1; ++k) {
+          x += ds[k] * std::cos(phi + dphi[k] / 2);
+          y += ds[k] * std::sin(phi + dphi[k] / 2);
+          phi += dphi[k];
+        }
+        const double ep = std::hypot(x - xe, y - ye);
+        const double eh = std::abs(wrap(phi - phie)) * 180 / kPi;
+        (W == 10.0 ? e10 : e60).push_back(ep);
+        (W == 10.0 ? h10 : h60).push_back(eh);
+      }
+    }
+  }
+  DriftMetrics d;
+  d.drift_10s_m = median(e10);
+  d.drift_60s_m = median(e60);
+  d.heading_drift_10s_deg = median(h10);
+  d.heading_drift_60s_deg = median(h60);
+  d.n_10s = e10.size();
+  d.n_60s = e60.size();
+  return d;
+}
+
+CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& fit,
+                                              const std::vector<io::Recording>& validate,
+                                              const CommandResponseOptions& o) {
+  if (fit.empty() || validate.empty())
+    throw std::invalid_argument("diagnoseCommandResponse: need fit and validation recordings");
+  for (const auto* set : {&fit, &validate})
+    for (const auto& r : *set)
+      if (!hasCommandResponseData(r))
+        throw std::invalid_argument(
+            "diagnoseCommandResponse: every recording needs JOYSTICK commands and GROUND_TRUTH");
+  std::vector<Prep> F, V;
+  for (const auto& r : fit) F.push_back(prepare(r, o));
+  for (const auto& r : validate) V.push_back(prepare(r, o));
+  const Groups gF = groupsOf(F);
+  CommandResponseResult res;
+  res.max_zero_run_s = o.max_zero_run_s;
+  for (const auto& p : F) res.fit_windows += p.win.size();
+  for (const auto& p : V) res.validation_windows += p.win.size();
+  if (res.fit_windows < 20) throw std::invalid_argument("diagnoseCommandResponse: too little data");
+
+  // Catalogue.
+  std::vector<Candidate> cat = {
+      {"actuator_lag", 0, -1, 2},  {"actuator_lag", 1, -1, 2},
+      {"command_gain", 0, static_cast<int>(CommandKind::Straight), 1},
+      {"command_gain", 0, static_cast<int>(CommandKind::Arc), 1},
+      {"command_gain", 1, static_cast<int>(CommandKind::TurnInPlace), 1},
+      {"command_gain", 1, static_cast<int>(CommandKind::Arc), 1},
+      {"deadband", 0, -1, 1},      {"deadband", 1, -1, 1},
+      {"ignored_zero_commands", -1, -1, 1}};
+
+  FullModel M;
+  ChannelFit cur[2];
+  for (int ch = 0; ch < 2; ++ch) cur[ch] = fitChannel(F, ch, M.ch[ch], M.zero, o);
+  for (int ch = 0; ch < 2; ++ch) {
+    ChannelModel m = M.ch[ch];
+    ChannelFit f = fitChannel(V, ch, m, false, o, false);
+    (ch == 0 ? res.validation_v : res.validation_omega).rms_before =
+        std::sqrt(f.rss / std::max<double>(1, f.resid.size()));
+  }
+  std::size_t tried = 0;
+  std::vector<Candidate> accepted;
+  std::vector<CommandResponseFinding> acc_findings;
+  while (true) {
+    double neff[2];
+    for (int ch = 0; ch < 2; ++ch) neff[ch] = effectiveSampleSize(cur[ch].resid, gF, o.hac_lags);
+    struct Trial {
+      Candidate c;
+      FullModel M;
+      ChannelFit fit[2];
+      Evidence ev;
+    };
+    std::optional<Trial> best;
+    for (const auto& c : cat) {
+      if (isActive(M, c)) continue;
+      FullModel T = M;
+      setActive(T, c, true);
+      Trial tr{c, T, {cur[0], cur[1]}, {}};
+      const bool coarse = c.effect == "actuator_lag";
+      for (int ch = 0; ch < 2; ++ch) {
+        if (c.ch >= 0 && c.ch != ch) continue;
+        tr.fit[ch] = optimiseChannel(F, ch, tr.M.ch[ch], tr.M.zero, o, coarse);
+      }
+      ++tried;
+      if (c.ch >= 0) {
+        tr.ev = compareNested(cur[c.ch].rss, tr.fit[c.ch].rss, c.k, neff[c.ch]);
+      } else {
+        const Evidence a = compareNested(cur[0].rss, tr.fit[0].rss, c.k, neff[0]);
+        const Evidence b = compareNested(cur[1].rss, tr.fit[1].rss, c.k, neff[1]);
+        tr.ev.lr = a.lr + b.lr;
+        tr.ev.k = c.k;
+        tr.ev.n_eff = std::min(neff[0], neff[1]);
+        tr.ev.p_value = chi2Sf(std::max(0.0, tr.ev.lr), c.k);
+        tr.ev.delta_bic = -tr.ev.lr + c.k * std::log(std::max(1.0, tr.ev.n_eff));
+      }
+      // Plausibility.
+      bool plausible = true;
+      if (c.effect == "command_gain") {
+        const double g = tr.M.ch[c.ch].gain[c.kind];
+        plausible = g >= o.min_gain && g <= o.max_gain;
+      }
+      if (c.effect == "actuator_lag")
+        plausible = tr.M.ch[c.ch].delay > 0 || tr.M.ch[c.ch].tau > 0;
+      if (!plausible) continue;
+      if (!best || tr.ev.delta_bic < best->ev.delta_bic) best = tr;
+    }
+    if (!best) break;
+    const double alpha_b = o.alpha / std::max<std::size_t>(1, tried);
+    if (!(best->ev.delta_bic < -o.min_delta_bic && best->ev.p_value < alpha_b)) break;
+    M = best->M;
+    cur[0] = best->fit[0];
+    cur[1] = best->fit[1];
+    accepted.push_back(best->c);
+    CommandResponseFinding fd;
+    fd.effect = best->c.effect;
+    fd.channel = channelName(best->c.ch);
+    if (best->c.kind >= 0) fd.kind = model::toString(static_cast<CommandKind>(best->c.kind));
+    fd.delta_bic = best->ev.delta_bic;
+    fd.lr = best->ev.lr;
+    fd.p_value = best->ev.p_value;
+    fd.n_eff = best->ev.n_eff;
+    fd.k = best->c.k;
+    acc_findings.push_back(fd);
+  }
+
+  // Final parameters of every accepted term; validation of each (removed, others fixed).
+  FullModel Final = M;
+  for (std::size_t i = 0; i < accepted.size(); ++i) {
+    const Candidate& c = accepted[i];
+    CommandResponseFinding& fd = acc_findings[i];
+    FullModel W = M;
+    setActive(W, c, false);
+    double with = 0, without = 0;
+    for (int ch = 0; ch < 2; ++ch) {
+      if (c.ch >= 0 && c.ch != ch) continue;
+      with += fixedRss(V, ch, M, o);
+      without += fixedRss(V, ch, W, o);
+    }
+    fd.validation_rss_with = with;
+    fd.validation_rss_without = without;
+    fd.validated = with < without;
+    if (!fd.validated) setActive(Final, c, false);
+  }
+  for (std::size_t i = 0; i < accepted.size(); ++i) {
+    const Candidate& c = accepted[i];
+    CommandResponseFinding& fd = acc_findings[i];
+    if (c.effect == "actuator_lag") {
+      fd.parameters["delay_s"] = M.ch[c.ch].delay;
+      fd.parameters["time_constant_s"] = M.ch[c.ch].tau;
+    } else if (c.effect == "command_gain") {
+      fd.parameters["scale"] = M.ch[c.ch].gain[c.kind];
+    } else if (c.effect == "deadband") {
+      fd.parameters[c.ch == 0 ? "threshold_m_s" : "threshold_rad_s"] = M.ch[c.ch].db;
+    } else {
+      fd.parameters["max_run_s"] = o.max_zero_run_s;
+    }
+    res.findings.push_back(fd);
+  }
+
+  // Unmodeled: residual structure explained by command features, per channel.
+  for (int ch = 0; ch < 2; ++ch) {
+    std::size_t n = cur[ch].resid.size();
+    Eigen::MatrixXd L(n, 5);
+    std::size_t r = 0;
+    for (const auto& p : F) {
+      const Eigen::MatrixXd Lp = libraryFeatures(p, M.zero);
+      L.middleRows(r, Lp.rows()) = Lp;
+      r += Lp.rows();
+    }
+    std::vector<int> chosen;
+    Eigen::VectorXd resid = cur[ch].resid;
+    double rss = resid.squaredNorm();
+    Eigen::VectorXd beta;
+    while (true) {
+      const double ne = effectiveSampleSize(resid, gF, o.hac_lags);
+      int bj = -1;
+      Evidence bev;
+      Eigen::VectorXd bbeta, bres;
+      for (int j = 0; j < 5; ++j) {
+        if (std::find(chosen.begin(), chosen.end(), j) != chosen.end()) continue;
+        if (L.col(j).squaredNorm() < 1e-12) continue;
+        std::vector<int> cols = chosen;
+        cols.push_back(j);
+        Eigen::MatrixXd A(n, cols.size());
+        for (std::size_t q = 0; q < cols.size(); ++q) A.col(q) = L.col(cols[q]);
+        const Eigen::VectorXd b = A.colPivHouseholderQr().solve(cur[ch].resid);
+        const Eigen::VectorXd e = cur[ch].resid - A * b;
+        const Evidence ev = compareNested(rss, e.squaredNorm(), 1, ne);
+        if (bj < 0 || ev.delta_bic < bev.delta_bic) bj = j, bev = ev, bbeta = b, bres = e;
+      }
+      if (bj < 0 || !(bev.delta_bic < -o.min_delta_bic && bev.p_value < o.alpha / 5)) break;
+      chosen.push_back(bj);
+      resid = bres;
+      rss = resid.squaredNorm();
+      beta = bbeta;
+      CommandResponseFinding fd;
+      fd.effect = "unmodeled";
+      fd.channel = channelName(ch);
+      fd.kind = kLibraryNames[bj];
+      fd.delta_bic = bev.delta_bic;
+      fd.lr = bev.lr;
+      fd.p_value = bev.p_value;
+      fd.n_eff = bev.n_eff;
+      fd.k = 1;
+      res.findings.push_back(fd);
+    }
+    // Coefficients (joint) and validation of the unmodeled terms as a group.
+    if (!chosen.empty()) {
+      Eigen::VectorXd vres;
+      {
+        ChannelModel m = Final.ch[ch];
+        vres = fitChannel(V, ch, m, Final.zero, o, false).resid;
+      }
+      Eigen::MatrixXd LV(vres.size(), 5);
+      std::size_t q = 0;
+      for (const auto& p : V) {
+        const Eigen::MatrixXd Lp = libraryFeatures(p, Final.zero);
+        LV.middleRows(q, Lp.rows()) = Lp;
+        q += Lp.rows();
+      }
+      Eigen::VectorXd pred = Eigen::VectorXd::Zero(vres.size());
+      for (std::size_t c = 0; c < chosen.size(); ++c) pred += beta(c) * LV.col(chosen[c]);
+      const double without = vres.squaredNorm(), with = (vres - pred).squaredNorm();
+      std::size_t c = 0;
+      for (auto& fd : res.findings) {
+        if (fd.effect != "unmodeled" || fd.channel != channelName(ch)) continue;
+        fd.parameters["coefficient"] = beta(c++);
+        fd.validation_rss_with = with;
+        fd.validation_rss_without = without;
+        fd.validated = with < without;
+      }
+    }
+  }
+
+  res.params = toParams(Final);
+  res.ignore_zero_runs = Final.zero;
+  for (int ch = 0; ch < 2; ++ch) {
+    ChannelModel m = Final.ch[ch];
+    ChannelFit f = fitChannel(V, ch, m, Final.zero, o, false);
+    auto& st = ch == 0 ? res.validation_v : res.validation_omega;
+    st.rms_after = std::sqrt(f.rss / std::max<double>(1, f.resid.size()));
+    st.n = f.resid.size();
+  }
+  const CommandResponseParams nominal;
+  res.fit_before = openLoopDrift(validate, nominal, false, o);
+  res.fit_after = openLoopDrift(validate, res.params, res.ignore_zero_runs, o);
+  res.fit_before_on_fit = openLoopDrift(fit, nominal, false, o);
+  res.fit_after_on_fit = openLoopDrift(fit, res.params, res.ignore_zero_runs, o);
+  return res;
+}
+
+nlohmann::json CommandResponseResult::toJson() const {
+  nlohmann::json j;
+  j["stage"] = "command_response";
+  j["findings"] = nlohmann::json::array();
+  for (const auto& f : findings) {
+    nlohmann::json fj = {{"effect", f.effect},
+                         {"channel", f.channel},
+                         {"parameters", f.parameters},
+                         {"evidence",
+                          {{"delta_bic", f.delta_bic},
+                           {"likelihood_ratio", f.lr},
+                           {"p_value", f.p_value},
+                           {"n_eff", f.n_eff},
+                           {"k", f.k}}},
+                         {"validation",
+                          {{"rss_without", f.validation_rss_without},
+                           {"rss_with", f.validation_rss_with},
+                           {"validated", f.validated}}}};
+    if (!f.kind.empty()) fj[f.effect == "unmodeled" ? "term" : "kind"] = f.kind;
+    j["findings"].push_back(fj);
+  }
+  nlohmann::json m;
+  m["v"] = {{"delay_s", params.v.delay_s},
+            {"time_constant_s", params.v.time_constant_s},
+            {"deadband_m_s", params.v.deadband}};
+  m["omega"] = {{"delay_s", params.omega.delay_s},
+                {"time_constant_s", params.omega.time_constant_s},
+                {"deadband_rad_s", params.omega.deadband}};
+  for (int k = 0; k < model::kNumCommandKinds; ++k) {
+    const char* name = model::toString(static_cast<CommandKind>(k));
+    m["v_gain"][name] = params.v_gain[k];
+    m["omega_gain"][name] = params.omega_gain[k];
+  }
+  m["ignore_zero_runs"] = ignore_zero_runs;
+  m["max_zero_run_s"] = max_zero_run_s;
+  j["model"] = m;
+  j["fit_before"] = driftJson(fit_before);
+  j["fit_after"] = driftJson(fit_after);
+  j["on_fit_recordings"] = {{"before", driftJson(fit_before_on_fit)},
+                            {"after", driftJson(fit_after_on_fit)}};
+  j["validation_residual_rms"] = {
+      {"v_m_s", {{"before", validation_v.rms_before}, {"after", validation_v.rms_after}}},
+      {"omega_rad_s",
+       {{"before", validation_omega.rms_before}, {"after", validation_omega.rms_after}}},
+      {"windows", validation_windows}};
+  j["fit_windows"] = fit_windows;
+  return j;
+}
+
+}  // namespace wheelchair::diagnosis

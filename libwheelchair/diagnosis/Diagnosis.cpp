@@ -1,0 +1,863 @@
+#include "libwheelchair/diagnosis/Diagnosis.h"
+
+#include "libwheelchair/diagnosis/Stages.h"
+#include "libwheelchair/estimation/ChiSquare.h"
+#include "libwheelchair/model/DriveDynamics.h"
+#include "libwheelchair/model/Kinematics.h"
+#include "libwheelchair/sensors/Filtering.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+
+namespace wheelchair::diagnosis {
+
+namespace {
+
+constexpr double kRad2Deg = 180.0 / M_PI;
+
+Eigen::MatrixXd unit(int n, std::initializer_list<int> cols) {
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(n, 1);
+  for (int c : cols) S(c, 0) = 1.0;
+  return S;
+}
+
+std::vector<Candidate> kinematicCandidates(bool delay) {
+  std::vector<Candidate> c;
+  auto scaleOk = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; };
+  c.push_back({"gyro_bias", "gyro_bias", unit(5, {0}), {},
+               [](const Eigen::VectorXd& b) { return std::abs(b(0)) < 0.5; }});
+  c.push_back({"gyro_scale", "gyro_scale", unit(5, {1}), {}, scaleOk});
+  c.push_back({"encoder_scale/right", "encoder_scale", unit(5, {2}), {}, scaleOk});
+  c.push_back({"encoder_scale/left", "encoder_scale", unit(5, {3}), {}, scaleOk});
+  if (delay)
+    c.push_back({"sensor_delay/imu", "sensor_delay", unit(5, {4}), {},
+                 [](const Eigen::VectorXd& b) { return std::abs(b(0)) < 0.5; }});
+  return c;
+}
+
+std::vector<Candidate> dynamicCandidates(double body_mass, bool delay) {
+  std::vector<Candidate> c;
+  auto ratioOk = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.1 && 1 + b(0) < 10; };
+  auto coulOk = [](const Eigen::VectorXd& b) { return b(0) > 0 && b(0) < 10; };
+  c.push_back({"motor_asymmetry/right", "motor_asymmetry", unit(8, {0}), {}, ratioOk});
+  c.push_back({"motor_asymmetry/left", "motor_asymmetry", unit(8, {1}), {}, ratioOk});
+  c.push_back({"coulomb_friction/both", "coulomb_friction", unit(8, {2, 3}),
+               {"coulomb_friction/right", "coulomb_friction/left"}, coulOk});
+  c.push_back({"coulomb_friction/right", "coulomb_friction", unit(8, {2}), {}, coulOk});
+  c.push_back({"coulomb_friction/left", "coulomb_friction", unit(8, {3}), {}, coulOk});
+  c.push_back({"payload_mass", "payload_mass", unit(8, {4}), {}, [body_mass](const Eigen::VectorXd& b) {
+                 return body_mass + b(0) > 0.2 * body_mass && body_mass + b(0) < 5 * body_mass;
+               }});
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(8, 2);
+  S(5, 0) = 1, S(6, 1) = 1;
+  c.push_back({"ground_slope", "ground_slope", S, {}, [](const Eigen::VectorXd& b) {
+                 return std::hypot(b(0), b(1)) < std::sin(30.0 / kRad2Deg);
+               }});
+  if (delay)
+    c.push_back({"sensor_delay/motors", "sensor_delay", unit(8, {7}), {},
+                 [](const Eigen::VectorXd& b) { return b(0) > 0 && b(0) < 0.5; }});
+  return c;
+}
+
+/// Time segments where |contribution| exceeds 2 sigma, merged over gaps < 1 s.
+std::vector<std::pair<double, double>> activeSegments(std::vector<std::pair<double, double>> tc,
+                                                      double sigma) {
+  std::sort(tc.begin(), tc.end());
+  std::vector<std::pair<double, double>> segs;
+  for (auto& [t, c] : tc) {
+    if (std::abs(c) < 2 * sigma) continue;
+    if (!segs.empty() && t - segs.back().second < 1.0)
+      segs.back().second = t;
+    else
+      segs.push_back({t, t});
+  }
+  std::vector<std::pair<double, double>> out;
+  for (auto& s : segs)
+    if (s.second - s.first >= 0.5) out.push_back(s);
+  if (out.size() > 20) {
+    std::sort(out.begin(), out.end(), [](auto& a, auto& b) { return a.second - a.first > b.second - b.first; });
+    out.resize(20);
+    std::sort(out.begin(), out.end());
+  }
+  if (out.empty() && !tc.empty()) out.push_back({tc.front().first, tc.back().first});
+  return out;
+}
+
+struct ChannelSet {
+  std::string name;
+  Eigen::VectorXd r;
+  Groups g;
+  double noise_var = 0;
+};
+
+nlohmann::json channelMetrics(const Eigen::VectorXd& r, const Groups& g, int lags, double noise_var) {
+  nlohmann::json j;
+  if (r.size() < 3) return j;
+  BiasTest b = biasTest(r, g, lags);
+  Whiteness w = ljungBox(r, g, std::min<int>(20, static_cast<int>(r.size()) / 4));
+  j["n"] = b.n;
+  j["rms"] = b.rms;
+  j["mean"] = b.mean;
+  j["bias_t"] = b.t;
+  j["bias_p"] = b.p_value;
+  j["n_eff"] = b.n_eff;
+  j["ljung_box_q"] = w.q;
+  j["ljung_box_p"] = w.p_value;
+  j["rho1"] = w.rho1;
+  if (noise_var > 0) {
+    double nis = b.rms * b.rms / noise_var;
+    auto band = estimation::chi2MeanBand(0.95, 1, std::max(1.0, b.n_eff));
+    j["mean_nis"] = nis;
+    j["nis_band95"] = {band.first, band.second};
+  }
+  return j;
+}
+
+/// Regime bias tests: where the residual is biased (locate step).
+nlohmann::json regimeStats(const Eigen::VectorXd& r, const std::vector<double>& v,
+                           const std::vector<double>& w, const std::vector<double>& vd,
+                           const std::vector<double>& phi, int lags, double alpha) {
+  std::map<std::string, std::function<bool(size_t)>> reg = {
+      {"standing", [&](size_t i) { return std::abs(v[i]) < 0.03 && std::abs(w[i]) < 0.05; }},
+      {"straight", [&](size_t i) { return std::abs(v[i]) >= 0.03 && std::abs(w[i]) < 0.1; }},
+      {"turning", [&](size_t i) { return std::abs(w[i]) >= 0.1; }},
+      {"accelerating", [&](size_t i) { return !vd.empty() && std::abs(vd[i]) > 0.15; }},
+      {"fast", [&](size_t i) { return std::abs(v[i]) > 0.5; }},
+      {"slow", [&](size_t i) { return std::abs(v[i]) >= 0.03 && std::abs(v[i]) <= 0.5; }},
+      {"heading_E", [&](size_t i) { return std::abs(v[i]) >= 0.03 && std::cos(phi[i]) > 0.7071; }},
+      {"heading_N", [&](size_t i) { return std::abs(v[i]) >= 0.03 && std::sin(phi[i]) > 0.7071; }},
+      {"heading_W", [&](size_t i) { return std::abs(v[i]) >= 0.03 && std::cos(phi[i]) < -0.7071; }},
+      {"heading_S", [&](size_t i) { return std::abs(v[i]) >= 0.03 && std::sin(phi[i]) < -0.7071; }},
+  };
+  nlohmann::json j = nlohmann::json::object();
+  for (auto& [name, f] : reg) {
+    std::vector<double> sub;
+    for (size_t i = 0; i < static_cast<size_t>(r.size()) && i < v.size(); ++i)
+      if (f(i)) sub.push_back(r(i));
+    if (sub.size() < 10) continue;
+    Eigen::VectorXd s = Eigen::Map<Eigen::VectorXd>(sub.data(), sub.size());
+    BiasTest b = biasTest(s, singleGroup(static_cast<int>(s.size())), lags);
+    j[name] = {{"n", b.n}, {"mean", b.mean}, {"rms", b.rms}, {"t", b.t}, {"p", b.p_value},
+               {"biased", b.p_value < alpha / reg.size()}};
+  }
+  return j;
+}
+
+std::vector<std::string> biasedRegimes(const nlohmann::json& reg) {
+  std::vector<std::string> out;
+  for (auto it = reg.begin(); it != reg.end(); ++it)
+    if (it->value("biased", false)) out.push_back(it.key());
+  return out;
+}
+
+std::string sideName(int s) { return s == 0 ? "right" : "left"; }
+
+// ---------- trajectory check (dead reckoning against ground truth) ----------
+
+struct TrajMetrics {
+  double ate = 0, terminal = 0;
+  int n = 0;
+};
+
+TrajMetrics deadReckoningMetrics(const Streams& s, const Corrections& c,
+                                 const config::WheelchairConfig& cfg, bool gyro) {
+  TrajMetrics m;
+  if (s.gt.size() < 2 || s.te.size() < 3 || (gyro && !s.hasGyro())) return m;
+  const double lw = cfg.vehicle.geom.track_width_m;
+  std::vector<double> tgt, gx, gy, gp;
+  for (auto& p : s.gt) tgt.push_back(p.t_s), gx.push_back(p.x_m), gy.push_back(p.y_m), gp.push_back(p.phi_rad);
+  for (size_t i = 1; i < gp.size(); ++i) {
+    double d = gp[i] - gp[i - 1];
+    gp[i] -= 2 * M_PI * std::round(d / (2 * M_PI));
+  }
+  std::vector<double> gzc;
+  if (gyro)
+    for (double g : s.gz) gzc.push_back((g - c.gyro_bias) / c.gyro_scale);
+  auto interp = [](const std::vector<double>& t, const std::vector<double>& x, double q) {
+    if (q <= t.front()) return x.front();
+    if (q >= t.back()) return x.back();
+    size_t k = std::upper_bound(t.begin(), t.end(), q) - t.begin();
+    double a = (q - t[k - 1]) / (t[k] - t[k - 1]);
+    return x[k - 1] + a * (x[k] - x[k - 1]);
+  };
+  auto gyroInt = [&](double a, double b) {
+    // trapezoid on a fine subdivision of the linear interpolant
+    double sum = 0;
+    double t = a;
+    auto it = std::upper_bound(s.tg.begin(), s.tg.end(), a + c.delay_imu);
+    while (t < b) {
+      double tn = b;
+      if (it != s.tg.end() && *it - c.delay_imu < b) tn = *it - c.delay_imu, ++it;
+      sum += 0.5 * (interp(s.tg, gzc, t + c.delay_imu) + interp(s.tg, gzc, tn + c.delay_imu)) * (tn - t);
+      t = tn;
+    }
+    return sum;
+  };
+  double t0 = s.te.front() - c.delay_enc;
+  if (t0 < tgt.front()) return m;
+  double x = interp(tgt, gx, t0), y = interp(tgt, gy, t0), phi = interp(tgt, gp, t0);
+  double se = 0;
+  for (size_t i = 1; i < s.te.size(); ++i) {
+    double a = s.te[i - 1] - c.delay_enc, b = s.te[i] - c.delay_enc;
+    double dR = (s.sR[i] - s.sR[i - 1]) / c.enc_scale[0];
+    double dL = (s.sL[i] - s.sL[i - 1]) / c.enc_scale[1];
+    double ds = 0.5 * (dR + dL);
+    double dphi = gyro ? gyroInt(a, b) : (dR - dL) / lw;
+    x += ds * std::cos(phi + 0.5 * dphi);
+    y += ds * std::sin(phi + 0.5 * dphi);
+    phi += dphi;
+    if (b > tgt.back()) break;
+    double ex = x - interp(tgt, gx, b), ey = y - interp(tgt, gy, b);
+    se += ex * ex + ey * ey;
+    m.n++;
+    m.terminal = std::hypot(ex, ey);
+  }
+  m.ate = m.n ? std::sqrt(se / m.n) : 0;
+  return m;
+}
+
+nlohmann::json trajectoryJson(const std::vector<Streams>& recs, const Corrections& c,
+                              const config::WheelchairConfig& cfg) {
+  nlohmann::json j = nlohmann::json::array();
+  for (auto& s : recs) {
+    if (s.gt.size() < 2) continue;
+    TrajMetrics o = deadReckoningMetrics(s, c, cfg, false);
+    TrajMetrics g = deadReckoningMetrics(s, c, cfg, true);
+    j.push_back({{"odometry_ate_m", o.ate}, {"odometry_terminal_m", o.terminal},
+                 {"encoder_gyro_ate_m", g.ate}, {"encoder_gyro_terminal_m", g.terminal},
+                 {"duration_s", s.t_end - s.t_begin}});
+  }
+  return j;
+}
+
+// ---------- STLSQ (sparse regression) for `unmodeled` ----------
+
+struct SparseResult {
+  std::vector<int> terms;
+  Eigen::VectorXd coef, se;
+  Evidence ev;
+  bool accepted = false;
+  double lr_val = 0, lr_val_expected = 0;
+  double rms_before_val = 0, rms_after_val = 0;
+};
+
+SparseResult stlsq(const Eigen::MatrixXd& L, const Eigen::VectorXd& y, const Groups& g,
+                   const Eigen::MatrixXd& Lv, const Eigen::VectorXd& yv, const Groups& gv, int lags,
+                   const DiagnosisOptions& opt) {
+  SparseResult res;
+  std::vector<int> act;
+  for (int j = 0; j < L.cols(); ++j)
+    if (L.col(j).norm() > 0) act.push_back(j);
+  for (int it = 0; it < 20 && !act.empty(); ++it) {
+    Eigen::MatrixXd A(L.rows(), act.size());
+    for (size_t k = 0; k < act.size(); ++k) A.col(k) = L.col(act[k]);
+    LinearFit f = fitLinear(A, y, g, lags);
+    if (!f.ok) {  // drop the column with the smallest norm and retry
+      act.pop_back();
+      continue;
+    }
+    std::vector<int> keep;
+    double worst = 1e300;
+    int worst_k = -1;
+    for (size_t k = 0; k < act.size(); ++k) {
+      double t = std::abs(f.beta(k)) / std::sqrt(std::max(1e-300, f.cov(k, k)));
+      if (t < worst) worst = t, worst_k = static_cast<int>(k);
+    }
+    if (worst >= opt.stlsq_threshold_sigma) {
+      res.terms = act;
+      res.coef = f.beta;
+      res.se = f.cov.diagonal().cwiseSqrt();
+      double ne = effectiveSampleSize(f.residual, g, lags);
+      res.ev = compareNested(y.squaredNorm(), f.rss, static_cast<int>(act.size()), ne);
+      break;
+    }
+    act.erase(act.begin() + worst_k);  // sequential thresholding: drop the weakest term
+  }
+  if (res.terms.empty()) return res;
+  const double alpha_b = opt.alpha / std::max<int>(1, static_cast<int>(L.cols()));
+  if (!(res.ev.p_value < alpha_b) || !(res.ev.delta_bic < -opt.min_bic_drop)) return res;
+  if (yv.size() > 10) {
+    Eigen::MatrixXd Av(Lv.rows(), res.terms.size());
+    for (size_t k = 0; k < res.terms.size(); ++k) Av.col(k) = Lv.col(res.terms[k]);
+    Eigen::VectorXd r1 = yv - Av * res.coef;
+    double nev = effectiveSampleSize(r1, gv, lags);
+    res.lr_val = nev * std::log(yv.squaredNorm() / std::max(1e-300, r1.squaredNorm()));
+    res.lr_val_expected = nev * std::log(1 + (Av * res.coef).squaredNorm() / std::max(1e-300, r1.squaredNorm()));
+    res.rms_before_val = std::sqrt(yv.squaredNorm() / yv.size());
+    res.rms_after_val = std::sqrt(r1.squaredNorm() / yv.size());
+    if (res.lr_val_expected >= opt.validation_min_expected_lr &&
+        res.lr_val < opt.validation_fraction_of_expected * res.lr_val_expected)
+      return res;
+    if (res.lr_val_expected < opt.validation_min_expected_lr) return res;  // must be confirmed
+  }
+  res.accepted = true;
+  return res;
+}
+
+nlohmann::json evidenceJson(const SelectionStep& st, double alpha_b) {
+  return {{"likelihood_ratio", st.evidence.lr},
+          {"p_value", st.evidence.p_value},
+          {"bonferroni_level", alpha_b},
+          {"delta_bic", st.evidence.delta_bic},
+          {"n_eff", st.evidence.n_eff},
+          {"added_parameters", st.evidence.k},
+          {"validation_likelihood_ratio", st.lr_val},
+          {"validation_expected_likelihood_ratio", st.lr_val_expected},
+          {"validation_tested", st.val_tested}};
+}
+
+double rmsOf(double rss, Eigen::Index n) { return n > 0 ? std::sqrt(rss / n) : 0.0; }
+
+}  // namespace
+
+void DiagnosisOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
+                                      const std::string& s) {
+  fit_fraction = ini.read_double(s, "fit_fraction", fit_fraction);
+  window_s = ini.read_double(s, "window_s", window_s);
+  cutoff_hz = ini.read_double(s, "cutoff_hz", cutoff_hz);
+  grid_rate_hz = ini.read_double(s, "grid_rate_hz", grid_rate_hz);
+  edge_trim_s = ini.read_double(s, "edge_trim_s", edge_trim_s);
+  max_gap_s = ini.read_double(s, "max_gap_s", max_gap_s);
+  alpha = ini.read_double(s, "alpha", alpha);
+  min_bic_drop = ini.read_double(s, "min_bic_drop", min_bic_drop);
+  validation_fraction_of_expected =
+      ini.read_double(s, "validation_fraction_of_expected", validation_fraction_of_expected);
+  validation_min_expected_lr = ini.read_double(s, "validation_min_expected_lr", validation_min_expected_lr);
+  enable_unmodeled = ini.read_bool(s, "enable_unmodeled", enable_unmodeled);
+  stlsq_threshold_sigma = ini.read_double(s, "stlsq_threshold_sigma", stlsq_threshold_sigma);
+  enable_delay = ini.read_bool(s, "enable_delay", enable_delay);
+  if (!(fit_fraction > 0.1 && fit_fraction < 0.95)) throw std::runtime_error("[diagnosis] fit_fraction must be in (0.1, 0.95)");
+  if (!(window_s > 0) || !(cutoff_hz > 0) || !(grid_rate_hz > 2 * cutoff_hz) || !(alpha > 0 && alpha < 1))
+    throw std::runtime_error("[diagnosis] window_s, cutoff_hz > 0, grid_rate_hz > 2 cutoff_hz, alpha in (0,1)");
+}
+
+DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
+                         const std::vector<io::Recording>& val_recs,
+                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+  auto tstart = std::chrono::steady_clock::now();
+  DiagnosisReport rep;
+  std::vector<Streams> fitS, valS, allS;
+  for (auto& r : fit_recs) {
+    Streams s = makeStreams(r, cfg);
+    allS.push_back(s);
+    if (val_recs.empty()) {
+      double tc = s.t_begin + opt.fit_fraction * (s.t_end - s.t_begin);
+      fitS.push_back(cropStreams(s, s.t_begin, tc));
+      valS.push_back(cropStreams(s, tc, s.t_end));
+    } else {
+      fitS.push_back(s);
+    }
+  }
+  for (auto& r : val_recs) valS.push_back(makeStreams(r, cfg));
+  bool any_enc = false, any_gyro = false, any_mot = false;
+  for (auto& s : allS) any_enc |= s.hasEncoders(), any_gyro |= s.hasGyro(), any_mot |= s.hasMotors();
+  if (!any_enc) throw std::runtime_error("diagnose: no encoder data in the fit recordings");
+  rep.info["streams"] = {{"encoders", any_enc}, {"gyro", any_gyro}, {"motors", any_mot}};
+  rep.info["validation"] = val_recs.empty() ? fmt::format("held-out last {:.0f}% of each recording", 100 * (1 - opt.fit_fraction))
+                                            : fmt::format("{} --validate recording(s)", val_recs.size());
+  const double lw = cfg.vehicle.geom.track_width_m;
+  Corrections corr;
+  const int lags1 = 5;
+  nlohmann::json skipped = nlohmann::json::object();
+
+  // ---------------- stage 1: kinematic consistency ----------------
+  if (any_gyro) {
+    auto cands = kinematicCandidates(opt.enable_delay);
+    KinRows kf = kinematicRows(fitS, corr, cfg, opt), kv = kinematicRows(valS, corr, cfg, opt);
+    SelectionData sd{kf.y, kv.y, kf.X, kv.X, kf.groups, kv.groups, lags1};
+    Selection sel = forwardSelect(sd, cands, opt);
+    double alpha_b = opt.alpha / cands.size();
+    // nonlinear refinement of a delay: shift the gyro and refit
+    int di = -1;
+    for (size_t a = 0; a < sel.accepted.size(); ++a)
+      if (cands[sel.accepted[a]].name == "sensor_delay/imu") di = static_cast<int>(a);
+    double delay = 0;
+    KinRows kf2 = kf, kv2 = kv;
+    if (di >= 0) {
+      for (int it = 0; it < 4; ++it) {
+        delay += sel.fit.beta(sel.ranges[di].first);
+        Corrections c2;
+        c2.delay_imu = delay;
+        kf2 = kinematicRows(fitS, c2, cfg, opt);
+        Eigen::MatrixXd D = acceptedDesign(kf2.X, cands, sel.accepted);
+        sel.fit = fitLinear(D, kf2.y, kf2.groups, lags1);
+      }
+      delay += sel.fit.beta(sel.ranges[di].first);
+      Corrections c2;
+      c2.delay_imu = delay;
+      kf2 = kinematicRows(fitS, c2, cfg, opt);
+      kv2 = kinematicRows(valS, c2, cfg, opt);
+      sel.fit = fitLinear(acceptedDesign(kf2.X, cands, sel.accepted), kf2.y, kf2.groups, lags1);
+    }
+    // coefficients
+    double bg = 0, bR = 0, bL = 0, b0 = 0;
+    double sb0 = 0, sbg = 0, sbR = 0, sbL = 0, sdel = 0;
+    for (size_t a = 0; a < sel.accepted.size(); ++a) {
+      int i = sel.ranges[a].first;
+      double val = sel.fit.beta(i), se = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
+      const auto& n = cands[sel.accepted[a]].name;
+      if (n == "gyro_bias") b0 = val, sb0 = se;
+      if (n == "gyro_scale") bg = val, sbg = se;
+      if (n == "encoder_scale/right") bR = val, sbR = se;
+      if (n == "encoder_scale/left") bL = val, sbL = se;
+      if (n == "sensor_delay/imu") sdel = se;
+    }
+    double g = 1 + bg;
+    corr.gyro_scale = g;
+    corr.gyro_bias = b0;
+    corr.enc_scale[0] = g / (1 + bg + bR);
+    corr.enc_scale[1] = g / (1 + bg + bL);
+    if (delay > 0) corr.delay_imu = delay;
+    else corr.delay_enc = -delay;
+    // residuals before/after on validation
+    Eigen::VectorXd rv_after = kv2.y - acceptedDesign(kv2.X, cands, sel.accepted) * sel.fit.beta;
+    double nv_per = 0;
+    {
+      double T = 0;
+      for (int i = 0; i < kv.X.rows(); ++i) T += kv.X(i, 0);
+      nv_per = kv.X.rows() ? kf.noise_var_per_s * T / kv.X.rows() + kf.noise_var_const : 0;
+    }
+    rep.channels["gyro_vs_encoders"] = {
+        {"unit", "rad per window"},
+        {"window_s", opt.window_s},
+        {"before", channelMetrics(kv.y, kv.groups, lags1, nv_per)},
+        {"after", channelMetrics(rv_after, kv2.groups, lags1, nv_per)},
+        {"regimes_before", regimeStats(kf.y, kf.v, kf.omega, {}, kf.phi, lags1, opt.alpha)},
+        {"rejected_candidates", sel.log}};
+    auto regimes = biasedRegimes(rep.channels["gyro_vs_encoders"]["regimes_before"]);
+    Eigen::VectorXd cf_all = acceptedDesign(kf2.X, cands, sel.accepted) * sel.fit.beta;
+    double sigma = std::sqrt(sel.fit.rss / std::max<Eigen::Index>(1, kf2.y.size()));
+    for (size_t a = 0; a < sel.accepted.size(); ++a) {
+      const Candidate& c = cands[sel.accepted[a]];
+      const SelectionStep& st = sel.steps[a];
+      Finding f;
+      f.effect = c.effect;
+      f.channels = {"gyro", "encoders"};
+      f.evidence = evidenceJson(st, alpha_b);
+      f.evidence["regimes_biased_before"] = regimes;
+      f.fit_before = {{"channel", "gyro_vs_encoders"}, {"validation_rms_rad", rmsOf(st.rss0_val, kv.y.size())},
+                      {"fit_rms_rad", rmsOf(st.rss0_fit, kf.y.size())}};
+      f.fit_after = {{"channel", "gyro_vs_encoders"}, {"validation_rms_rad", rmsOf(st.rss1_val, kv.y.size())},
+                     {"fit_rms_rad", rmsOf(st.rss1_fit, kf.y.size())}};
+      Eigen::MatrixXd Dc = kf2.X * c.S;
+      Eigen::VectorXd contrib = Dc * sel.fit.beta.segment(sel.ranges[a].first, sel.ranges[a].second);
+      std::vector<std::pair<double, double>> tc;
+      for (int i = 0; i < contrib.size(); ++i) tc.push_back({0.5 * (kf2.t0[i] + kf2.t1[i]), contrib(i)});
+      f.segments = activeSegments(tc, sigma);
+      if (c.name == "gyro_bias") {
+        f.parameters = {{"bias_rad_s", b0}};
+        f.uncertainty = {{"bias_rad_s", sb0}};
+        f.channels = {"gyro"};
+        f.description = fmt::format(
+            "the gyro reads {:+.4f} rad/s ({:+.2f} deg/s) when the encoders say the chair does not turn: a "
+            "constant gyro bias (+-{:.4f} rad/s); uncorrected it adds {:.1f} deg of heading per minute",
+            b0, b0 * kRad2Deg, sb0, b0 * kRad2Deg * 60);
+      } else if (c.name == "gyro_scale") {
+        f.parameters = {{"scale", g}};
+        f.uncertainty = {{"scale", sbg}};
+        f.channels = {"gyro"};
+        f.description = fmt::format(
+            "the gyro reports {:.2f}% {} turn than both encoders agree on (scale {:.4f} +- {:.4f}): a gyro "
+            "scale-factor error (symmetric in both wheels, so not an encoder fault)",
+            std::abs(bg) * 100, bg > 0 ? "more" : "less", g, sbg);
+      } else if (c.effect == "encoder_scale") {
+        int s = c.name == "encoder_scale/right" ? 0 : 1;
+        double k = corr.enc_scale[s];
+        double b = s == 0 ? bR : bL, sb = s == 0 ? sbR : sbL;
+        double sk = sb * std::abs(g) / std::pow(1 + bg + b, 2);
+        f.parameters = {{"side", sideName(s)}, {"scale", k}};
+        f.uncertainty = {{"scale", sk}};
+        f.channels = {"encoders"};
+        f.description = fmt::format(
+            "the {} encoder reports {:.4f} x the distance its wheel rolls (+- {:.4f}; the gyro and the other "
+            "encoder agree): a wrong pulley ratio on that side; uncorrected, odometry drifts to the {} by "
+            "{:.1f} deg per 10 m driven straight",
+            sideName(s), k, sk, (s == 0) == (k < 1) ? "right" : "left",
+            std::abs(10.0 * (1 - k) / lw) * kRad2Deg);
+      } else if (c.effect == "sensor_delay") {
+        std::string sensor = delay >= 0 ? "imu" : "encoders";
+        f.parameters = {{"sensor", sensor}, {"delay_s", std::abs(delay)}};
+        f.uncertainty = {{"delay_s", sdel}};
+        f.channels = {sensor == "imu" ? "gyro" : "encoders"};
+        f.description = fmt::format(
+            "the {} stream is time-stamped {:.1f} ms late relative to the {} (+- {:.1f} ms): the gyro integral "
+            "lags the odometric heading change whenever the turn rate changes",
+            sensor == "imu" ? "gyro" : "encoder", 1000 * std::abs(delay), sensor == "imu" ? "encoders" : "gyro",
+            1000 * sdel);
+      }
+      rep.addFinding(f);
+    }
+    // unmodeled (stage 1): structure left after the catalogue terms
+    if (opt.enable_unmodeled) {
+      auto lib = [&](const KinRows& k) {
+        Eigen::MatrixXd L(k.y.size(), 6);
+        for (int i = 0; i < k.y.size(); ++i) {
+          double T = k.X(i, 0), w = k.omega[i];
+          L.row(i) << T * k.v[i], T * std::abs(w), T * w * std::abs(w), T * std::cos(k.phi[i]),
+              T * std::sin(k.phi[i]), T * k.v[i] * w;
+        }
+        return L;
+      };
+      Eigen::VectorXd rf = sel.fit.residual;
+      SparseResult sr = stlsq(lib(kf2), rf, kf2.groups, lib(kv2), rv_after, kv2.groups, lags1, opt);
+      if (sr.accepted) {
+        static const char* names[] = {"v", "|omega|", "omega*|omega|", "cos(phi)", "sin(phi)", "v*omega"};
+        Finding f;
+        f.effect = "unmodeled";
+        f.channels = {"gyro_vs_encoders"};
+        std::string eq = "gyro - odometric turn rate =";
+        for (size_t k = 0; k < sr.terms.size(); ++k) {
+          f.parameters[names[sr.terms[k]]] = sr.coef(k);
+          f.uncertainty[names[sr.terms[k]]] = sr.se(k);
+          eq += fmt::format(" {:+.4g}*{}", sr.coef(k), names[sr.terms[k]]);
+        }
+        f.parameters["channel"] = "gyro_vs_encoders";
+        f.description = "a term outside the catalogue acts on the turn-rate consistency: " + eq + " (rad/s)";
+        f.evidence = {{"likelihood_ratio", sr.ev.lr}, {"p_value", sr.ev.p_value}, {"delta_bic", sr.ev.delta_bic},
+                      {"n_eff", sr.ev.n_eff}, {"validation_likelihood_ratio", sr.lr_val}};
+        f.fit_before = {{"validation_rms_rad", sr.rms_before_val}};
+        f.fit_after = {{"validation_rms_rad", sr.rms_after_val}};
+        rep.addFinding(f);
+      }
+    }
+  } else {
+    skipped["stage1"] = "no gyro stream: kinematic consistency not checked";
+  }
+
+  // ---------------- stage 2: dynamics in current space ----------------
+  if (any_mot) {
+    const double mb = cfg.vehicle.geom.body_mass_kg;
+    auto cands = dynamicCandidates(mb, opt.enable_delay);
+    double alpha_b = opt.alpha / cands.size();
+    DynRows df = dynamicRows(fitS, corr, cfg, opt), dv = dynamicRows(valS, corr, cfg, opt);
+    int lags2 = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
+    if (df.y.size() > 50) {
+      SelectionData sd{df.y, dv.y, df.X, dv.X, df.groups, dv.groups, lags2};
+      Selection sel = forwardSelect(sd, cands, opt);
+      int di = -1;
+      for (size_t a = 0; a < sel.accepted.size(); ++a)
+        if (cands[sel.accepted[a]].name == "sensor_delay/motors") di = static_cast<int>(a);
+      double delay = 0;
+      DynRows df2 = df, dv2 = dv;
+      if (di >= 0) {
+        Corrections c2 = corr;
+        for (int it = 0; it < 4; ++it) {
+          delay += sel.fit.beta(sel.ranges[di].first);
+          c2.delay_motors = delay;
+          df2 = dynamicRows(fitS, c2, cfg, opt);
+          sel.fit = fitLinear(acceptedDesign(df2.X, cands, sel.accepted), df2.y, df2.groups, lags2);
+        }
+        delay += sel.fit.beta(sel.ranges[di].first);
+        c2.delay_motors = delay;
+        corr.delay_motors = delay;
+        df2 = dynamicRows(fitS, c2, cfg, opt);
+        dv2 = dynamicRows(valS, c2, cfg, opt);
+        sel.fit = fitLinear(acceptedDesign(df2.X, cands, sel.accepted), df2.y, df2.groups, lags2);
+      }
+      Eigen::VectorXd rv_after = dv2.y - acceptedDesign(dv2.X, cands, sel.accepted) * sel.fit.beta;
+      int nRv = static_cast<int>(dv.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
+      auto half = [](const Groups& g, int nR, bool left) {
+        Groups o;
+        for (auto [a, b] : g)
+          if ((a >= nR) == left) o.push_back(left ? std::make_pair(a - nR, b - nR) : std::make_pair(a, b));
+        return o;
+      };
+      for (int sd2 = 0; sd2 < 2; ++sd2) {
+        std::string ch = sd2 == 0 ? "current_right" : "current_left";
+        int nRf = static_cast<int>(df.y.size() / 2);
+        std::vector<double> v(df.v.begin() + sd2 * nRf, df.v.begin() + (sd2 + 1) * nRf);
+        std::vector<double> w(df.omega.begin() + sd2 * nRf, df.omega.begin() + (sd2 + 1) * nRf);
+        std::vector<double> vd(df.vdot.begin() + sd2 * nRf, df.vdot.begin() + (sd2 + 1) * nRf);
+        std::vector<double> ph(df.phi.begin() + sd2 * nRf, df.phi.begin() + (sd2 + 1) * nRf);
+        rep.channels[ch] = {
+            {"unit", "A (equation error of (6), zero-phase filtered)"},
+            {"cutoff_hz", opt.cutoff_hz},
+            {"before", channelMetrics(dv.y.segment(sd2 * nRv, nRv), half(dv.groups, nRv, sd2 == 1), lags2, dv.noise_var)},
+            {"after", channelMetrics(rv_after.segment(sd2 * nRv2, nRv2), half(dv2.groups, nRv2, sd2 == 1), lags2,
+                                     dv.noise_var)},
+            {"regimes_before", regimeStats(df.y.segment(sd2 * nRf, nRf), v, w, vd, ph, lags2, opt.alpha)},
+            {"rejected_candidates", sel.log}};
+      }
+      std::vector<std::string> regimes;
+      for (auto ch : {"current_right", "current_left"})
+        for (auto& r : biasedRegimes(rep.channels[ch]["regimes_before"])) regimes.push_back(std::string(ch) + ":" + r);
+      double sigma = std::sqrt(sel.fit.rss / std::max<Eigen::Index>(1, df2.y.size()));
+      // asymmetry: combine both sides into one finding
+      double asym[2] = {0, 0}, sasym[2] = {0, 0};
+      bool has_asym[2] = {false, false};
+      const double theta5 = cfg.vehicle.motor_viscous_Nm_s_rad / cfg.vehicle.torque_constant_Nm_A;
+      const double rGr = cfg.vehicle.geom.gear_ratio / cfg.vehicle.geom.wheel_radius_m;
+      for (size_t a = 0; a < sel.accepted.size(); ++a) {
+        const Candidate& c = cands[sel.accepted[a]];
+        int i = sel.ranges[a].first;
+        if (c.effect == "motor_asymmetry") {
+          int s = c.name == "motor_asymmetry/right" ? 0 : 1;
+          has_asym[s] = true;
+          asym[s] = sel.fit.beta(i);
+          sasym[s] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
+        }
+      }
+      bool asym_done = false;
+      for (size_t a = 0; a < sel.accepted.size(); ++a) {
+        const Candidate& c = cands[sel.accepted[a]];
+        const SelectionStep& st = sel.steps[a];
+        int i = sel.ranges[a].first;
+        int k = sel.ranges[a].second;
+        Eigen::VectorXd b = sel.fit.beta.segment(i, k);
+        Eigen::MatrixXd C = sel.fit.cov.block(i, i, k, k);
+        Finding f;
+        f.effect = c.effect;
+        f.evidence = evidenceJson(st, alpha_b);
+        f.evidence["regimes_biased_before"] = regimes;
+        f.fit_before = {{"channel", "currents"}, {"validation_rms_A", rmsOf(st.rss0_val, dv.y.size())},
+                        {"fit_rms_A", rmsOf(st.rss0_fit, df.y.size())}};
+        f.fit_after = {{"channel", "currents"}, {"validation_rms_A", rmsOf(st.rss1_val, dv.y.size())},
+                       {"fit_rms_A", rmsOf(st.rss1_fit, df.y.size())}};
+        Eigen::VectorXd contrib = (df2.X * c.S) * b;
+        std::vector<std::pair<double, double>> tc;
+        for (int q = 0; q < contrib.size(); ++q) tc.push_back({df2.t[q], contrib(q)});
+        f.segments = activeSegments(tc, sigma);
+        f.channels = {"current_right", "current_left"};
+        if (c.effect == "motor_asymmetry") {
+          if (asym_done) continue;
+          asym_done = true;
+          // the side with more viscous friction and the ratio of the two sides
+          double fr = 1 + asym[0], fl = 1 + asym[1];
+          int side = fr >= fl ? 0 : 1;
+          double ratio = side == 0 ? fr / fl : fl / fr;
+          double sr = ratio * std::hypot(sasym[0] / fr, sasym[1] / fl);
+          f.parameters = {{"side", sideName(side)}, {"friction_ratio", ratio}};
+          f.uncertainty = {{"friction_ratio", sr}};
+          f.channels = {side == 0 ? "current_right" : "current_left"};
+          if (has_asym[0] && has_asym[1]) f.channels = {"current_right", "current_left"};
+          double dI = std::abs(asym[0] - asym[1]) * theta5 * rGr * 0.8;
+          f.description = fmt::format(
+              "the {} drive needs {:.2f} A more than the {} to go straight at 0.8 m/s: unequal gearbox "
+              "(viscous) friction, {:.0f}% more on the {} (friction ratio {:.3f} +- {:.3f}); the symmetric "
+              "model (6) reads the current difference as a turn",
+              sideName(side), dI, sideName(1 - side), (ratio - 1) * 100, sideName(side), ratio, sr);
+          if (has_asym[0] && has_asym[1]) f.parameters["friction_ratio_right_left"] = {fr, fl};
+        } else if (c.effect == "coulomb_friction") {
+          std::string side = c.name.substr(c.name.find('/') + 1);
+          f.parameters = {{"current_A", b(0)}, {"side", side}};
+          f.uncertainty = {{"current_A", std::sqrt(C(0, 0))}};
+          if (side != "both") f.channels = {"current_" + side};
+          f.description = fmt::format(
+              "{} needs {:.3f} A (+- {:.3f}) more current at any speed, in the direction of motion: dry "
+              "(Coulomb) friction in the drive, not modelled by the viscous term of (6)",
+              side == "both" ? "each motor" : "the " + side + " motor", b(0), std::sqrt(C(0, 0)));
+        } else if (c.effect == "payload_mass") {
+          double m = mb + b(0);
+          f.parameters = {{"body_mass_kg", m}};
+          f.uncertainty = {{"body_mass_kg", std::sqrt(C(0, 0))}};
+          f.description = fmt::format(
+              "accelerating takes {:.0f}% {} current than the model predicts with the same cruise current: "
+              "the mass of chair and user is {:.1f} kg (+- {:.1f}), not the configured {:.1f} kg",
+              std::abs(b(0)) / (mb + 2 * cfg.vehicle.geom.wheel_mass_kg + 17.1) * 100, b(0) > 0 ? "more" : "less", m,
+              std::sqrt(C(0, 0)), mb);
+        } else if (c.effect == "ground_slope") {
+          double s = std::hypot(b(0), b(1));
+          double ang = std::asin(std::min(1.0, s)) * kRad2Deg;
+          double head = std::atan2(b(1), b(0)) * kRad2Deg;
+          // delta method
+          Eigen::RowVector2d ja = Eigen::RowVector2d(b(0), b(1)) / std::max(1e-12, s) /
+                                  std::sqrt(std::max(1e-12, 1 - s * s)) * kRad2Deg;
+          Eigen::RowVector2d jh = Eigen::RowVector2d(-b(1), b(0)) / std::max(1e-24, s * s) * kRad2Deg;
+          double sa = std::sqrt(std::max(0.0, (ja * C * ja.transpose())(0)));
+          double sh = std::sqrt(std::max(0.0, (jh * C * jh.transpose())(0)));
+          f.parameters = {{"angle_deg", ang}, {"downhill_heading_deg", head}};
+          f.uncertainty = {{"angle_deg", sa}, {"downhill_heading_deg", sh}};
+          f.description = fmt::format(
+              "both motors need less current heading {:.0f} deg and more heading {:.0f} deg (start frame), "
+              "{:.2f} A each at the extremes: the floor slopes by {:.2f} deg (+- {:.2f}) downhill towards "
+              "{:.0f} deg (+- {:.0f})",
+              head, head + 180, s * (cfg.vehicle.geom.body_mass_kg + 2 * cfg.vehicle.geom.wheel_mass_kg) * 9.81 / 2 *
+                                   cfg.vehicle.geom.wheel_radius_m / cfg.vehicle.geom.gear_ratio /
+                                   (cfg.vehicle.gearbox_efficiency * cfg.vehicle.torque_constant_Nm_A),
+              ang, sa, head, sh);
+        } else if (c.effect == "sensor_delay") {
+          f.parameters = {{"sensor", "motors"}, {"delay_s", delay}};
+          f.uncertainty = {{"delay_s", std::sqrt(C(0, 0))}};
+          f.description = fmt::format(
+              "the motor currents are time-stamped {:.1f} ms (+- {:.1f}) late relative to the encoders: the "
+              "current leads the acceleration it causes",
+              1000 * delay, 1000 * std::sqrt(C(0, 0)));
+        }
+        rep.addFinding(f);
+      }
+      if (opt.enable_unmodeled) {
+        Eigen::VectorXd rf = sel.fit.residual;
+        int nRf = static_cast<int>(df2.y.size() / 2);
+        for (int s2 = 0; s2 < 2; ++s2) {
+          Eigen::MatrixXd L = df2.lib.middleRows(s2 * nRf, nRf);
+          Eigen::MatrixXd Lv = dv2.lib.middleRows(s2 * nRv2, nRv2);
+          // i_self is the measured quantity itself: keep it out (it would absorb everything)
+          L.col(12).setZero(), Lv.col(12).setZero();
+          SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
+                                  rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags2, opt);
+          if (!sr.accepted) continue;
+          Finding f;
+          f.effect = "unmodeled";
+          std::string ch = s2 == 0 ? "current_right" : "current_left";
+          f.channels = {ch};
+          std::string eq = ch + " - model =";
+          for (size_t k = 0; k < sr.terms.size(); ++k) {
+            const auto& nm = dynLibNames()[sr.terms[k]];
+            f.parameters[nm] = sr.coef(k);
+            f.uncertainty[nm] = sr.se(k);
+            eq += fmt::format(" {:+.4g}*{}", sr.coef(k), nm);
+          }
+          f.parameters["channel"] = ch;
+          f.description = "a term outside the catalogue acts on the " + ch + " equation: " + eq + " (A)";
+          f.evidence = {{"likelihood_ratio", sr.ev.lr}, {"p_value", sr.ev.p_value}, {"delta_bic", sr.ev.delta_bic},
+                        {"n_eff", sr.ev.n_eff}, {"validation_likelihood_ratio", sr.lr_val}};
+          f.fit_before = {{"validation_rms_A", sr.rms_before_val}};
+          f.fit_after = {{"validation_rms_A", sr.rms_after_val}};
+          rep.addFinding(f);
+        }
+      }
+    } else {
+      skipped["stage2"] = "too little overlapping encoder and motor-current data";
+    }
+  } else {
+    skipped["stage2"] = "no motor currents: dynamics not checked";
+  }
+  if (!skipped.empty()) rep.info["skipped"] = skipped;
+
+  // ---------------- verify: trajectories against ground truth ----------------
+  Corrections none;
+  nlohmann::json tb = trajectoryJson(valS, none, cfg), ta = trajectoryJson(valS, corr, cfg);
+  if (!tb.empty()) rep.validation["trajectory_heldout"] = {{"before", tb}, {"after", ta}};
+  nlohmann::json fb = trajectoryJson(allS, none, cfg), fa = trajectoryJson(allS, corr, cfg);
+  if (!fb.empty()) rep.validation["trajectory_full_recordings"] = {{"before", fb}, {"after", fa}};
+  rep.validation["corrections"] = {{"encoder_scale_right", corr.enc_scale[0]}, {"encoder_scale_left", corr.enc_scale[1]},
+                                   {"gyro_scale", corr.gyro_scale}, {"gyro_bias_rad_s", corr.gyro_bias},
+                                   {"delay_imu_s", corr.delay_imu}, {"delay_encoders_s", corr.delay_enc},
+                                   {"delay_motors_s", corr.delay_motors}};
+  rep.info["runtime_s"] =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - tstart).count();
+  return rep;
+}
+
+std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep) {
+  std::vector<simulation::EffectSpec> out;
+  for (auto& f : rep.findings) {
+    if (f.effect == "unmodeled" || f.is_fault) continue;
+    simulation::EffectSpec e;
+    e.id = f.effect;
+    for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it) {
+      if (simulation::findEffect(e.id)) {
+        bool known = false;
+        for (auto& p : simulation::findEffect(e.id)->params) known |= p.name == it.key();
+        if (!known) continue;
+      }
+      if (it->is_number()) e.params[it.key()] = fmt::format("{:.8g}", it->get<double>());
+      else if (it->is_string()) e.params[it.key()] = it->get<std::string>();
+    }
+    out.push_back(e);
+  }
+  return out;
+}
+
+config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg, const DiagnosisReport& rep) {
+  config::WheelchairConfig out = cfg;
+  auto effects = findingsAsEffects(rep);
+  out.set("model_extensions", "count", std::to_string(effects.size()));
+  int k = 0;
+  for (auto& f : rep.findings) {
+    if (f.effect == "unmodeled" || f.is_fault) continue;
+    ++k;
+    out.set("model_extensions", fmt::format("effect_{}", k), simulation::formatEffect(effects[k - 1]));
+    std::string u;
+    for (auto it = f.uncertainty.begin(); it != f.uncertainty.end(); ++it)
+      if (it->is_number()) u += fmt::format("{}{}={:.6g}", u.empty() ? "" : ",", it.key(), it->get<double>());
+    out.set("model_extensions", fmt::format("sigma_{}", k), u);
+  }
+  int u = 0;
+  for (auto& f : rep.findings)
+    if (f.effect == "unmodeled") out.set("model_extensions", fmt::format("unmodeled_{}", ++u), f.parameters.dump());
+  return out;
+}
+
+std::vector<simulation::EffectSpec> readModelExtensions(const config::WheelchairConfig& cfg) {
+  std::vector<simulation::EffectSpec> out;
+  int n = cfg.ini().read_int("model_extensions", "count", 0);
+  for (int k = 1; k <= n; ++k) {
+    std::string s = cfg.ini().read_string("model_extensions", fmt::format("effect_{}", k), "");
+    if (!s.empty()) out.push_back(simulation::parseEffect(s));
+  }
+  return out;
+}
+
+io::Recording correctRecording(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                               const std::vector<simulation::EffectSpec>& effects) {
+  io::Recording out = rec;
+  double ks[2] = {1, 1}, g = 1, b = 0, d_imu = 0, d_enc = 0, d_mot = 0;
+  double asym[2] = {0, 0}, coul[2] = {0, 0}, dm = 0, slope = 0, head = 0;
+  for (auto& e : effects) {
+    if (e.id == "encoder_scale")
+      for (int s : simulation::effectSides(e)) ks[s] *= e.number("scale");
+    if (e.id == "gyro_scale") g *= e.number("scale");
+    if (e.id == "gyro_bias") b += e.number("bias_rad_s");
+    if (e.id == "sensor_delay") {
+      std::string s = e.text("sensor");
+      if (s == "imu") d_imu += e.number("delay_s");
+      if (s == "encoders") d_enc += e.number("delay_s");
+      if (s == "motors") d_mot += e.number("delay_s");
+    }
+    if (e.id == "motor_asymmetry") asym[e.text("side") == "right" ? 0 : 1] += e.number("friction_ratio") - 1;
+    if (e.id == "coulomb_friction")
+      for (int s : simulation::effectSides(e)) coul[s] += e.number("current_A");
+    if (e.id == "payload_mass") dm = e.number("body_mass_kg") - cfg.vehicle.geom.body_mass_kg;
+    if (e.id == "ground_slope") slope = e.number("angle_deg") / kRad2Deg, head = e.number("downhill_heading_deg") / kRad2Deg;
+  }
+  auto un = sensors::unwrapTicks(rec.encoders);
+  for (size_t i = 0; i < out.encoders.size() && i < un.t_s.size(); ++i) {
+    out.encoders[i].t_s -= d_enc;
+    out.encoders[i].right_ticks = sensors::toHardwareCounter(std::llround(double(un.right[i]) / ks[0]));
+    out.encoders[i].left_ticks = sensors::toHardwareCounter(std::llround(double(un.left[i]) / ks[1]));
+  }
+  for (auto& s : out.imu) s.t_s -= d_imu, s.gyro_z_rad_s = (s.gyro_z_rad_s - b) / g;
+  for (auto& s : out.motors) s.t_s -= d_mot;
+  bool dyn = asym[0] != 0 || asym[1] != 0 || coul[0] != 0 || coul[1] != 0 || dm != 0 || slope != 0;
+  if (dyn && out.encoders.size() > 3 && !out.motors.empty()) {
+    // wheel speeds and heading from the corrected encoders, resampled at the current samples
+    Streams s = makeStreams(out, cfg);
+    std::vector<double> tm;
+    for (auto& m : out.motors) tm.push_back(m.t_s);
+    std::vector<double> uR = sensors::centralDerivative(s.te, s.sR), uL = sensors::centralDerivative(s.te, s.sL);
+    double fs = 1.0 / std::max(1e-3, sensors::medianSpacing(s.te));
+    if (fs > 5) uR = sensors::filtfiltButter2(s.te, uR, 2.0), uL = sensors::filtfiltButter2(s.te, uL, 2.0);
+    std::vector<double> vd = sensors::centralDerivative(s.te, [&] {
+      std::vector<double> v(uR.size());
+      for (size_t i = 0; i < v.size(); ++i) v[i] = 0.5 * (uR[i] + uL[i]);
+      return v;
+    }());
+    std::vector<double> phi(s.te.size());
+    const double lw = cfg.vehicle.geom.track_width_m;
+    for (size_t i = 0; i < phi.size(); ++i) phi[i] = (s.sR[i] - s.sL[i]) / lw;
+    auto uRm = sensors::resampleLinear(s.te, uR, tm), uLm = sensors::resampleLinear(s.te, uL, tm);
+    auto vdm = sensors::resampleLinear(s.te, vd, tm), phm = sensors::resampleLinear(s.te, phi, tm);
+    const auto& P = cfg.vehicle;
+    const double theta5 = P.motor_viscous_Nm_s_rad / P.torque_constant_Nm_A, rG = P.geom.gear_ratio, r = P.geom.wheel_radius_m;
+    const double alpha = 1.0 / (P.gearbox_efficiency * P.torque_constant_Nm_A);
+    const double Mg2 = (P.geom.body_mass_kg + 2 * P.geom.wheel_mass_kg) * 9.81 / 2;
+    for (size_t i = 0; i < out.motors.size(); ++i) {
+      double u[2] = {uRm[i], uLm[i]};
+      double extra[2];
+      for (int sd = 0; sd < 2; ++sd)
+        extra[sd] = asym[sd] * theta5 * (rG / r) * u[sd] + coul[sd] * std::tanh(u[sd] / 0.01) +
+                    alpha * (r / rG) * dm * vdm[i] / 2 - alpha * (r / rG) * Mg2 * std::sin(slope) * std::cos(phm[i] - head);
+      out.motors[i].current_right_A -= extra[0];
+      out.motors[i].current_left_A -= extra[1];
+    }
+  }
+  return out;
+}
+
+}  // namespace wheelchair::diagnosis

@@ -1,0 +1,82 @@
+// `wheelchair diagnose`: finds the physics the nominal model leaves out (issue 7,
+// docs/diagnosis-design.md, docs/discovery.md).
+//
+//   compare  residuals per channel on EXACT measurement models: the gyro integral over an
+//            encoder window against the odometric heading change (stage 1, kinematic), and
+//            the per-motor equation error of the drive model (6)/(2) in current space
+//            (stage 2, dynamics), with zero-phase filtering applied alike to both sides;
+//   locate   bias / whiteness / NIS tests per channel and per driving regime;
+//   name     forward selection over the catalogue terms (docs/effects.md), each linear in its
+//            parameters, by likelihood ratio on the EFFECTIVE sample size (Newey-West) at a
+//            Bonferroni level, BIC, physical plausibility and held-out validation; then a
+//            sparse regression (STLSQ) over a term library for what remains (`unmodeled`);
+//   model    parameters with HAC uncertainties; corrected configuration ([model_extensions]);
+//   verify   residual RMS / NIS / whiteness and, with ground truth, dead-reckoning ATE and
+//            terminal error before and after, on data not used for fitting.
+//
+// Example:
+//   auto cfg = config::WheelchairConfig::load("config/wheelchair.ini");
+//   DiagnosisOptions opt;  opt.loadFromConfig(cfg.ini());
+//   DiagnosisReport rep = diagnose({io::readRawlog("drive.rawlog")}, {}, cfg, opt);
+//   if (rep.mismatch) correctedConfig(cfg, rep).save("corrected.ini");
+#pragma once
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/diagnosis/Finding.h"
+#include "libwheelchair/io/Recording.h"
+#include "libwheelchair/simulation/Effects.h"
+
+#include <string>
+#include <vector>
+
+namespace wheelchair::diagnosis {
+
+/// Section [diagnosis] of the configuration.
+struct DiagnosisOptions {
+  double fit_fraction = 0.7;        ///< without --validate: fit on this first part of the time
+  double window_s = 0.2;            ///< stage 1 window length (s)
+  double cutoff_hz = 2.0;           ///< stage 2 zero-phase low-pass (Hz), currents and speeds
+  double grid_rate_hz = 50.0;       ///< stage 2 time base (Hz)
+  double edge_trim_s = 1.0;         ///< stage 2: dropped at both ends of every segment
+  double max_gap_s = 0.25;          ///< a stream gap longer than this splits a segment
+  double alpha = 0.01;              ///< family-wise false-alarm level (Bonferroni)
+  double min_bic_drop = 10.0;       ///< strong evidence (Kass & Raftery)
+  double validation_fraction_of_expected = 0.25;  ///< held-out gain >= this x predicted gain
+  double validation_min_expected_lr = 9.0;        ///< below: validation cannot test the term
+  bool enable_unmodeled = true;     ///< sparse regression on what remains
+  double stlsq_threshold_sigma = 4.0;  ///< STLSQ keeps terms with |coef| > this x HAC sigma
+  bool enable_delay = true;
+  bool enable_pozyx = true;
+
+  void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
+                      const std::string& section = "diagnosis");
+};
+
+/// Runs the whole diagnosis. `validate` empty: fit on the first fit_fraction of each fit
+/// recording, validate on the rest. Throws std::runtime_error when no stage has data
+/// (no encoders).
+DiagnosisReport diagnose(const std::vector<io::Recording>& fit,
+                         const std::vector<io::Recording>& validate,
+                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
+
+/// The findings as simulator effects (docs/effects.md): one definition for both.
+std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep);
+
+/// The configuration with a [model_extensions] section: count = N, effect_1..effect_N =
+/// `id:key=value,...` (simulation::parseEffect reads each), sigma_1.. = uncertainties, and
+/// the shared keys corrected where the nominal model has them (payload: [vehicle]
+/// body_mass_kg).
+config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
+                                         const DiagnosisReport& rep);
+
+/// Reads [model_extensions] back (what a simulator or estimator needs to apply them).
+std::vector<simulation::EffectSpec> readModelExtensions(const config::WheelchairConfig& cfg);
+
+/// A copy of the recording with the sensor effects undone and the dynamic effects removed
+/// from the currents, so that the NOMINAL model and estimator see consistent data:
+/// ticks / encoder scale, (gyro - bias) / gyro scale, stream delays removed, and each motor
+/// current minus the fitted extension currents (asymmetry, Coulomb, slope, payload).
+io::Recording correctRecording(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                               const std::vector<simulation::EffectSpec>& effects);
+
+}  // namespace wheelchair::diagnosis

@@ -1,0 +1,450 @@
+#include "libwheelchair/diagnosis/Stages.h"
+
+#include "libwheelchair/diagnosis/Diagnosis.h"
+#include "libwheelchair/model/DriveDynamics.h"
+#include "libwheelchair/sensors/Encoders.h"
+#include "libwheelchair/sensors/Filtering.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace wheelchair::diagnosis {
+
+namespace {
+
+template <class T, class F>
+std::vector<T> sortedUnique(std::vector<T> v, F time) {
+  std::stable_sort(v.begin(), v.end(), [&](const T& a, const T& b) { return time(a) < time(b); });
+  std::vector<T> out;
+  for (auto& s : v)
+    if (out.empty() || time(s) > time(out.back())) out.push_back(s);
+  return out;
+}
+
+/// Cumulative trapezoid of a piecewise-linear signal, evaluated anywhere (held outside).
+struct LinearIntegral {
+  const std::vector<double>* t = nullptr;
+  const std::vector<double>* x = nullptr;
+  double shift = 0;  // sample k is at t[k] - shift
+  std::vector<double> C;
+  void init(const std::vector<double>& tt, const std::vector<double>& xx, double sh) {
+    t = &tt, x = &xx, shift = sh;
+    C.assign(tt.size(), 0.0);
+    for (size_t k = 1; k < tt.size(); ++k) C[k] = C[k - 1] + 0.5 * (xx[k] + xx[k - 1]) * (tt[k] - tt[k - 1]);
+  }
+  double value(double tq) const {  // value of x at tq (linear)
+    double q = tq + shift;
+    auto& T = *t;
+    if (q <= T.front()) return x->front();
+    if (q >= T.back()) return x->back();
+    size_t k = std::upper_bound(T.begin(), T.end(), q) - T.begin();
+    double a = (q - T[k - 1]) / (T[k] - T[k - 1]);
+    return (*x)[k - 1] + a * ((*x)[k] - (*x)[k - 1]);
+  }
+  double F(double tq) const {
+    double q = tq + shift;
+    auto& T = *t;
+    if (q <= T.front()) return 0.0;
+    if (q >= T.back()) return C.back();
+    size_t k = std::upper_bound(T.begin(), T.end(), q) - T.begin();
+    double h = q - T[k - 1];
+    double xq = value(tq);
+    return C[k - 1] + 0.5 * ((*x)[k - 1] + xq) * h;
+  }
+  double integral(double a, double b) const { return F(b) - F(a); }
+  /// Largest sample gap inside [a, b] (sample times shifted), infinite if not covered.
+  double maxGap(double a, double b) const {
+    auto& T = *t;
+    double qa = a + shift, qb = b + shift;
+    if (qa < T.front() || qb > T.back()) return 1e300;
+    size_t i = std::upper_bound(T.begin(), T.end(), qa) - T.begin();
+    size_t j = std::lower_bound(T.begin(), T.end(), qb) - T.begin();
+    double g = 0;
+    for (size_t k = std::max<size_t>(i, 1); k <= j && k < T.size(); ++k) g = std::max(g, T[k] - T[k - 1]);
+    return g;
+  }
+};
+
+/// Filter response variance factor of filtfiltButter2 at (fc, fs): sum of squared impulse
+/// response (variance of filtered white noise of unit variance).
+double filteredNoiseFactor(double fc, double fs) {
+  int n = static_cast<int>(20 * fs / fc) + 1;
+  std::vector<double> x(n, 0.0);
+  x[n / 2] = 1.0;
+  auto y = sensors::filtfiltButter2(x, fc, fs);
+  double s = 0;
+  for (double v : y) s += v * v;
+  return s;
+}
+
+}  // namespace
+
+Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cfg) {
+  Streams s;
+  const double r = cfg.vehicle.geom.wheel_radius_m;
+  const double rpt = cfg.encoders.params.wheelRadPerTick();
+  if (!rec.encoders.empty()) {
+    auto un = sensors::unwrapTicks(rec.encoders);
+    std::vector<size_t> idx(un.t_s.size());
+    std::iota(idx.begin(), idx.end(), 0);
+    std::stable_sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return un.t_s[a] < un.t_s[b]; });
+    for (size_t k : idx) {
+      if (!s.te.empty() && !(un.t_s[k] > s.te.back())) continue;
+      s.te.push_back(un.t_s[k]);
+      s.sR.push_back(r * rpt * double(un.right[k]));
+      s.sL.push_back(r * rpt * double(un.left[k]));
+    }
+    if (!s.sR.empty()) {
+      double r0 = s.sR.front(), l0 = s.sL.front();
+      for (auto& v : s.sR) v -= r0;
+      for (auto& v : s.sL) v -= l0;
+    }
+  }
+  auto imu = sortedUnique(rec.imu, [](const io::ImuSample& a) { return a.t_s; });
+  for (auto& g : imu)
+    if (std::isfinite(g.gyro_z_rad_s)) s.tg.push_back(g.t_s), s.gz.push_back(g.gyro_z_rad_s);
+  auto mot = sortedUnique(rec.motors, [](const io::MotorSample& a) { return a.t_s; });
+  for (auto& m : mot)
+    if (std::isfinite(m.current_right_A) && std::isfinite(m.current_left_A))
+      s.tm.push_back(m.t_s), s.iR.push_back(m.current_right_A), s.iL.push_back(m.current_left_A);
+  s.pozyx = sortedUnique(rec.pozyx, [](const io::PozyxSample& a) { return a.t_s; });
+  s.gt = sortedUnique(rec.ground_truth, [](const io::GroundTruthPoseSample& a) { return a.t_s; });
+  s.t_begin = rec.startTime();
+  s.t_end = rec.endTime();
+  if (!s.te.empty()) s.t_begin = s.te.front(), s.t_end = s.te.back();
+  return s;
+}
+
+Streams cropStreams(const Streams& s, double a, double b) {
+  Streams o;
+  auto in = [&](double t) { return t >= a && t <= b; };
+  for (size_t k = 0; k < s.te.size(); ++k)
+    if (in(s.te[k])) o.te.push_back(s.te[k]), o.sR.push_back(s.sR[k]), o.sL.push_back(s.sL[k]);
+  for (size_t k = 0; k < s.tg.size(); ++k)
+    if (in(s.tg[k])) o.tg.push_back(s.tg[k]), o.gz.push_back(s.gz[k]);
+  for (size_t k = 0; k < s.tm.size(); ++k)
+    if (in(s.tm[k])) o.tm.push_back(s.tm[k]), o.iR.push_back(s.iR[k]), o.iL.push_back(s.iL[k]);
+  for (auto& p : s.pozyx)
+    if (in(p.t_s)) o.pozyx.push_back(p);
+  for (auto& p : s.gt)
+    if (in(p.t_s)) o.gt.push_back(p);
+  o.t_begin = std::max(a, s.t_begin);
+  o.t_end = std::min(b, s.t_end);
+  return o;
+}
+
+KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
+                      const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+  KinRows k;
+  const double lw = cfg.vehicle.geom.track_width_m;
+  std::vector<double> y;
+  std::vector<std::array<double, 5>> X;
+  double gyro_dt_sum = 0;
+  int gyro_dt_n = 0;
+  for (const auto& s : recs) {
+    if (!s.hasEncoders() || !s.hasGyro()) continue;
+    std::vector<double> te(s.te.size());
+    for (size_t i = 0; i < te.size(); ++i) te[i] = s.te[i] - c.delay_enc;
+    std::vector<double> gz(s.gz.size());
+    for (size_t i = 0; i < gz.size(); ++i) gz[i] = (s.gz[i] - c.gyro_bias) / c.gyro_scale;
+    LinearIntegral G;
+    G.init(s.tg, gz, 0.0);
+    // gyro stamps lag truth by delay_imu: truth time t is at stamp t + delay_imu
+    G.shift = c.delay_imu;
+    double dte = sensors::medianSpacing(te);
+    double dtg = sensors::medianSpacing(s.tg);
+    if (!(dte > 0) || !(dtg > 0)) continue;
+    gyro_dt_sum += dtg, gyro_dt_n++;
+    int step = std::max(1, static_cast<int>(std::lround(opt.window_s / dte)));
+    int begin = static_cast<int>(y.size());
+    for (size_t i = 0; i + step < te.size(); i += step) {
+      size_t j = i + step;
+      double t0 = te[i], t1 = te[j];
+      bool gap = false;
+      for (size_t m = i + 1; m <= j; ++m)
+        if (te[m] - te[m - 1] > opt.max_gap_s) gap = true;
+      double dR = (s.sR[j] - s.sR[i]) / c.enc_scale[0];
+      double dL = (s.sL[j] - s.sL[i]) / c.enc_scale[1];
+      double dphi_enc = (dR - dL) / lw;
+      // heading in the start frame (cumulative distances are kept from the recording start)
+      double phi_mid = 0.5 * ((s.sR[i] + s.sR[j]) / c.enc_scale[0] - (s.sL[i] + s.sL[j]) / c.enc_scale[1]) / lw;
+      if (gap || G.maxGap(t0, t1) > opt.max_gap_s) {
+        if (static_cast<int>(y.size()) > begin) k.groups.push_back({begin, static_cast<int>(y.size())});
+        begin = static_cast<int>(y.size());
+        continue;
+      }
+      double ig = G.integral(t0, t1);
+      y.push_back(ig - dphi_enc);
+      X.push_back({t1 - t0, dphi_enc, dR / lw, -dL / lw, -(G.value(t1) - G.value(t0))});
+      k.t0.push_back(t0), k.t1.push_back(t1);
+      k.v.push_back(0.5 * (dR + dL) / (t1 - t0));
+      k.omega.push_back(dphi_enc / (t1 - t0));
+      k.phi.push_back(phi_mid);
+    }
+    if (static_cast<int>(y.size()) > begin) k.groups.push_back({begin, static_cast<int>(y.size())});
+  }
+  k.y = Eigen::Map<Eigen::VectorXd>(y.data(), y.size());
+  k.X.resize(y.size(), 5);
+  for (size_t i = 0; i < X.size(); ++i)
+    for (int j = 0; j < 5; ++j) k.X(i, j) = X[i][j];
+  const double tick_m = cfg.vehicle.geom.wheel_radius_m * cfg.encoders.params.wheelRadPerTick();
+  double dtg = gyro_dt_n ? gyro_dt_sum / gyro_dt_n : 0.01;
+  k.noise_var_per_s = cfg.imu.gyro_noise_rad_s * cfg.imu.gyro_noise_rad_s * dtg;
+  k.noise_var_const = 2.0 * tick_m * tick_m / 6.0 / (lw * lw);
+  return k;
+}
+
+const std::vector<std::string>& dynLibNames() {
+  static const std::vector<std::string> n = {"1",       "v",      "omega",    "vdot",
+                                             "omegadot", "sgn(u)", "|u|",      "u^2",
+                                             "v*omega", "omega^2", "cos(phi)", "sin(phi)",
+                                             "i_self",  "i_other"};
+  return n;
+}
+
+DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
+                    const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+  DynRows d;
+  const auto& P = cfg.vehicle;
+  const auto& g = P.geom;
+  const double lw = g.track_width_m, r = g.wheel_radius_m, rG = g.gear_ratio;
+  model::DriveTrain dt = model::DriveTrain::symmetric(P);
+  const double theta5 = P.motor_viscous_Nm_s_rad / P.torque_constant_Nm_A;
+  const double alpha = 1.0 / (P.gearbox_efficiency * P.torque_constant_Nm_A);
+  const double eps = dt.coulomb_smoothing_m_s > 0 ? dt.coulomb_smoothing_m_s : 0.01;
+  const double Mg2 = (g.body_mass_kg + 2 * g.wheel_mass_kg) * 9.81 / 2.0;
+  const double fs = opt.grid_rate_hz, fc = opt.cutoff_hz;
+  const int ncol = 8, nlib = static_cast<int>(dynLibNames().size());
+  struct Row {
+    double y, t, v, w, vd, wd, phi;
+    int side;
+    std::array<double, 8> x;
+    std::array<double, 14> l;
+  };
+  std::vector<Row> rowsR, rowsL;
+  Groups gR, gL;
+  for (const auto& s : recs) {
+    if (!s.hasEncoders() || !s.hasMotors()) continue;
+    std::vector<double> te(s.te.size()), tm(s.tm.size());
+    for (size_t i = 0; i < te.size(); ++i) te[i] = s.te[i] - c.delay_enc;
+    for (size_t i = 0; i < tm.size(); ++i) tm[i] = s.tm[i] - c.delay_motors;
+    std::vector<double> sR(s.sR), sL(s.sL);
+    for (auto& v : sR) v /= c.enc_scale[0];
+    for (auto& v : sL) v /= c.enc_scale[1];
+    // Continuous segments covered by both streams.
+    std::vector<std::pair<double, double>> segs;
+    auto splitGaps = [&](const std::vector<double>& t) {
+      std::vector<std::pair<double, double>> out;
+      double a = t.front();
+      for (size_t i = 1; i < t.size(); ++i)
+        if (t[i] - t[i - 1] > opt.max_gap_s) out.push_back({a, t[i - 1]}), a = t[i];
+      out.push_back({a, t.back()});
+      return out;
+    };
+    auto se = splitGaps(te), sm = splitGaps(tm);
+    for (auto& a : se)
+      for (auto& b : sm) {
+        double lo = std::max(a.first, b.first) + opt.edge_trim_s;
+        double hi = std::min(a.second, b.second) - opt.edge_trim_s;
+        if (hi - lo > 3.0) segs.push_back({lo, hi});
+      }
+    for (auto [lo, hi] : segs) {
+      // grid with a margin for the filter (the margin is dropped afterwards)
+      double margin = std::min(opt.edge_trim_s, 1.0);
+      double glo = lo - margin, ghi = hi + margin;
+      int n = static_cast<int>(std::floor((ghi - glo) * fs)) + 1;
+      if (n < 20) continue;
+      std::vector<double> tg(n);
+      for (int i = 0; i < n; ++i) tg[i] = glo + i / fs;
+      auto pR = sensors::resampleLinear(te, sR, tg);
+      auto pL = sensors::resampleLinear(te, sL, tg);
+      auto uR = sensors::centralDerivative(tg, pR);
+      auto uL = sensors::centralDerivative(tg, pL);
+      auto uRf = sensors::filtfiltButter2(uR, fc, fs);
+      auto uLf = sensors::filtfiltButter2(uL, fc, fs);
+      double fc2 = std::min(2.5 * fc, 0.45 * fs);
+      auto uR2 = sensors::filtfiltButter2(uR, fc2, fs);
+      auto uL2 = sensors::filtfiltButter2(uL, fc2, fs);
+      auto udR = sensors::centralDerivative(tg, uRf);
+      auto udL = sensors::centralDerivative(tg, uLf);
+      // currents: filtered on their own time base, then resampled
+      std::vector<double> tmi, iRs, iLs;
+      for (size_t i = 0; i < tm.size(); ++i)
+        if (tm[i] >= glo - 2 && tm[i] <= ghi + 2) tmi.push_back(tm[i]), iRs.push_back(s.iR[i]), iLs.push_back(s.iL[i]);
+      if (tmi.size() < 10) continue;
+      auto iRf = sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, iRs, fc), tg);
+      auto iLf = sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, iLs, fc), tg);
+      auto iRraw = sensors::resampleLinear(tmi, iRs, tg);
+      auto iLraw = sensors::resampleLinear(tmi, iLs, tg);
+      // nonlinear columns from lightly filtered signals, then filtered like everything else
+      std::vector<double> sgR(n), sgL(n), cph(n), sph(n), phi(n);
+      for (int i = 0; i < n; ++i) {
+        phi[i] = (pR[i] - pL[i]) / lw;
+        sgR[i] = std::tanh(uR2[i] / eps);
+        sgL[i] = std::tanh(uL2[i] / eps);
+        cph[i] = std::cos(phi[i]);
+        sph[i] = std::sin(phi[i]);
+      }
+      sgR = sensors::filtfiltButter2(sgR, fc, fs);
+      sgL = sensors::filtfiltButter2(sgL, fc, fs);
+      cph = sensors::filtfiltButter2(cph, fc, fs);
+      sph = sensors::filtfiltButter2(sph, fc, fs);
+      std::vector<double> predR(n), predL(n);
+      std::vector<double> v(n), w(n), vd(n), wd(n);
+      for (int i = 0; i < n; ++i) {
+        v[i] = 0.5 * (uRf[i] + uLf[i]);
+        w[i] = (uRf[i] - uLf[i]) / lw;
+        vd[i] = 0.5 * (udR[i] + udL[i]);
+        wd[i] = (udR[i] - udL[i]) / lw;
+        Eigen::Vector2d ip = dt.currents({v[i], w[i], phi[i]}, vd[i], wd[i]);
+        predR[i] = ip(0), predL[i] = ip(1);
+      }
+      auto dpR = sensors::centralDerivative(tg, predR);
+      auto dpL = sensors::centralDerivative(tg, predL);
+      int i0 = static_cast<int>(std::ceil(margin * fs)), i1 = n - i0;
+      int bR = static_cast<int>(rowsR.size());
+      for (int i = i0; i < i1; ++i) {
+        for (int sd = 0; sd < 2; ++sd) {
+          Row row;
+          row.t = tg[i], row.v = v[i], row.w = w[i], row.vd = vd[i], row.wd = wd[i], row.phi = phi[i];
+          row.side = sd;
+          double u = sd == 0 ? uRf[i] : uLf[i];
+          double im = sd == 0 ? iRf[i] : iLf[i];
+          double io = sd == 0 ? iLf[i] : iRf[i];
+          row.y = im - (sd == 0 ? predR[i] : predL[i]);
+          row.x.fill(0.0);
+          row.x[sd] = theta5 * (rG / r) * u;
+          row.x[2 + sd] = sd == 0 ? sgR[i] : sgL[i];
+          row.x[4] = alpha * (r / rG) * vd[i] / 2.0;
+          row.x[5] = -alpha * (r / rG) * Mg2 * cph[i];
+          row.x[6] = -alpha * (r / rG) * Mg2 * sph[i];
+          row.x[7] = -(sd == 0 ? dpR[i] : dpL[i]);
+          double sg = sd == 0 ? sgR[i] : sgL[i];
+          row.l = {1.0,       v[i],      w[i],        vd[i],   wd[i], sg,  std::abs(u),
+                   u * u,     v[i] * w[i], w[i] * w[i], cph[i], sph[i], im, io};
+          (sd == 0 ? rowsR : rowsL).push_back(row);
+        }
+      }
+      (void)iRraw;
+      (void)iLraw;
+      gR.push_back({bR, static_cast<int>(rowsR.size())});
+    }
+  }
+  const int nR = static_cast<int>(rowsR.size());
+  const int N = 2 * nR;
+  d.y.resize(N);
+  d.X.resize(N, ncol);
+  d.lib.resize(N, nlib);
+  for (int k = 0; k < N; ++k) {
+    const Row& row = k < nR ? rowsR[k] : rowsL[k - nR];
+    d.y(k) = row.y;
+    for (int j = 0; j < ncol; ++j) d.X(k, j) = row.x[j];
+    for (int j = 0; j < nlib; ++j) d.lib(k, j) = row.l[j];
+    d.t.push_back(row.t), d.v.push_back(row.v), d.omega.push_back(row.w);
+    d.vdot.push_back(row.vd), d.omegadot.push_back(row.wd), d.phi.push_back(row.phi);
+    d.side.push_back(row.side);
+  }
+  for (auto [a, b] : gR) d.groups.push_back({a, b});
+  for (auto [a, b] : gR) d.groups.push_back({a + nR, b + nR});
+  d.noise_var = cfg.motors.current_noise_A * cfg.motors.current_noise_A *
+                filteredNoiseFactor(fc, cfg.motors.rate_hz > 0 ? cfg.motors.rate_hz : 100.0);
+  return d;
+}
+
+Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+                               const std::vector<int>& accepted) {
+  int k = 0;
+  for (int a : accepted) k += static_cast<int>(cands[a].S.cols());
+  Eigen::MatrixXd D(X.rows(), k);
+  int c = 0;
+  for (int a : accepted) {
+    D.middleCols(c, cands[a].S.cols()) = X * cands[a].S;
+    c += static_cast<int>(cands[a].S.cols());
+  }
+  return D;
+}
+
+Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& cands,
+                        const DiagnosisOptions& opt, const std::vector<int>& forced) {
+  Selection sel;
+  sel.accepted = forced;
+  const int m = std::max<int>(1, static_cast<int>(cands.size()));
+  const double alpha_b = opt.alpha / m;
+  const bool have_val = d.y_val.size() > 10;
+  while (true) {
+    Eigen::MatrixXd D0f = acceptedDesign(d.X_fit, cands, sel.accepted);
+    LinearFit f0 = fitLinear(D0f, d.y_fit, d.g_fit, d.lags);
+    Eigen::MatrixXd D0v = have_val ? acceptedDesign(d.X_val, cands, sel.accepted) : Eigen::MatrixXd();
+    double rss0v = have_val ? (d.y_val - D0v * f0.beta).squaredNorm() : 0;
+    int best = -1;
+    SelectionStep best_step;
+    double best_bic = 0;
+    sel.log.clear();
+    for (int ci = 0; ci < static_cast<int>(cands.size()); ++ci) {
+      const Candidate& c = cands[ci];
+      if (std::find(sel.accepted.begin(), sel.accepted.end(), ci) != sel.accepted.end()) continue;
+      bool conflict = false;
+      for (int a : sel.accepted) {
+        for (auto& n : c.conflicts)
+          if (cands[a].name == n) conflict = true;
+        for (auto& n : cands[a].conflicts)
+          if (c.name == n) conflict = true;
+      }
+      if (conflict) continue;
+      std::vector<int> trial = sel.accepted;
+      trial.push_back(ci);
+      Eigen::MatrixXd D1f = acceptedDesign(d.X_fit, cands, trial);
+      LinearFit f1 = fitLinear(D1f, d.y_fit, d.g_fit, d.lags);
+      if (!f1.ok) {
+        sel.log.push_back(c.name + ": not identifiable on this data");
+        continue;
+      }
+      double ne = effectiveSampleSize(f1.residual, d.g_fit, d.lags);
+      int k = static_cast<int>(c.S.cols());
+      Evidence ev = compareNested(f0.rss, f1.rss, k, ne);
+      Eigen::VectorXd coef = f1.beta.tail(k);
+      SelectionStep st;
+      st.candidate = ci;
+      st.evidence = ev;
+      st.rss0_fit = f0.rss, st.rss1_fit = f1.rss;
+      st.coef = coef;
+      std::string why;
+      if (!(ev.p_value < alpha_b)) why = "not significant (p = " + std::to_string(ev.p_value) + ")";
+      else if (!(ev.delta_bic < -opt.min_bic_drop)) why = "BIC drop too small";
+      else if (c.plausible && !c.plausible(coef)) why = "physically implausible parameters";
+      if (why.empty() && have_val) {
+        Eigen::MatrixXd D1v = acceptedDesign(d.X_val, cands, trial);
+        Eigen::VectorXd r1 = d.y_val - D1v * f1.beta;
+        double rss1v = r1.squaredNorm();
+        double nev = effectiveSampleSize(r1, d.g_val, d.lags);
+        Eigen::VectorXd delta = D1v * f1.beta - D0v * f0.beta;
+        st.rss0_val = rss0v, st.rss1_val = rss1v, st.n_eff_val = nev;
+        st.lr_val = nev * std::log(rss0v / std::max(1e-300, rss1v));
+        st.lr_val_expected = nev * std::log(1.0 + delta.squaredNorm() / std::max(1e-300, rss1v));
+        st.val_tested = st.lr_val_expected >= opt.validation_min_expected_lr;
+        if (st.val_tested && st.lr_val < opt.validation_fraction_of_expected * st.lr_val_expected)
+          why = "does not improve the held-out data as predicted";
+      }
+      if (!why.empty()) {
+        sel.log.push_back(c.name + ": " + why);
+        continue;
+      }
+      if (best < 0 || ev.delta_bic < best_bic) best = ci, best_bic = ev.delta_bic, best_step = st;
+    }
+    if (best < 0) break;
+    sel.accepted.push_back(best);
+    sel.steps.push_back(best_step);
+  }
+  Eigen::MatrixXd Df = acceptedDesign(d.X_fit, cands, sel.accepted);
+  sel.fit = fitLinear(Df, d.y_fit, d.g_fit, d.lags);
+  int c = 0;
+  for (int a : sel.accepted) {
+    int k = static_cast<int>(cands[a].S.cols());
+    sel.ranges.push_back({c, k});
+    c += k;
+  }
+  return sel;
+}
+
+}  // namespace wheelchair::diagnosis

@@ -1,0 +1,116 @@
+// Internals of the diagnosis (exposed for the tests and the campaign): the per-recording
+// streams, the stage 1 (kinematic) and stage 2 (dynamic) residual rows with the columns of
+// every catalogue term, and the forward selection engine. See Diagnosis.h for the overview.
+#pragma once
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/diagnosis/Statistics.h"
+#include "libwheelchair/io/Recording.h"
+
+#include <Eigen/Core>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace wheelchair::diagnosis {
+
+struct DiagnosisOptions;
+
+/// One recording's streams, sorted by time, duplicates dropped, ticks unwrapped and turned
+/// into rim distances (m, not yet scale-corrected).
+struct Streams {
+  std::vector<double> te, sR, sL;  ///< encoder times and cumulative rim distances
+  std::vector<double> tg, gz;      ///< gyro z
+  std::vector<double> tm, iR, iL;  ///< motor currents
+  std::vector<io::PozyxSample> pozyx;
+  std::vector<io::GroundTruthPoseSample> gt;
+  double t_begin = 0, t_end = 0;
+  bool hasEncoders() const { return te.size() >= 3; }
+  bool hasGyro() const { return tg.size() >= 3; }
+  bool hasMotors() const { return tm.size() >= 3; }
+};
+
+Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cfg);
+/// Samples with t in [a, b] of every stream.
+Streams cropStreams(const Streams& s, double a, double b);
+
+/// Sensor corrections applied before building rows (identity by default).
+struct Corrections {
+  double enc_scale[2] = {1, 1};  ///< reported / true distance, right, left
+  double gyro_scale = 1, gyro_bias = 0;
+  double delay_imu = 0, delay_enc = 0, delay_motors = 0;  ///< stamps lag truth by this (s)
+};
+
+/// Stage 1 rows: one per window of encoder samples, y = gyro integral - odometric heading
+/// change (rad). Columns: 0 T (gyro bias), 1 (dR - dL)/l_w (gyro scale), 2 dR/l_w (right
+/// encoder scale), 3 -dL/l_w (left encoder scale), 4 -(omega(t1) - omega(t0)) (gyro delay
+/// relative to the encoders).
+struct KinRows {
+  Eigen::VectorXd y;
+  Eigen::MatrixXd X;
+  std::vector<double> t0, t1, v, omega, phi;
+  Groups groups;
+  double noise_var_per_s = 0;  ///< predicted variance of y: gyro white noise part (per second)
+  double noise_var_const = 0;  ///< ... tick quantisation part (per window)
+};
+KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
+                      const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
+
+/// Stage 2 rows: per grid sample the right and then the left motor equation error (A),
+/// y = filtered current - nominal model current. Columns: 0 asym right, 1 asym left,
+/// 2 Coulomb right, 3 Coulomb left, 4 payload (per kg), 5/6 slope cos/sin, 7 motor delay.
+/// `lib` holds the unmodeled-term library (per row) with names in libNames().
+struct DynRows {
+  Eigen::VectorXd y;
+  Eigen::MatrixXd X, lib;
+  std::vector<double> t, v, omega, vdot, omegadot, phi;
+  std::vector<int> side;  ///< 0 right, 1 left
+  Groups groups;
+  double noise_var = 0;  ///< predicted variance of y from the current-sensor noise
+};
+DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
+                    const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
+const std::vector<std::string>& dynLibNames();
+
+/// A catalogue term: its columns are X * S (S selects/combines base columns).
+struct Candidate {
+  std::string name;    ///< e.g. "encoder_scale/right"
+  std::string effect;  ///< catalogue id
+  Eigen::MatrixXd S;
+  std::vector<std::string> conflicts;  ///< names that cannot be accepted together with it
+  std::function<bool(const Eigen::VectorXd& coef)> plausible;
+};
+
+struct SelectionStep {
+  int candidate = -1;
+  Evidence evidence;
+  double rss0_fit = 0, rss1_fit = 0, rss0_val = 0, rss1_val = 0;
+  double lr_val = 0, lr_val_expected = 0, n_eff_val = 0;
+  bool val_tested = false;
+  Eigen::VectorXd coef;  ///< this candidate's coefficients at acceptance
+};
+
+struct Selection {
+  std::vector<int> accepted;
+  std::vector<SelectionStep> steps;  ///< one per accepted candidate
+  LinearFit fit;                     ///< final joint fit (columns: accepted in order)
+  std::vector<std::pair<int, int>> ranges;  ///< coefficient range of each accepted candidate
+  std::vector<std::string> log;             ///< why candidates were rejected (last round)
+};
+
+struct SelectionData {
+  Eigen::VectorXd y_fit, y_val;
+  Eigen::MatrixXd X_fit, X_val;
+  Groups g_fit, g_val;
+  int lags = 5;
+};
+
+Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& cands,
+                        const DiagnosisOptions& opt, const std::vector<int>& forced = {});
+
+/// Design of the accepted candidates, in order.
+Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+                               const std::vector<int>& accepted);
+
+}  // namespace wheelchair::diagnosis

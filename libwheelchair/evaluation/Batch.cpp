@@ -1,0 +1,422 @@
+#include "libwheelchair/evaluation/Batch.h"
+
+#include "libwheelchair/estimation/EkfOptions.h"
+#include "libwheelchair/estimation/Estimator.h"
+#include "libwheelchair/io/RawlogIO.h"
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+namespace wheelchair::evaluation {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Strictly increasing times: of equal timestamps the last sample wins.
+template <class T, class TimeOf>
+void keepLastOfEqualTimes(std::vector<T>& v, TimeOf t) {
+  std::vector<T> out;
+  out.reserve(v.size());
+  for (auto& s : v) {
+    if (!out.empty() && t(out.back()) == t(s))
+      out.back() = s;
+    else
+      out.push_back(s);
+  }
+  v.swap(out);
+}
+
+std::string oneLine(std::string s) {
+  for (char& c : s)
+    if (c == '\n' || c == '\r') c = ' ';
+  return s;
+}
+
+std::string num(double v) {
+  if (std::isnan(v)) return "nan";
+  return fmt::format("{:.9g}", v);
+}
+
+void writeAtomically(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error("cannot write " + tmp);
+    out << text;
+    out.flush();
+    if (!out) throw std::runtime_error("cannot write " + tmp);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0)
+    throw std::runtime_error("cannot rename " + tmp + " to " + path);
+}
+
+estimation::EkfOptions ekfOptions(const config::WheelchairConfig& cfg,
+                                  estimation::FilterKind kind) {
+  estimation::EkfOptions opt;
+  opt.loadFromConfig(cfg.ini(), "estimator");
+  opt.filter = kind;
+  return opt;
+}
+
+}  // namespace
+
+const char* toString(GroundTruthSource s) {
+  switch (s) {
+    case GroundTruthSource::Pozyx: return "pozyx";
+    case GroundTruthSource::GroundTruthStream: return "ground_truth";
+    default: return "none";
+  }
+}
+
+GroundTruth groundTruthOf(const io::Recording& rec, const config::WheelchairConfig& cfg) {
+  GroundTruth g;
+  if (!rec.ground_truth.empty()) {
+    g.source = GroundTruthSource::GroundTruthStream;
+    for (const auto& s : rec.ground_truth) g.samples.push_back({s.t_s, s.x_m, s.y_m, s.phi_rad});
+  } else if (!rec.pozyx.empty()) {
+    g.source = GroundTruthSource::Pozyx;
+    g.lever_arm_m = {cfg.pozyx.lever_x_m, cfg.pozyx.lever_y_m};
+    for (const auto& s : rec.pozyx) g.samples.push_back({s.t_s, s.x_m, s.y_m});
+  }
+  std::stable_sort(g.samples.begin(), g.samples.end(),
+                   [](const Position2DStamped& a, const Position2DStamped& b) { return a.t_s < b.t_s; });
+  keepLastOfEqualTimes(g.samples, [](const Position2DStamped& s) { return s.t_s; });
+  return g;
+}
+
+Trajectory toTrajectory(const estimation::EstimationResult& res) {
+  Trajectory t;
+  t.reserve(res.estimates.size());
+  for (const auto& e : res.estimates) t.push_back({e.t_s, e.x(2), e.x(3), e.x(4)});
+  std::stable_sort(t.begin(), t.end(),
+                   [](const Pose2DStamped& a, const Pose2DStamped& b) { return a.t_s < b.t_s; });
+  keepLastOfEqualTimes(t, [](const Pose2DStamped& p) { return p.t_s; });
+  return t;
+}
+
+Trajectory toTrajectory(const std::vector<estimation::DeadReckoningSample>& dr) {
+  Trajectory t;
+  t.reserve(dr.size());
+  for (const auto& s : dr) t.push_back({s.t_s, s.x_m, s.y_m, s.phi_rad});
+  std::stable_sort(t.begin(), t.end(),
+                   [](const Pose2DStamped& a, const Pose2DStamped& b) { return a.t_s < b.t_s; });
+  keepLastOfEqualTimes(t, [](const Pose2DStamped& p) { return p.t_s; });
+  return t;
+}
+
+const std::vector<std::string>& variantNames() {
+  static const std::vector<std::string> v{"ekf", "encoders", "encoders_gyro", "baseline"};
+  return v;
+}
+
+Trajectory RecordingEstimates::trajectory(const std::string& variant) const {
+  if (variant == "ekf") return toTrajectory(ekf);
+  if (variant == "baseline") return toTrajectory(baseline);
+  if (variant == "encoders") return toTrajectory(encoders);
+  if (variant == "encoders_gyro") return toTrajectory(encoders_gyro);
+  throw std::invalid_argument("unknown trajectory variant '" + variant + "'");
+}
+
+RecordingEstimates estimateVariants(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                                    bool with_baseline) {
+  RecordingEstimates r;
+  r.has_baseline = with_baseline;
+  auto attempt = [&](const std::string& name, const std::function<void()>& f) {
+    std::string err;
+    try {
+      f();
+    } catch (const std::exception& e) {
+      err = e.what();
+    }
+    r.errors.emplace_back(name, err);
+  };
+  attempt("ekf", [&] {
+    r.ekf = estimation::runEstimator(rec, cfg, ekfOptions(cfg, estimation::FilterKind::Physics));
+    if (r.ekf.estimates.empty()) throw std::runtime_error("the EKF produced no estimate");
+  });
+  attempt("encoders", [&] {
+    r.encoders = estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom);
+    if (r.encoders.empty()) throw std::runtime_error("no encoder samples");
+  });
+  attempt("encoders_gyro", [&] {
+    r.encoders_gyro = estimation::deadReckoningEncoderGyro(rec.encoders, rec.imu,
+                                                           cfg.encoders.params, cfg.vehicle.geom);
+    if (r.encoders_gyro.empty()) throw std::runtime_error("no encoder/gyro samples");
+  });
+  if (with_baseline)
+    attempt("baseline", [&] {
+      r.baseline =
+          estimation::runEstimator(rec, cfg, ekfOptions(cfg, estimation::FilterKind::Baseline));
+      if (r.baseline.estimates.empty()) throw std::runtime_error("the baseline produced no estimate");
+    });
+  return r;
+}
+
+void parseAlignment(const std::string& text, MetricOptions& o) {
+  if (text == "none") {
+    o.alignment = Alignment::None;
+  } else if (text == "origin") {
+    o.alignment = Alignment::Origin;
+  } else if (text == "se2") {
+    o.alignment = Alignment::SE2;
+  } else if (text.rfind("se2-first:", 0) == 0) {
+    const std::string v = text.substr(10);
+    std::size_t used = 0;
+    double s = 0;
+    try {
+      s = std::stod(v, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (v.empty() || used != v.size() || !(s > 0) || !std::isfinite(s))
+      throw std::invalid_argument("alignment 'se2-first:SECONDS' needs a positive number, got '" +
+                                  text + "'");
+    o.alignment = Alignment::SE2FirstSeconds;
+    o.align_first_s = s;
+  } else {
+    throw std::invalid_argument("unknown alignment '" + text +
+                                "' (none | origin | se2 | se2-first:SECONDS)");
+  }
+}
+
+std::string alignmentText(Alignment a, double first_s) {
+  switch (a) {
+    case Alignment::None: return "none";
+    case Alignment::Origin: return "origin";
+    case Alignment::SE2: return "se2";
+    case Alignment::SE2FirstSeconds: return "se2-first:" + num(first_s);
+  }
+  return "?";
+}
+
+std::vector<BatchRow> evaluateRecording(const std::string& path,
+                                        const config::WheelchairConfig& shared_cfg,
+                                        const BatchOptions& options) {
+  std::vector<BatchRow> rows;
+  try {
+    // Own copy: nothing of the configuration is shared between worker threads.
+    const auto cfg = config::WheelchairConfig::fromText(shared_cfg.text(), shared_cfg.origin());
+    const io::Recording rec = io::readRawlog(path);
+    const GroundTruth gt = groundTruthOf(rec, cfg);
+    MetricOptions mo = options.metrics;
+    mo.lever_arm_m = gt.lever_arm_m;
+    const RecordingEstimates est = estimateVariants(rec, cfg, options.baseline);
+    for (const auto& [variant, err] : est.errors) {
+      BatchRow row;
+      row.recording = path;
+      row.variant = variant;
+      row.ground_truth = toString(gt.source);
+      row.error = oneLine(err);
+      if (err.empty()) {
+        try {
+          const Trajectory t = est.trajectory(variant);
+          row.n_estimates = t.size();
+          row.metrics = computeMetrics(t, gt.samples, mo);
+        } catch (const std::exception& e) {
+          row.error = oneLine(e.what());
+        }
+      }
+      rows.push_back(std::move(row));
+    }
+  } catch (const std::exception& e) {
+    rows.clear();
+    BatchRow row;
+    row.recording = path;
+    row.ground_truth = toString(GroundTruthSource::None);
+    row.error = oneLine(e.what());
+    if (row.error.empty()) row.error = "unknown error";
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+BatchResult runBatch(const std::vector<std::string>& files, const config::WheelchairConfig& cfg,
+                     const BatchOptions& options) {
+  BatchResult out;
+  out.recordings = files.size();
+  out.alignment = options.metrics.alignment;
+  out.align_first_s = options.metrics.align_first_s;
+  std::vector<std::vector<BatchRow>> per_file(files.size());
+
+  unsigned jobs = options.jobs ? options.jobs : std::max(1u, std::thread::hardware_concurrency());
+  jobs = static_cast<unsigned>(std::min<std::size_t>(jobs, std::max<std::size_t>(files.size(), 1)));
+  std::atomic<std::size_t> next{0};
+  std::size_t done = 0;
+  std::mutex mu;
+  auto worker = [&] {
+    for (;;) {
+      const std::size_t i = next.fetch_add(1);
+      if (i >= files.size()) return;
+      per_file[i] = evaluateRecording(files[i], cfg, options);
+      if (options.progress) {
+        std::lock_guard<std::mutex> lock(mu);
+        options.progress(++done, files.size(), files[i]);
+      }
+    }
+  };
+  if (jobs <= 1) {
+    worker();
+  } else {
+    std::vector<std::thread> pool;
+    for (unsigned k = 0; k < jobs; ++k) pool.emplace_back(worker);
+    for (auto& t : pool) t.join();
+  }
+  for (auto& rows : per_file) {
+    bool failed = false;
+    for (auto& r : rows) {
+      failed |= !r.error.empty();
+      out.rows.push_back(std::move(r));
+    }
+    out.failed_recordings += failed ? 1 : 0;
+  }
+  return out;
+}
+
+namespace {
+
+std::string csvField(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) {
+    if (c == '"') q += '"';
+    q += c;
+  }
+  return q + "\"";
+}
+
+struct Column {
+  const char* name;
+  std::function<double(const Metrics&)> get;
+};
+
+const std::vector<Column>& metricColumns() {
+  static const std::vector<Column> c{
+      {"d_path_m", [](const Metrics& m) { return m.d_path_m; }},
+      {"d_path_gt_m", [](const Metrics& m) { return m.d_path_gt_m; }},
+      {"terminal_error_m", [](const Metrics& m) { return m.terminal_error_m; }},
+      {"loop_error_m", [](const Metrics& m) { return m.loop_error_m; }},
+      {"ate_rmse_m", [](const Metrics& m) { return m.ate_rmse_m; }},
+      {"ate_mean_m", [](const Metrics& m) { return m.ate_mean_m; }},
+      {"ate_median_m", [](const Metrics& m) { return m.ate_median_m; }},
+      {"ate_max_m", [](const Metrics& m) { return m.ate_max_m; }},
+      {"ate_std_m", [](const Metrics& m) { return m.ate_std_m; }},
+      {"rpe_1m_m", [](const Metrics& m) { return m.rpe_1m_m; }},
+      {"rpe_5m_m", [](const Metrics& m) { return m.rpe_5m_m; }},
+      {"n_rpe_1m", [](const Metrics& m) { return double(m.n_rpe_1m); }},
+      {"n_rpe_5m", [](const Metrics& m) { return double(m.n_rpe_5m); }},
+      {"heading_drift_deg", [](const Metrics& m) { return m.heading_drift_deg; }},
+  };
+  return c;
+}
+
+double degrees(double rad) { return rad * 180.0 / kPi; }
+
+}  // namespace
+
+std::string batchCsv(const BatchResult& r) {
+  std::string s = "recording,variant,ground_truth";
+  for (const auto& c : metricColumns()) s += std::string(",") + c.name;
+  s +=
+      ",heading_drift_method,n_matched,n_gt,n_outliers,n_estimates,alignment,align_x_m,align_y_m,"
+      "align_theta_deg,error\n";
+  const std::string al = alignmentText(r.alignment, r.align_first_s);
+  for (const auto& row : r.rows) {
+    const Metrics& m = row.metrics;
+    s += csvField(row.recording) + "," + csvField(row.variant) + "," + row.ground_truth;
+    for (const auto& c : metricColumns()) s += "," + num(c.get(m));
+    s += fmt::format(",{},{},{},{},{},{},{},{},{},{}\n", toString(m.heading_drift_method),
+                     m.n_matched, m.n_gt, m.n_outliers, row.n_estimates, al, num(m.alignment.x),
+                     num(m.alignment.y), num(degrees(m.alignment.theta)), csvField(row.error));
+  }
+  return s;
+}
+
+void writeBatchCsv(const std::string& path, const BatchResult& r,
+                   const config::WheelchairConfig& cfg) {
+  writeAtomically(path, batchCsv(r));
+  writeAtomically(path + ".config.ini",
+                  "# Configuration used for " + path + " (wheelchair evaluate)\n# origin: " +
+                      cfg.origin() + "\n# alignment: " +
+                      alignmentText(r.alignment, r.align_first_s) + "\n" + cfg.text());
+}
+
+std::string batchJson(const BatchResult& r, const config::WheelchairConfig& cfg) {
+  using nlohmann::json;
+  auto jnum = [](double v) -> json { return std::isfinite(v) ? json(v) : json(nullptr); };
+  json j;
+  j["alignment"] = alignmentText(r.alignment, r.align_first_s);
+  j["config_origin"] = cfg.origin();
+  j["config"] = cfg.text();
+  j["recordings"] = r.recordings;
+  j["failed_recordings"] = r.failed_recordings;
+  json rows = json::array();
+  for (const auto& row : r.rows) {
+    json o;
+    o["recording"] = row.recording;
+    o["variant"] = row.variant;
+    o["ground_truth"] = row.ground_truth;
+    for (const auto& c : metricColumns()) o[c.name] = jnum(c.get(row.metrics));
+    o["heading_drift_method"] = toString(row.metrics.heading_drift_method);
+    o["n_matched"] = row.metrics.n_matched;
+    o["n_gt"] = row.metrics.n_gt;
+    o["n_outliers"] = row.metrics.n_outliers;
+    o["n_estimates"] = row.n_estimates;
+    o["alignment_transform"] = {{"x_m", jnum(row.metrics.alignment.x)},
+                                {"y_m", jnum(row.metrics.alignment.y)},
+                                {"theta_deg", jnum(degrees(row.metrics.alignment.theta))}};
+    o["alignment_spread_m"] = jnum(row.metrics.alignment_spread_m);
+    o["error"] = row.error;
+    rows.push_back(std::move(o));
+  }
+  j["rows"] = std::move(rows);
+  return j.dump(2) + "\n";
+}
+
+void writeBatchJson(const std::string& path, const BatchResult& r,
+                    const config::WheelchairConfig& cfg) {
+  writeAtomically(path, batchJson(r, cfg));
+}
+
+std::string batchMarkdown(const BatchResult& r, const config::WheelchairConfig& cfg,
+                          bool include_config) {
+  auto f = [](double v, int prec) {
+    return std::isfinite(v) ? fmt::format("{:.{}f}", v, prec) : std::string("–");
+  };
+  std::string s = fmt::format("Alignment: `{}`. Ground truth per row (`pozyx` = UWB tag, lever arm "
+                              "from [pozyx]; `ground_truth` = motion-capture poses).\n\n",
+                              alignmentText(r.alignment, r.align_first_s));
+  s +=
+      "| recording | variant | GT | d_path (m) | terminal err (m) | loop err (m) | ATE RMSE (m) | "
+      "ATE max (m) | RPE 1 m (m) | heading drift (deg) | matched | error |\n";
+  s += "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
+  for (const auto& row : r.rows) {
+    const Metrics& m = row.metrics;
+    std::string err = row.error;
+    for (char& c : err)
+      if (c == '|') c = '/';
+    s += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                     row.recording, row.variant.empty() ? "–" : row.variant, row.ground_truth,
+                     f(m.d_path_m, 2), f(m.terminal_error_m, 3), f(m.loop_error_m, 3),
+                     f(m.ate_rmse_m, 3), f(m.ate_max_m, 3), f(m.rpe_1m_m, 3),
+                     f(m.heading_drift_deg, 2), m.n_matched, err);
+  }
+  if (include_config)
+    s += "\n## Configuration used (`" + cfg.origin() + "`)\n\n```ini\n" + cfg.text() + "\n```\n";
+  return s;
+}
+
+void writeBatchMarkdown(const std::string& path, const BatchResult& r,
+                        const config::WheelchairConfig& cfg) {
+  writeAtomically(path, "# Trajectory metrics\n\n" + batchMarkdown(r, cfg, true));
+}
+
+}  // namespace wheelchair::evaluation

@@ -1,0 +1,145 @@
+// Batch evaluation of recordings: for every recording, every trajectory variant of the paper's
+// Fig. 5 (+ the baseline filter) against the recording's ground truth (docs/evaluation.md,
+// "Batch evaluation").
+//
+//   variant        trajectory
+//   ekf            physics CD-EKF (estimation::runEstimator, [estimator] options, filter=physics)
+//   encoders       dead reckoning, encoders only (estimation::deadReckoningEncoders)
+//   encoders_gyro  dead reckoning, encoder v + gyro omega (estimation::deadReckoningEncoderGyro)
+//   baseline       kinematic discrete EKF (filter=baseline), when BatchOptions::baseline
+//
+// Ground truth: the GROUND_TRUTH stream (motion-capture poses, with heading, lever arm 0) when
+// the recording has one, else the POZYX stream (tag positions in the anchor frame, no
+// heading, lever arm [pozyx] lever_x_m, lever_y_m), else none (only d_path_m and
+// loop_error_m are then available).
+//
+// Recordings are processed by a pool of std::threads; every recording is evaluated on its
+// own (own copy of the configuration), and rows are returned in input order (file, then the
+// variant order above), so the result is identical to a serial run whatever the job count.
+// A recording that cannot be read or evaluated yields ONE row with an empty variant and the
+// message in `error`; a variant that fails alone gets its own error row. Neither stops the
+// batch.
+//
+// Example:
+//   auto cfg = config::WheelchairConfig::load("config/wheelchair.ini");
+//   BatchOptions opt;  opt.metrics.alignment = Alignment::SE2;  opt.jobs = 4;
+//   BatchResult r = runBatch({"a.rawlog", "b.rawlog"}, cfg, opt);
+//   writeBatchCsv("metrics.csv", r, cfg);          // + metrics.csv.config.ini
+//   writeBatchJson("metrics.json", r, cfg, opt);   // configuration inside
+#pragma once
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/estimation/DeadReckoning.h"
+#include "libwheelchair/estimation/EstimationTypes.h"
+#include "libwheelchair/evaluation/Metrics.h"
+#include "libwheelchair/io/Recording.h"
+
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace wheelchair::evaluation {
+
+enum class GroundTruthSource { None, Pozyx, GroundTruthStream };
+const char* toString(GroundTruthSource s);  ///< "none", "pozyx", "ground_truth"
+
+struct GroundTruth {
+  GroundTruthSource source = GroundTruthSource::None;
+  std::vector<Position2DStamped> samples;  ///< strictly increasing time
+  Eigen::Vector2d lever_arm_m = Eigen::Vector2d::Zero();  ///< tracked point in the body frame
+};
+
+/// The recording's ground truth (see the header comment). Samples sorted by time; of equal
+/// timestamps the last one is kept.
+GroundTruth groundTruthOf(const io::Recording& rec, const config::WheelchairConfig& cfg);
+
+/// Estimates -> trajectory (x, y, phi of the canonical state), strictly increasing time (of
+/// equal timestamps the last one is kept).
+Trajectory toTrajectory(const estimation::EstimationResult& res);
+Trajectory toTrajectory(const std::vector<estimation::DeadReckoningSample>& dr);
+
+/// Variant names in their fixed order.
+const std::vector<std::string>& variantNames();  ///< ekf, encoders, encoders_gyro, baseline
+
+/// All trajectory variants of one recording, with the filters' full outputs (for plots).
+struct RecordingEstimates {
+  estimation::EstimationResult ekf, baseline;
+  std::vector<estimation::DeadReckoningSample> encoders, encoders_gyro;
+  bool has_baseline = false;
+  /// Per variant (variantNames() order; baseline only when computed): the error message of a
+  /// variant whose computation threw ("" = ok).
+  std::vector<std::pair<std::string, std::string>> errors;
+  Trajectory trajectory(const std::string& variant) const;
+};
+
+/// Runs the EKF (and the baseline when `with_baseline`) and both dead reckonings. The
+/// estimator options come from cfg's [estimator] section (filter overridden per variant).
+/// A failing variant is recorded in `errors`, the others are still computed.
+RecordingEstimates estimateVariants(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                                    bool with_baseline);
+
+struct BatchOptions {
+  MetricOptions metrics;  ///< alignment etc.; lever_arm_m is set from the ground truth
+  unsigned jobs = 0;      ///< worker threads; 0 = std::thread::hardware_concurrency()
+  bool baseline = true;   ///< also evaluate the baseline filter
+  /// Called (serialised, from worker threads) after each recording: (done, total, path).
+  std::function<void(std::size_t, std::size_t, const std::string&)> progress;
+};
+
+struct BatchRow {
+  std::string recording;     ///< the path as given
+  std::string variant;       ///< "" for a recording that failed as a whole
+  std::string ground_truth;  ///< toString(GroundTruthSource)
+  Metrics metrics;
+  std::size_t n_estimates = 0;  ///< samples of the estimated trajectory
+  std::string error;            ///< "" = ok
+};
+
+struct BatchResult {
+  std::vector<BatchRow> rows;
+  std::size_t recordings = 0;
+  std::size_t failed_recordings = 0;  ///< recordings with at least one error row
+  Alignment alignment = Alignment::SE2;
+  double align_first_s = 0;
+  bool anyFailed() const { return failed_recordings > 0; }
+};
+
+/// Parses none | origin | se2 | se2-first:SECONDS into `o`; throws std::invalid_argument.
+void parseAlignment(const std::string& text, MetricOptions& o);
+/// The textual form parseAlignment accepts ("se2-first:10").
+std::string alignmentText(Alignment a, double first_s);
+
+/// Evaluates one recording (never throws: failures become error rows).
+std::vector<BatchRow> evaluateRecording(const std::string& path,
+                                        const config::WheelchairConfig& cfg,
+                                        const BatchOptions& options);
+/// Evaluates `files` in parallel; rows in input order (see the header comment).
+BatchResult runBatch(const std::vector<std::string>& files, const config::WheelchairConfig& cfg,
+                     const BatchOptions& options);
+
+/// CSV (header + one line per row, numbers %.9g, "nan" when unavailable, the error quoted).
+/// Columns: recording,variant,ground_truth,d_path_m,d_path_gt_m,terminal_error_m,loop_error_m,
+/// ate_rmse_m,ate_mean_m,ate_median_m,ate_max_m,ate_std_m,rpe_1m_m,rpe_5m_m,n_rpe_1m,n_rpe_5m,
+/// heading_drift_deg,heading_drift_method,n_matched,n_gt,n_outliers,n_estimates,alignment,
+/// align_x_m,align_y_m,align_theta_deg,error
+std::string batchCsv(const BatchResult& r);
+/// Writes batchCsv atomically to `path` and the configuration used (full INI text, preceded by
+/// comment lines naming its origin and the alignment) to `path` + ".config.ini".
+void writeBatchCsv(const std::string& path, const BatchResult& r,
+                   const config::WheelchairConfig& cfg);
+/// JSON: {"alignment", "config_origin", "config" (full INI text), "recordings",
+/// "failed_recordings", "rows": [{recording, variant, ground_truth, metrics..., error}]}
+/// (NaN -> null).
+std::string batchJson(const BatchResult& r, const config::WheelchairConfig& cfg);
+void writeBatchJson(const std::string& path, const BatchResult& r,
+                    const config::WheelchairConfig& cfg);
+/// Markdown: a metrics table and the configuration in a fenced block.
+std::string batchMarkdown(const BatchResult& r, const config::WheelchairConfig& cfg,
+                          bool include_config = true);
+void writeBatchMarkdown(const std::string& path, const BatchResult& r,
+                        const config::WheelchairConfig& cfg);
+
+}  // namespace wheelchair::evaluation

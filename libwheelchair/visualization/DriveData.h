@@ -1,0 +1,76 @@
+// Everything the figures and the 3-D viewer show about one recording: the recording, the
+// trajectory variants of Fig. 5 (evaluation::estimateVariants), the ground truth, their
+// metrics, and the simulator's truth when a `<rawlog>.truth.json` sits next to the file.
+//
+// Frames: all plotted poses are in the START frame of the estimates (body frame at the first
+// encoder sample). The ground truth is brought into it by
+//   * the simulator's known Pozyx anchor frame (truth JSON), when available, else
+//   * the inverse of the SE(2) least-squares alignment of the EKF to the ground truth
+//     (evaluation::computeMetrics with Alignment::SE2) — "aligned to the EKF".
+//
+// Example:
+//   DriveData d = loadDrive("drive.rawlog", cfg, metric_options);
+//   const auto& ekf = d.trajectories.at("ekf");
+#pragma once
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/evaluation/Batch.h"
+#include "libwheelchair/io/Recording.h"
+
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace wheelchair::visualization {
+
+/// The simulator's truth (subset of SimulationResult::writeTruth's JSON).
+struct TruthInfo {
+  std::vector<double> t_s, x_m, y_m, phi_rad, v_m_s, omega_rad_s;  ///< start frame
+  struct Obstacle {
+    double x_m = 0, y_m = 0, radius_m = 0.05;  ///< start frame
+  };
+  std::vector<Obstacle> obstacles;
+  double anchor_x_m = 0, anchor_y_m = 0, anchor_yaw_rad = 0;  ///< p_anchor = R p_start + t
+  std::string scenario, effects;
+  /// True pose at t (linear interpolation, clamped at the ends); false when empty.
+  bool poseAt(double t, double& x, double& y, double& phi) const;
+};
+
+/// Reads a truth JSON (format libwheelchair-truth-1); nullopt when the file does not exist,
+/// throws std::runtime_error when it exists but cannot be parsed.
+std::optional<TruthInfo> readTruthJson(const std::string& path);
+
+struct DriveData {
+  std::string path;
+  config::WheelchairConfig cfg;
+  io::Recording rec;
+  evaluation::RecordingEstimates est;
+  std::map<std::string, evaluation::Trajectory> trajectories;  ///< per variant (computed ones)
+  evaluation::GroundTruth gt;
+  std::vector<evaluation::Position2DStamped> gt_start;  ///< ground truth in the start frame
+  std::string gt_frame_note;                            ///< how gt_start was obtained
+  std::optional<TruthInfo> truth;
+  evaluation::BatchResult metrics;  ///< one row per variant
+  double t0_s = 0, t1_s = 0;        ///< time span of the EKF estimates
+
+  /// EKF estimate at (the last sample at or before) t.
+  const estimation::EstimateSample* ekfAt(double t_s) const;
+};
+
+/// Reads and estimates a recording (throws on an unreadable file). `truth_path` empty:
+/// `<path>.truth.json` if it exists.
+DriveData loadDrive(const std::string& path, const config::WheelchairConfig& cfg,
+                    const evaluation::MetricOptions& metric_options,
+                    const std::string& truth_path = "");
+
+/// A default instant for Fig. 7 / the viewer: within the span where the EKF has an obstacle
+/// estimate, 40 % of the way (start of the span when none).
+double defaultObstacleTime(const DriveData& d);
+
+/// Sonar range predicted by an estimate (distance from the sonar to the obstacle estimate) and
+/// its 1 sigma (from the obstacle covariance); false when no obstacle estimate.
+bool predictedSonarRange(const DriveData& d, const estimation::EstimateSample& e, double& r_m,
+                         double& sd_m);
+
+}  // namespace wheelchair::visualization

@@ -1,0 +1,227 @@
+// `wheelchair replay-serial` and `wheelchair capture` as programs: end to end, stopped by
+// SIGINT/SIGTERM, killed with SIGKILL (power cut), and writing onto a full disk.
+#include "CaptureTestUtil.h"
+
+#include "libwheelchair/capture/SerialReplayer.h"
+
+#include <atomic>
+#include <filesystem>
+
+using namespace wheelchair;
+using wheelchair::test::TempDir;
+
+namespace {
+
+const std::string kCli = WHEELCHAIR_CLI;
+
+bool waitForFile(const std::string& path, double timeout_s) {
+  for (double t = 0; t < timeout_s; t += 0.02) {
+    if (std::filesystem::exists(path)) return true;
+    test::sleepFor(0.02);
+  }
+  return false;
+}
+
+// A replay running in this process (ptys, links, derived capture configuration).
+struct InProcessReplay {
+  std::unique_ptr<capture::SerialReplayer> r;
+  std::thread th;
+  std::atomic<bool> stop{false};
+  capture::ReplayReport report;
+  double started_mono = 0;
+  std::string config;
+  io::Recording expected;
+
+  InProcessReplay(const TempDir& tmp, double duration_s, double speed, double start_delay_s) {
+    const std::string dir = tmp / "recording";
+    io::writeTextRecording(test::captureRecording(duration_s), dir);
+    expected = test::importedOriginal(dir, tmp);
+    capture::ReplayOptions ro;
+    ro.recording = dir;
+    ro.capture_config = test::writeTestCaptureConfig(tmp);
+    ro.link_dir = tmp / "dev";
+    ro.derived_config = config = tmp / "capture-replay.ini";
+    ro.speed = speed;
+    ro.start_delay_s = start_delay_s;
+    r = std::make_unique<capture::SerialReplayer>(ro);
+    r->setup();
+  }
+  void start() {
+    started_mono = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    th = std::thread([this] { report = r->run(&stop); });
+  }
+  double elapsed() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count() -
+           started_mono;
+  }
+  ~InProcessReplay() {
+    stop = true;
+    if (th.joinable()) th.join();
+  }
+};
+
+}  // namespace
+
+TEST(CaptureCli, ReplaySerialIntoCaptureThenSigintGivesTheOriginalBack) {
+  TempDir tmp;
+  const std::string dir = tmp / "recording";
+  io::writeTextRecording(test::captureRecording(3.0), dir);
+  const auto expected = test::importedOriginal(dir, tmp);
+  const std::string cfg = test::writeTestCaptureConfig(tmp);
+  test::Child replay, cap;
+  test::spawn(replay,
+              {kCli, "replay-serial", dir, "--config", cfg, "--link-dir", tmp / "dev", "--write-config",
+               tmp / "replay.ini", "--speed", "6", "--start-delay", "4", "--hold", "0.5"},
+              tmp / "replay.log");
+  ASSERT_TRUE(waitForFile(tmp / "replay.ini", 10)) << test::readFile(tmp / "replay.log");
+  // (Program start-up links MRPT's hardware drivers and takes a few seconds here; the replay
+  // starts 4 s after its ptys are ready, and lines wait in the ptys anyway.)
+  test::spawn(cap, {kCli, "capture", "--config", tmp / "replay.ini", "-o", tmp / "out.rawlog", "--verbose"},
+              tmp / "capture.log");
+  ASSERT_EQ(replay.waitFor(30), 0) << test::readFile(tmp / "replay.log");
+  kill(cap.pid, SIGINT);
+  ASSERT_EQ(cap.waitFor(10), 0) << test::readFile(tmp / "capture.log");
+  const auto got = io::readRawlog(tmp / "out.rawlog");  // throws if not clean
+  test::expectSameRecording(expected, got);
+  const std::string log = test::readFile(tmp / "capture.log");
+  EXPECT_NE(log.find("records written to"), std::string::npos) << log;
+  EXPECT_NE(log.find("/s  records"), std::string::npos) << "no live status with --verbose:\n" << log;
+  EXPECT_NE(test::readFile(tmp / "replay.log").find("lines"), std::string::npos);
+  EXPECT_NE(test::readFile(tmp / "out.rawlog.log").find("capture stopped"), std::string::npos);
+  // `wheelchair info` and MRPT's own tool read it.
+  const auto info = test::cli("info " + (tmp / "out.rawlog"));
+  EXPECT_EQ(info.exit_code, 0) << info.out;
+  EXPECT_NE(info.out.find("MOTORS"), std::string::npos) << info.out;
+  if (test::run("command -v rawlog-edit").exit_code == 0) {
+    const auto r = test::run("rawlog-edit --info -i " + (tmp / "out.rawlog"));
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_NE(r.out.find("ENCODERS"), std::string::npos) << r.out;
+  }
+}
+
+TEST(CaptureCli, KillDashNineLeavesEverythingUpToTheLastFlushReadable) {
+  TempDir tmp;
+  const double speed = 2.0;
+  const double duration = 12.0;
+  InProcessReplay rp(tmp, duration, speed, 0.0);
+  test::Child cap;
+  const std::string out = tmp / "out.rawlog";
+  test::spawn(cap, {kCli, "capture", "--config", rp.config, "-o", out}, tmp / "capture.log");
+  ASSERT_TRUE(waitForFile(out, 15));  // the capture is up (signal handlers, sources)
+  rp.start();
+  // Readable while being written, by `wheelchair info` (a reader may meet a member being
+  // written: then it reports a truncated tail; it is retried).
+  test::sleepFor(1.5);
+  int info_rc = -1;
+  for (int i = 0; i < 3 && info_rc != 0; ++i) info_rc = test::cli("info " + out).exit_code;
+  EXPECT_EQ(info_rc, 0);
+  test::sleepFor(std::max(0.0, 2.5 - rp.elapsed()));
+  const double played_s = std::min(rp.elapsed() * speed, duration);  // recording seconds sent
+  kill(cap.pid, SIGKILL);
+  EXPECT_EQ(cap.wait(), 128 + SIGKILL);
+  rp.stop = true;
+  EXPECT_LT(played_s, duration) << "the replay ended before the kill";
+
+  io::RawlogReadReport rep;
+  io::Recording got;
+  ASSERT_NO_THROW(got = io::readRawlog(out, &rep, true));
+  EXPECT_FALSE(rep.broken.has_value()) << io::describeBreak(out, *rep.broken);
+  test::expectPrefix(rp.expected, got);
+  // At most flush period (1 s) + reorder window (0.3 s) + scheduling slack of host time lost.
+  const double t0 = rp.expected.startTime();
+  double last = 0;
+  for (const auto& s : got.imu) last = std::max(last, s.t_s - t0);
+  EXPECT_GT(last, played_s - speed * (1.0 + 0.3 + 0.5)) << "played " << played_s << " s";
+  EXPECT_GT(got.size(), 100u);
+
+  // Whatever the cut (a power cut mid-write), io::RawlogReader reads every complete record
+  // before it (a cut in the last member's trailer loses no record) and never fails.
+  const std::string full = test::readFile(out);
+  std::size_t prev = got.size() + 1;  // + META
+  for (std::size_t cut : {full.size() - 1, full.size() - 9, full.size() * 3 / 4, full.size() / 2, full.size() / 3}) {
+    test::writeFile(tmp / "cut.rawlog", full.substr(0, cut));
+    io::RawlogReader in(tmp / "cut.rawlog");
+    mrpt::serialization::CSerializable::Ptr obj;
+    std::size_t n = 0;
+    while (in.next(obj)) ++n;
+    EXPECT_EQ(n, in.recordsRead());
+    EXPECT_LE(n, prev) << "cut at " << cut;
+    if (cut == full.size() - 1) EXPECT_EQ(n, got.size() + 1) << "a record was lost to a trailer cut";
+    prev = n;
+    io::RawlogReadReport r2;
+    test::expectPrefix(rp.expected, io::readRawlog(tmp / "cut.rawlog", &r2, true));
+  }
+}
+
+TEST(CaptureCli, FullDiskStopsWithAClearErrorAndTheFileIntact) {
+  TempDir tmp;
+  InProcessReplay rp(tmp, 10.0, 4.0, 2.5);  // (the program takes ~2 s to start here)
+  const std::string mnt = tmp / "mnt";
+  std::filesystem::create_directories(mnt);
+  const std::string cmd = fmt::format("{} capture --config {} -o {}/out.rawlog --duration 15; echo \"rc=$?\"; cp {}/out.rawlog {}",
+                                      kCli, rp.config, mnt, mnt, tmp / "saved.rawlog");
+  // A real full disk: a 64 KiB tmpfs in a private mount namespace. Without the privilege
+  // for that, a file-size limit (ulimit -f, EFBIG) fails the writes the same way.
+  std::string how = "tmpfs";
+  std::string script = fmt::format("mount -t tmpfs -o size=64k tmpfs {} && {}", mnt, cmd);
+  if (test::run("unshare --mount true").exit_code != 0 ||
+      test::run(fmt::format("unshare --mount sh -c 'mount -t tmpfs -o size=64k tmpfs {}'", mnt)).exit_code != 0) {
+    how = "ulimit";
+    script = "ulimit -f 64 && " + cmd;
+  }
+  rp.start();
+  const auto r = how == "tmpfs" ? test::run("unshare --mount bash -c '" + script + "'")
+                                : test::run("bash -c '" + script + "'");
+  rp.stop = true;
+  EXPECT_NE(r.out.find("rc=1"), std::string::npos) << how << ": " << r.out;
+  EXPECT_TRUE(r.out.find("No space left on device") != std::string::npos ||
+              r.out.find("File too large") != std::string::npos)
+      << how << ": " << r.out;
+  EXPECT_NE(r.out.find("intact up to the last flush"), std::string::npos) << r.out;
+  // The file: clean to its end (the partial member was cut off), and a prefix of the data.
+  io::RawlogReadReport rep;
+  const auto got = io::readRawlog(tmp / "saved.rawlog", &rep, true);
+  EXPECT_FALSE(rep.broken.has_value()) << how;
+  EXPECT_GT(got.size(), 50u) << how;
+  test::expectPrefix(rp.expected, got);
+  EXPECT_EQ(test::cli("info " + (tmp / "saved.rawlog")).exit_code, 0);
+}
+
+TEST(CaptureCli, SigtermWithEveryDeviceMissingStopsCleanly) {
+  TempDir tmp;
+  mrpt::config::CConfigFileMemory ini(test::readFile(test::writeTestCaptureConfig(tmp)));
+  for (const char* s : {"motors", "imu", "pozyx", "sonar", "joystick", "encoders"})
+    ini.write(s, "serial_port", tmp / (std::string("absent-") + s));
+  ini.write("encoders", "interface", "serial");
+  test::writeFile(tmp / "absent.ini", ini.getContent());
+  test::Child cap;
+  test::spawn(cap, {kCli, "capture", "--config", tmp / "absent.ini", "-o", tmp / "out.rawlog"}, tmp / "log");
+  ASSERT_TRUE(waitForFile(tmp / "out.rawlog", 15));  // up: signal handlers installed
+  test::sleepFor(0.5);
+  kill(cap.pid, SIGTERM);
+  EXPECT_EQ(cap.waitFor(5), 0) << test::readFile(tmp / "log");
+  io::RawlogReadReport rep;
+  const auto got = io::readRawlog(tmp / "out.rawlog", &rep);
+  EXPECT_EQ(got.size(), 0u);
+  EXPECT_NE(rep.header_text.find("[vehicle]"), std::string::npos);  // the header is there
+  const std::string events = test::readFile(tmp / "out.rawlog.log");
+  EXPECT_NE(events.find("absent-imu: No such file or directory"), std::string::npos) << events;
+  // Quiet on a non-terminal without --verbose: no status lines.
+  const std::string term = test::readFile(tmp / "log");
+  EXPECT_EQ(term.find("last flush"), std::string::npos) << term;
+  EXPECT_NE(term.find("records written"), std::string::npos) << term;  // the final summary
+}
+
+TEST(CaptureCli, UsageAndConfigurationErrors) {
+  TempDir tmp;
+  EXPECT_EQ(test::cli("capture -o " + (tmp / "x.rawlog")).exit_code, 2);  // --config missing
+  test::writeFile(tmp / "bad.ini", "[imu]\ndriver = RazorImuSensor\nserial_port = /dev/null\nline_format = {t},{yaw}\n");
+  auto r = test::cli("capture --config " + (tmp / "bad.ini") + " -o " + (tmp / "x.rawlog"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("unknown field '{yaw}'"), std::string::npos) << r.out;
+  test::writeFile(tmp / "exists.rawlog", "");
+  r = test::cli("capture --config " + test::writeTestCaptureConfig(tmp) + " -o " + (tmp / "exists.rawlog") +
+                " --duration 0.1");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("already exists"), std::string::npos) << r.out;
+}

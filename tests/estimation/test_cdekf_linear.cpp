@@ -1,0 +1,154 @@
+// CVODE integration of the state and Riccati ODEs against closed forms (matrix exponentials).
+#include "libwheelchair/estimation/CdEkf.h"
+#include "libwheelchair/estimation/ChiSquare.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include <cmath>
+
+using namespace wheelchair::estimation;
+
+namespace {
+
+// xdot = A x + B u, constant Q.
+struct LinearModel : CdModel {
+  Eigen::MatrixXd A, B, Qc;
+  int stateDim() const override { return static_cast<int>(A.rows()); }
+  void f(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::VectorXd& xd) const override {
+    xd = A * x + B * u;
+  }
+  void F(const Eigen::VectorXd&, const Eigen::VectorXd&, Eigen::MatrixXd& F) const override { F = A; }
+  void Q(const Eigen::VectorXd&, const Eigen::VectorXd&, Eigen::MatrixXd& Q) const override { Q = Qc; }
+};
+
+LinearModel makeModel() {
+  LinearModel m;
+  m.A.resize(4, 4);
+  // Lightly damped oscillator + a first-order lag + an integrator (like v, omega, pose).
+  m.A << -0.3, 1.2, 0.0, 0.0,  //
+      -1.2, -0.3, 0.0, 0.0,    //
+      0.0, 0.5, -0.27, 0.0,    //
+      0.0, 0.0, 1.0, 0.0;
+  m.B.resize(4, 2);
+  m.B << 0.0, 0.0,  //
+      1.0, 0.0,     //
+      0.05, 0.05,   //
+      0.0, 0.0;
+  m.Qc = Eigen::MatrixXd::Zero(4, 4);
+  m.Qc.diagonal() << 0.01, 0.02, 0.003, 1e-4;
+  m.Qc(0, 1) = m.Qc(1, 0) = 0.005;
+  return m;
+}
+
+// Exact solution over dt with u linear from u0 to u1: augmented state [x; u; udot].
+Eigen::VectorXd exactState(const LinearModel& m, const Eigen::VectorXd& x0,
+                           const Eigen::VectorXd& u0, const Eigen::VectorXd& u1, double dt) {
+  const int n = m.stateDim(), p = static_cast<int>(m.B.cols());
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(n + 2 * p, n + 2 * p);
+  M.topLeftCorner(n, n) = m.A;
+  M.block(0, n, n, p) = m.B;
+  M.block(n, n + p, p, p) = Eigen::MatrixXd::Identity(p, p);
+  Eigen::VectorXd z(n + 2 * p);
+  z << x0, u0, (u1 - u0) / dt;
+  const Eigen::MatrixXd E = (M * dt).exp();
+  return (E * z).head(n);
+}
+
+// Exact covariance over dt (Van Loan): Phi P0 Phi' + int_0^dt e^{As} Q e^{A's} ds.
+Eigen::MatrixXd exactCov(const LinearModel& m, const Eigen::MatrixXd& P0, double dt) {
+  const int n = m.stateDim();
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  M.topLeftCorner(n, n) = -m.A;
+  M.topRightCorner(n, n) = m.Qc;
+  M.bottomRightCorner(n, n) = m.A.transpose();
+  const Eigen::MatrixXd E = (M * dt).exp();
+  const Eigen::MatrixXd Phi = E.bottomRightCorner(n, n).transpose();
+  const Eigen::MatrixXd Qd = Phi * E.topRightCorner(n, n);
+  return Phi * P0 * Phi.transpose() + Qd;
+}
+
+void runAgainstClosedForm(CvodeOptions::Method method) {
+  const LinearModel m = makeModel();
+  CvodeOptions o;
+  o.method = method;
+  o.rel_tol = 1e-10;
+  o.abs_tol_state = 1e-12;
+  o.abs_tol_cov = 1e-12;
+  CdEkf ekf(m, o);
+  Eigen::VectorXd x(4);
+  x << 1.0, -0.5, 0.2, 0.0;
+  Eigen::MatrixXd P = Eigen::MatrixXd::Identity(4, 4) * 0.1;
+  P(0, 2) = P(2, 0) = 0.02;
+  double t = 3.0;
+  ekf.reset(t, x, P);
+  // Uneven intervals, inputs linear within each and discontinuous between them (ReInit path).
+  const double dts[] = {0.01, 0.5, 0.003, 1.7, 0.02, 0.25, 2.0, 1e-4, 0.7, 0.05};
+  for (int k = 0; k < 10; ++k) {
+    const double dt = dts[k];
+    Eigen::VectorXd u0(2), u1(2);
+    u0 << std::sin(k), 0.5 * k;
+    u1 << std::cos(3 * k), -0.2 * k;
+    const double ta = t;
+    ekf.propagate(t + dt, [&](double tt) -> Eigen::VectorXd {
+      return u0 + (tt - ta) / dt * (u1 - u0);
+    });
+    x = exactState(m, x, u0, u1, dt);
+    P = exactCov(m, P, dt);
+    t += dt;
+    EXPECT_NEAR((ekf.x() - x).cwiseAbs().maxCoeff(), 0.0, 1e-6) << "interval " << k;
+    EXPECT_NEAR((ekf.P() - P).cwiseAbs().maxCoeff(), 0.0, 1e-6) << "interval " << k;
+    EXPECT_EQ((ekf.P() - ekf.P().transpose()).cwiseAbs().maxCoeff(), 0.0);
+  }
+  EXPECT_DOUBLE_EQ(ekf.time(), t);
+  EXPECT_GE(ekf.stats().intervals, 9);
+}
+
+}  // namespace
+
+TEST(CdEkfLinear, AdamsMatchesMatrixExponential) { runAgainstClosedForm(CvodeOptions::Method::Adams); }
+
+TEST(CdEkfLinear, BdfMatchesMatrixExponential) { runAgainstClosedForm(CvodeOptions::Method::Bdf); }
+
+TEST(CdEkfLinear, JosephUpdateMatchesTextbookAndGates) {
+  const LinearModel m = makeModel();
+  CdEkf ekf(m, CvodeOptions{});
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(4);
+  Eigen::MatrixXd P = Eigen::MatrixXd::Identity(4, 4);
+  P(0, 1) = P(1, 0) = 0.3;
+  ekf.reset(0, x, P);
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, 4);
+  H(0, 0) = 1;
+  H(0, 3) = 0.5;
+  Eigen::MatrixXd R = Eigen::MatrixXd::Constant(1, 1, 0.04);
+  Eigen::VectorXd y(1);
+  y << 0.3;
+  const UpdateResult r = ekf.update(y, H, R, chi2Quantile(0.999, 1));
+  ASSERT_TRUE(r.accepted);
+  const Eigen::MatrixXd S = H * P * H.transpose() + R;
+  const Eigen::MatrixXd K = P * H.transpose() * S.inverse();
+  EXPECT_NEAR(r.nis, 0.09 / S(0, 0), 1e-12);
+  EXPECT_LT((ekf.x() - K * y).norm(), 1e-12);
+  EXPECT_LT((ekf.P() - (P - K * H * P)).norm(), 1e-12);  // optimal gain: Joseph = short form
+  // A gross innovation is gated and leaves the filter untouched.
+  const Eigen::VectorXd x1 = ekf.x();
+  y << 50.0;
+  const UpdateResult g = ekf.update(y, H, R, chi2Quantile(0.999, 1));
+  EXPECT_FALSE(g.accepted);
+  EXPECT_GT(g.nis, 1000);
+  EXPECT_EQ(ekf.x(), x1);
+}
+
+TEST(ChiSquare, QuantilesMatchTables) {
+  EXPECT_NEAR(chi2Quantile(0.95, 1), 3.841459, 1e-5);
+  EXPECT_NEAR(chi2Quantile(0.999, 1), 10.827566, 1e-5);
+  EXPECT_NEAR(chi2Quantile(0.999, 2), 13.815511, 1e-5);
+  EXPECT_NEAR(chi2Quantile(0.025, 1), 0.000982069, 1e-8);
+  EXPECT_NEAR(chi2Quantile(0.975, 7), 16.012764, 1e-5);
+  EXPECT_NEAR(chi2Quantile(0.025, 140), 109.137, 0.01);  // Wilson-Hilferty: 109.13
+  const auto [lo, hi] = chi2MeanBand(0.95, 7, 20);
+  EXPECT_NEAR(lo, chi2Quantile(0.025, 140) / 20, 1e-12);
+  EXPECT_NEAR(hi, chi2Quantile(0.975, 140) / 20, 1e-12);
+}
