@@ -15,7 +15,9 @@ namespace {
 
 std::atomic<bool> g_stop{false};
 
-extern "C" void onStopSignal(int) { g_stop = true; }
+extern "C" void onStopSignal(int) {
+  g_stop = true;
+}
 
 struct CaptureCliOptions {
   capture::CaptureOptions o;
@@ -54,16 +56,16 @@ int runCapture(CaptureCliOptions& c) {
 }
 
 const RegisterCommand reg{Command{
-    "capture",
-    "Record the wheelchair's sensors (serial devices, SPI counters) into a rawlog, live",
+    "capture", "Record the wheelchair's sensors (serial devices, SPI counters) into a rawlog, live",
     [](CLI::App& sub) -> std::function<int()> {
       auto c = std::make_shared<CaptureCliOptions>();
       sub.add_option("--config,-c", c->o.config_path, "Capture configuration (config/capture.ini)")
           ->required();
       sub.add_option("-o,--output", c->o.output, "Rawlog to write (gzip, flushed every second)")
           ->required();
-      sub.add_option("--duration", c->o.duration_s, "Stop after this many seconds (default: run "
-                                                    "until SIGINT/SIGTERM)")
+      sub.add_option("--duration", c->o.duration_s,
+                     "Stop after this many seconds (default: run "
+                     "until SIGINT/SIGTERM)")
           ->check(CLI::NonNegativeNumber);
       sub.add_flag("--force", c->o.overwrite, "Overwrite an existing output file");
       sub.add_flag("--verbose,-v", c->o.verbose,

@@ -28,7 +28,9 @@ int runInfo(const InfoOptions& o) {
       ++non_observations;
       continue;
     }
-    stats.add(obs->sensorLabel, obs->GetRuntimeClass()->className,
+    // MRPT does not serialize a comment's label: name our header record explicitly.
+    const std::string label = io::headerText(*obs) ? "META" : obs->sensorLabel;
+    stats.add(label, obs->GetRuntimeClass()->className,
               mrpt::Clock::toDouble(obs->timestamp));
   }
   if (o.json) {

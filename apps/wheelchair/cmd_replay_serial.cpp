@@ -17,7 +17,9 @@ namespace {
 
 std::atomic<bool> g_stop{false};
 
-extern "C" void onReplayStop(int) { g_stop = true; }
+extern "C" void onReplayStop(int) {
+  g_stop = true;
+}
 
 struct ReplayCliOptions {
   capture::ReplayOptions o;
@@ -49,11 +51,13 @@ int runReplay(ReplayCliOptions& c) {
   r.close();
   fmt::print("replayed {:.2f} s (speed {})\n", rep.wall_s, c.o.speed);
   for (const auto& s : rep.sources)
-    fmt::print("  {:<9} {:<28} lines {:<7} garbage {:<5} lost-unplugged {:<5} lost-overflow {:<4} "
-               "inexact {:<4} ptys {}\n",
-               s.label, s.link, s.lines, s.garbage, s.dropped_unplugged, s.dropped_overflow, s.inexact,
-               s.ptys);
-  if (rep.no_source) fmt::print("  {} samples of streams without a source were skipped\n", rep.no_source);
+    fmt::print(
+        "  {:<9} {:<28} lines {:<7} garbage {:<5} lost-unplugged {:<5} lost-overflow {:<4} "
+        "inexact {:<4} ptys {}\n",
+        s.label, s.link, s.lines, s.garbage, s.dropped_unplugged, s.dropped_overflow, s.inexact,
+        s.ptys);
+  if (rep.no_source)
+    fmt::print("  {} samples of streams without a source were skipped\n", rep.no_source);
   return kExitOk;
 }
 

@@ -7,12 +7,12 @@
 #include <mrpt/obs/CObservationComment.h>
 #include <mrpt/system/datetime.h>
 
+#include <unistd.h>
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
 #include <thread>
-#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -53,7 +53,8 @@ CaptureSession::CaptureSession(CaptureOptions opt) : opt_(std::move(opt)) {
   window_s_ = ini.read_double(g, "reorder_window_s", window_s_, false);
   status_period_s_ = ini.read_double(g, "status_period_s", status_period_s_, false);
   out_opt_.flush_period_s = ini.read_double(g, "flush_period_s", out_opt_.flush_period_s, false);
-  out_opt_.compression_level = ini.read_int(g, "compression_level", out_opt_.compression_level, false);
+  out_opt_.compression_level =
+      ini.read_int(g, "compression_level", out_opt_.compression_level, false);
   out_opt_.fsync = ini.read_bool(g, "fsync", out_opt_.fsync, false);
   if (window_s_ < 0 || window_s_ > 10)
     throw std::invalid_argument("[capture] reorder_window_s: expected 0..10 s");
@@ -90,8 +91,8 @@ CaptureSession::CaptureSession(CaptureOptions opt) : opt_(std::move(opt)) {
       throw std::invalid_argument(fmt::format("{}: {}", opt_.config_path, what));
     }
     if (seen.count(src->kind()))
-      throw std::invalid_argument(fmt::format("[{}] and [{}] both capture {}", seen[src->kind()], sec,
-                                              io::streamLabel(src->kind())));
+      throw std::invalid_argument(fmt::format("[{}] and [{}] both capture {}", seen[src->kind()],
+                                              sec, io::streamLabel(src->kind())));
     seen[src->kind()] = sec;
     rank.push_back(static_cast<int>(src->kind()));
     sources_.push_back(std::move(src));
@@ -177,10 +178,11 @@ void CaptureSession::printStatus(double mono, bool final_summary) {
       final_summary ? "" : fmt::format("  last flush {:.1f} s ago", mono - out_->lastFlushMono()));
   for (std::size_t i = 0; i < sources_.size(); ++i) {
     const auto st = sources_[i]->status();
-    text += fmt::format("  {:<9}{:<6}{:>7.1f}/s  records {:<8} garbage {:<5} reconnects {:<3} gaps {:<3}{}\n",
-                        st.label, st.connected ? "ok" : "DOWN", final_summary ? 0.0 : rates_[i],
-                        st.records, st.garbage, st.connects > 0 ? st.connects - 1 : 0, st.gaps,
-                        st.connected ? st.device : "  " + st.last_error);
+    text += fmt::format(
+        "  {:<9}{:<6}{:>7.1f}/s  records {:<8} garbage {:<5} reconnects {:<3} gaps {:<3}{}\n",
+        st.label, st.connected ? "ok" : "DOWN", final_summary ? 0.0 : rates_[i], st.records,
+        st.garbage, st.connects > 0 ? st.connects - 1 : 0, st.gaps,
+        st.connected ? st.device : "  " + st.last_error);
   }
   clearStatus();
   std::fputs(text.c_str(), opt_.status_out);
@@ -228,9 +230,9 @@ void CaptureSession::writeObservation(const mrpt::obs::CObservation& obs) {
 
 int CaptureSession::run(const std::atomic<bool>* stop) {
   start_mono_ = last_status_mono_ = HostClock::monotonic();
-  logLine(fmt::format("capture started: {} -> {} ({} sources, reorder window {} s, flush every {} s)",
-                      opt_.config_path, opt_.output, sources_.size(), window_s_,
-                      out_opt_.flush_period_s),
+  logLine(fmt::format(
+              "capture started: {} -> {} ({} sources, reorder window {} s, flush every {} s)",
+              opt_.config_path, opt_.output, sources_.size(), window_s_, out_opt_.flush_period_s),
           false);
   for (auto& s : sources_) s->initialize();
   handleEvents();
@@ -263,7 +265,8 @@ int CaptureSession::run(const std::atomic<bool>* stop) {
       out_->flushIfDue(mono);
       handleEvents();
       if (mono - last_status_mono_ >= status_period_s_) printStatus(mono, false);
-      if (stop_requested_ || (stop && *stop) || (opt_.duration_s > 0 && mono - start_mono_ >= opt_.duration_s))
+      if (stop_requested_ || (stop && *stop) ||
+          (opt_.duration_s > 0 && mono - start_mono_ >= opt_.duration_s))
         break;
     }
     stop_threads_ = true;
@@ -276,15 +279,17 @@ int CaptureSession::run(const std::atomic<bool>* stop) {
     if (!header_written_) writeHeader(HostClock::nowStamp());
     out_->close();
     handleEvents();
-    logLine(fmt::format("capture stopped: {} records in {}", out_->recordsOnDisk(), opt_.output), false);
+    logLine(fmt::format("capture stopped: {} records in {}", out_->recordsOnDisk(), opt_.output),
+            false);
   } catch (const WriteError& e) {
     stop_threads_ = true;
     for (auto& t : threads) t.join();
     for (auto& s : sources_) s->shutdown();
     handleEvents();
-    error_ = fmt::format("{}; capture stopped. The file is intact up to the last flush: {} records "
-                         "({} bytes)",
-                         e.what(), out_->recordsOnDisk(), out_->bytesOnDisk());
+    error_ = fmt::format(
+        "{}; capture stopped. The file is intact up to the last flush: {} records "
+        "({} bytes)",
+        e.what(), out_->recordsOnDisk(), out_->bytesOnDisk());
     logLine("error: " + error_, false);
     rc = 1;
   }

@@ -18,8 +18,10 @@ std::string escapeForLog(std::string_view s) {
       out += "...";
       break;
     }
-    if (c >= 0x20 && c < 0x7f) out.push_back(static_cast<char>(c));
-    else out += fmt::format("\\x{:02x}", c);
+    if (c >= 0x20 && c < 0x7f)
+      out.push_back(static_cast<char>(c));
+    else
+      out += fmt::format("\\x{:02x}", c);
   }
   return out;
 }
@@ -57,12 +59,15 @@ void CaptureSource::loadCommonConfig(const mrpt::config::CConfigFileBase& ini,
         where("sensorLabel"), io::streamLabel(kind_)));
   if (m_process_rate <= 0) m_process_rate = 100;
   const std::string ts = ini.read_string(section, "time_source", "arrival", false);
-  if (ts == "arrival") time_source_ = TimeSource::Arrival;
-  else if (ts == "device") time_source_ = TimeSource::Device;
-  else if (ts == "device_synced") time_source_ = TimeSource::DeviceSynced;
+  if (ts == "arrival")
+    time_source_ = TimeSource::Arrival;
+  else if (ts == "device")
+    time_source_ = TimeSource::Device;
+  else if (ts == "device_synced")
+    time_source_ = TimeSource::DeviceSynced;
   else
-    throw std::invalid_argument(
-        fmt::format("{} = '{}': expected arrival, device or device_synced", where("time_source"), ts));
+    throw std::invalid_argument(fmt::format("{} = '{}': expected arrival, device or device_synced",
+                                            where("time_source"), ts));
   latency_s_ = ini.read_double(section, "latency_s", 0.0, false);
   reconnect_min_s_ = ini.read_double(section, "reconnect_min_s", reconnect_min_s_, false);
   reconnect_max_s_ = ini.read_double(section, "reconnect_max_s", reconnect_max_s_, false);
@@ -74,7 +79,8 @@ void CaptureSource::loadCommonConfig(const mrpt::config::CConfigFileBase& ini,
   const bool has_pose = ini.keyExists(section, "pose_x") || ini.keyExists(section, "pose_y") ||
                         ini.keyExists(section, "pose_yaw");
   if (has_pose) {
-    const double x = ini.read_double(section, "pose_x", 0.0), y = ini.read_double(section, "pose_y", 0.0),
+    const double x = ini.read_double(section, "pose_x", 0.0),
+                 y = ini.read_double(section, "pose_y", 0.0),
                  yaw = ini.read_double(section, "pose_yaw", 0.0);
     if (kind_ == io::StreamKind::Sonar) {
       vehicle_->set("sonar", "x_m", fmt::format("{}", x));
@@ -142,10 +148,11 @@ void CaptureSource::emit(io::AnySample sample, double arrival, std::optional<dou
     if (gap_pending_ || stalled_) ++st_.gaps;
   }
   if (gap_pending_ || stalled_) {
-    logEvent(fmt::format("data again after {:.3f} s without ({}); gap in {} data: {:.6f} -> {:.6f} "
-                         "({:.3f} s)",
-                         HostClock::now() - gap_since_host_, stalled_ ? "stall" : "reconnect",
-                         m_sensorLabel, prev_t, t, std::isnan(prev_t) ? 0.0 : t - prev_t));
+    logEvent(
+        fmt::format("data again after {:.3f} s without ({}); gap in {} data: {:.6f} -> {:.6f} "
+                    "({:.3f} s)",
+                    HostClock::now() - gap_since_host_, stalled_ ? "stall" : "reconnect",
+                    m_sensorLabel, prev_t, t, std::isnan(prev_t) ? 0.0 : t - prev_t));
   }
   gap_pending_ = stalled_ = false;
   had_data_ = true;
@@ -166,7 +173,9 @@ void CaptureSource::countGarbage(std::string_view line) {
     logEvent("more malformed lines: counted, not logged (see the status)");
 }
 
-bool CaptureSource::reconnectDue() const { return HostClock::monotonic() >= next_attempt_mono_; }
+bool CaptureSource::reconnectDue() const {
+  return HostClock::monotonic() >= next_attempt_mono_;
+}
 
 void CaptureSource::connectFailed(const std::string& error) {
   backoff_s_ = backoff_s_ <= 0 ? reconnect_min_s_ : std::min(2 * backoff_s_, reconnect_max_s_);
@@ -206,11 +215,10 @@ void CaptureSource::disconnected(const std::string& error) {
     ++st_.disconnects;
   }
   if (!gap_pending_ && !stalled_) gap_since_host_ = HostClock::now();
-  gap_pending_ = had_data_;
+  gap_pending_ = gap_pending_ || had_data_;
   logEvent(fmt::format("disconnected from {}: {}; reconnecting", deviceName(), error), true);
-  backoff_s_ = 0;
-  next_attempt_mono_ = HostClock::monotonic() + reconnect_min_s_;
   backoff_s_ = reconnect_min_s_;
+  next_attempt_mono_ = HostClock::monotonic() + backoff_s_;
   failing_ = true;
   last_fail_msg_.clear();
 }

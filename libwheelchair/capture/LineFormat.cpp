@@ -23,7 +23,9 @@ bool isNumberChar(char c) {
          c == '+' || c == '-';
 }
 
-bool isBlank(char c) { return c == ' ' || c == '\t'; }
+bool isBlank(char c) {
+  return c == ' ' || c == '\t';
+}
 
 std::string trim(const std::string& s) {
   const auto b = s.find_first_not_of(" \t\r\n");
@@ -33,7 +35,9 @@ std::string trim(const std::string& s) {
 }
 
 // Fields holding integer tick counts (no calibration, integer syntax).
-bool isTickField(StreamKind k, int idx) { return k == StreamKind::Encoders && idx >= 1; }
+bool isTickField(StreamKind k, int idx) {
+  return k == StreamKind::Encoders && idx >= 1;
+}
 
 std::optional<int64_t> parseInteger(std::string_view tok) {
   if (!tok.empty() && tok.front() == '+') tok.remove_prefix(1);
@@ -56,12 +60,18 @@ std::optional<double> parseFiniteNumber(std::string_view tok) {
 
 std::vector<std::string> LineFormat::fieldNames(StreamKind kind) {
   switch (kind) {
-    case StreamKind::Encoders: return {"right_ticks", "left_ticks"};
-    case StreamKind::Imu: return {"gyro_z", "gyro_x", "gyro_y", "acc_x", "acc_y", "acc_z"};
-    case StreamKind::Motors: return {"current_right", "current_left", "vrc_right", "vrc_left"};
-    case StreamKind::Sonar: return {"range"};
-    case StreamKind::Pozyx: return {"x", "y", "z"};
-    case StreamKind::Joystick: return {"v_cmd", "w_cmd"};
+    case StreamKind::Encoders:
+      return {"right_ticks", "left_ticks"};
+    case StreamKind::Imu:
+      return {"gyro_z", "gyro_x", "gyro_y", "acc_x", "acc_y", "acc_z"};
+    case StreamKind::Motors:
+      return {"current_right", "current_left", "vrc_right", "vrc_left"};
+    case StreamKind::Sonar:
+      return {"range"};
+    case StreamKind::Pozyx:
+      return {"x", "y", "z"};
+    case StreamKind::Joystick:
+      return {"v_cmd", "w_cmd"};
     default:
       throw std::invalid_argument(
           fmt::format("stream {} has no capture source", io::streamLabel(kind)));
@@ -70,13 +80,20 @@ std::vector<std::string> LineFormat::fieldNames(StreamKind kind) {
 
 std::string LineFormat::defaultTemplate(StreamKind kind) {
   switch (kind) {
-    case StreamKind::Encoders: return "{t},{right_ticks},{left_ticks}";
-    case StreamKind::Imu: return "{t},{gyro_z}[,{gyro_x},{gyro_y},{acc_x},{acc_y},{acc_z}]";
-    case StreamKind::Motors: return "{t},{current_right},{current_left},{vrc_right},{vrc_left}";
-    case StreamKind::Sonar: return "{t},{range}";
-    case StreamKind::Pozyx: return "{t},{x},{y}[,{z}]";
-    case StreamKind::Joystick: return "{t},{v_cmd},{w_cmd}";
-    default: fieldNames(kind);  // throws
+    case StreamKind::Encoders:
+      return "{t},{right_ticks},{left_ticks}";
+    case StreamKind::Imu:
+      return "{t},{gyro_z}[,{gyro_x},{gyro_y},{acc_x},{acc_y},{acc_z}]";
+    case StreamKind::Motors:
+      return "{t},{current_right},{current_left},{vrc_right},{vrc_left}";
+    case StreamKind::Sonar:
+      return "{t},{range}";
+    case StreamKind::Pozyx:
+      return "{t},{x},{y}[,{z}]";
+    case StreamKind::Joystick:
+      return "{t},{v_cmd},{w_cmd}";
+    default:
+      fieldNames(kind);  // throws
   }
   return {};
 }
@@ -134,9 +151,9 @@ void LineFormat::compile(const std::string& tmpl) {
       if (name != "_") {
         const auto it = std::find(names_.begin(), names_.end(), name);
         if (it == names_.end())
-          throw std::invalid_argument(fmt::format(
-              "line_format: unknown field '{{{}}}' for {} (fields: t, {}, _)", name,
-              io::streamLabel(kind_), fmt::join(fieldNames(kind_), ", ")));
+          throw std::invalid_argument(
+              fmt::format("line_format: unknown field '{{{}}}' for {} (fields: t, {}, _)", name,
+                          io::streamLabel(kind_), fmt::join(fieldNames(kind_), ", ")));
         idx = static_cast<int>(it - names_.begin());
         if (used[idx])
           throw std::invalid_argument(fmt::format("line_format: field '{{{}}}' twice", name));
@@ -157,9 +174,9 @@ void LineFormat::compile(const std::string& tmpl) {
     if (pieces_[i - 1].is_field && !pieces_[i].is_field) {
       const char c0 = pieces_[i].literal[0];
       if (!isBlank(c0) && isNumberChar(c0))
-        throw std::invalid_argument(fmt::format(
-            "line_format: separator '{}' after a field is ambiguous (use line_regex)",
-            pieces_[i].literal));
+        throw std::invalid_argument(
+            fmt::format("line_format: separator '{}' after a field is ambiguous (use line_regex)",
+                        pieces_[i].literal));
     }
   }
   // Which fields are present, and where.
@@ -170,12 +187,11 @@ void LineFormat::compile(const std::string& tmpl) {
   if (opt_of[0] == 1) throw std::invalid_argument("line_format: {t} cannot be optional");
   // Required fields: everything but the IMU extras and the Pozyx z.
   for (std::size_t f = 1; f < names_.size(); ++f) {
-    const bool optional_field = (kind_ == StreamKind::Imu && f >= 2) ||
-                                (kind_ == StreamKind::Pozyx && names_[f] == "z");
+    const bool optional_field =
+        (kind_ == StreamKind::Imu && f >= 2) || (kind_ == StreamKind::Pozyx && names_[f] == "z");
     if (!optional_field && opt_of[f] != 0)
-      throw std::invalid_argument(
-          fmt::format("line_format: required field {{{}}} missing (or in the optional group)",
-                      names_[f]));
+      throw std::invalid_argument(fmt::format(
+          "line_format: required field {{{}}} missing (or in the optional group)", names_[f]));
   }
   if (kind_ == StreamKind::Imu) {
     // gyro_x..acc_z together: all or none, all in the same place.
@@ -203,7 +219,8 @@ LineFormat LineFormat::fromConfig(const mrpt::config::CConfigFileBase& ini,
     const std::string raw = trim(ini.read_string(section, key, "", false));
     if (raw.empty()) return def;
     const auto v = parseFiniteNumber(raw);
-    if (!v) throw std::invalid_argument(fmt::format("[{}] {} = '{}': not a number", section, key, raw));
+    if (!v)
+      throw std::invalid_argument(fmt::format("[{}] {} = '{}': not a number", section, key, raw));
     return *v;
   };
   for (const auto& n : names) {
@@ -232,8 +249,9 @@ LineFormat LineFormat::fromConfig(const mrpt::config::CConfigFileBase& ini,
         tmpl += (tmpl.empty() ? "{" : " {") + name + "}";
       }
       if (f.regex_fields_.size() != f.regex_->mark_count())
-        throw std::invalid_argument(fmt::format("line_fields names {} fields, line_regex has {} groups",
-                                                f.regex_fields_.size(), f.regex_->mark_count()));
+        throw std::invalid_argument(
+            fmt::format("line_fields names {} fields, line_regex has {} groups",
+                        f.regex_fields_.size(), f.regex_->mark_count()));
       LineFormat check(kind, tmpl, calib);  // required fields, duplicates
       f.has_t_ = check.has_t_;
       f.description_ = "regex " + regex + " -> " + fields;
@@ -353,7 +371,8 @@ bool LineFormat::assemble(const std::array<std::optional<double>, 8>& v, ParsedL
       if (!v[1] || !v[2]) return false;
       out.sample = io::JoystickSample{t, *v[1], *v[2]};
       return true;
-    default: return false;
+    default:
+      return false;
   }
 }
 
@@ -382,7 +401,8 @@ double invertCalibration(const Calibration& c, double x, bool& exact) {
 std::string LineFormat::format(const io::AnySample& s, std::size_t* inexact) const {
   if (regex_)
     throw std::logic_error("a line_regex format cannot be written: set line_format for replay");
-  if (io::kindOf(s) != kind_) throw std::logic_error("LineFormat::format: sample of another stream");
+  if (io::kindOf(s) != kind_)
+    throw std::logic_error("LineFormat::format: sample of another stream");
   std::array<std::optional<double>, 8> v;
   v[0] = io::timeOf(s);
   std::visit(

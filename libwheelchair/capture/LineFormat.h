@@ -37,8 +37,8 @@ namespace wheelchair::capture {
 
 /// The outcome of parsing one line.
 struct ParsedLine {
-  io::AnySample sample;                ///< physical values; t_s = device time if present, else 0
-  std::optional<double> device_time_s; ///< the `{t}` field (after t_gain/t_offset), if any
+  io::AnySample sample;                 ///< physical values; t_s = device time if present, else 0
+  std::optional<double> device_time_s;  ///< the `{t}` field (after t_gain/t_offset), if any
 };
 
 /// Linear calibration of one field: physical = offset + gain * raw.

@@ -22,11 +22,13 @@ void LineSensor::loadSourceConfig(const mrpt::config::CConfigFileBase& ini,
     throw std::invalid_argument(fmt::format("[{}] serial_port: required", section));
   baud_ = ini.read_int(section, "baud_rate", baud_, false);
   if (baud_ != 0 && SerialPort::speedConstant(baud_) < 0)
-    throw std::invalid_argument(fmt::format("[{}] baud_rate = {}: not a standard rate", section, baud_));
+    throw std::invalid_argument(
+        fmt::format("[{}] baud_rate = {}: not a standard rate", section, baud_));
   format_ = LineFormat::fromConfig(ini, section, kind_);
   if (time_source_ != TimeSource::Arrival && !format_->hasDeviceTime())
-    throw std::invalid_argument(fmt::format(
-        "[{}] time_source needs a {{t}} field in the line format ({})", section, format_->describe()));
+    throw std::invalid_argument(
+        fmt::format("[{}] time_source needs a {{t}} field in the line format ({})", section,
+                    format_->describe()));
 }
 
 bool LineSensor::tryOpen() {
@@ -46,7 +48,9 @@ void LineSensor::initialize() {
   tryOpen();
 }
 
-void LineSensor::shutdown() { port_.close(); }
+void LineSensor::shutdown() {
+  port_.close();
+}
 
 void LineSensor::doProcess() {
   const double period = 1.0 / std::max(1.0, m_process_rate);

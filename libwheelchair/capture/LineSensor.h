@@ -52,11 +52,11 @@ class LineSensor : public CaptureSource {
   bool discarding_ = false;  ///< inside an overlong line, until its end
 };
 
-#define WHEELCHAIR_LINE_DRIVER(Name, Kind)                         \
-  class Name : public LineSensor {                                 \
-    DEFINE_GENERIC_SENSOR(Name)                                    \
-   public:                                                         \
-    Name() : LineSensor(Kind) {}                                   \
+#define WHEELCHAIR_LINE_DRIVER(Name, Kind) \
+  class Name : public LineSensor {         \
+    DEFINE_GENERIC_SENSOR(Name)            \
+   public:                                 \
+    Name() : LineSensor(Kind) {}           \
   };
 
 WHEELCHAIR_LINE_DRIVER(ArduinoMotorsSensor, io::StreamKind::Motors)

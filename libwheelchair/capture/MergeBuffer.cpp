@@ -31,8 +31,10 @@ std::size_t MergeBuffer::release(
     if (best < 0) break;
     Item& it = q_[best].front();
     if (!all && host_mono - it.host_mono < window_s_) break;
-    if (any_written_ && it.obs->timestamp < last_written_) ++late_[best];
-    else last_written_ = it.obs->timestamp;
+    if (any_written_ && it.obs->timestamp < last_written_)
+      ++late_[best];
+    else
+      last_written_ = it.obs->timestamp;
     any_written_ = true;
     out(static_cast<std::size_t>(best), *it.obs);
     q_[best].pop_front();

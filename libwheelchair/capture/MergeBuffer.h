@@ -26,8 +26,9 @@ class MergeBuffer {
 
   void push(std::size_t source, mrpt::obs::CObservation::Ptr obs, double host_mono);
   /// Hands every due observation to `out`, in order. `all` = drain (end of capture).
-  std::size_t release(double host_mono, bool all,
-                      const std::function<void(std::size_t source, const mrpt::obs::CObservation&)>& out);
+  std::size_t release(
+      double host_mono, bool all,
+      const std::function<void(std::size_t source, const mrpt::obs::CObservation&)>& out);
 
   std::size_t size() const { return size_; }
   std::size_t late(std::size_t source) const { return late_[source]; }

@@ -4,13 +4,13 @@
 
 #include <fmt/format.h>
 
-#include <cerrno>
-#include <cstring>
 #include <fcntl.h>
 #include <linux/spi/spidev.h>
 #include <sys/ioctl.h>
-#include <thread>
 #include <unistd.h>
+#include <cerrno>
+#include <cstring>
+#include <thread>
 
 namespace wheelchair::capture {
 
@@ -82,8 +82,8 @@ bool readCounter(SpiBus& bus, int32_t& count, std::string& error) {
   const uint8_t tx[5] = {kReadCntr, 0, 0, 0, 0};
   uint8_t rx[5] = {};
   if (!bus.transfer(tx, rx, 5, error)) return false;
-  const uint32_t u = (uint32_t(rx[1]) << 24) | (uint32_t(rx[2]) << 16) | (uint32_t(rx[3]) << 8) |
-                     uint32_t(rx[4]);
+  const uint32_t u =
+      (uint32_t(rx[1]) << 24) | (uint32_t(rx[2]) << 16) | (uint32_t(rx[3]) << 8) | uint32_t(rx[4]);
   count = static_cast<int32_t>(u);
   return true;
 }
@@ -101,13 +101,15 @@ void QuadratureCounterSensor::loadSourceConfig(const mrpt::config::CConfigFileBa
     return;
   }
   if (itf != "spi")
-    throw std::invalid_argument(fmt::format("[{}] interface = '{}': expected spi or serial", section, itf));
+    throw std::invalid_argument(
+        fmt::format("[{}] interface = '{}': expected spi or serial", section, itf));
   spi_ = true;
   dev_right_ = ini.read_string(section, "spi_device_right", dev_right_, false);
   dev_left_ = ini.read_string(section, "spi_device_left", dev_left_, false);
   speed_hz_ = static_cast<uint32_t>(ini.read_int(section, "spi_speed_hz", int(speed_hz_), false));
   const int mode = ini.read_int(section, "spi_mode", 0, false);
-  if (mode < 0 || mode > 3) throw std::invalid_argument(fmt::format("[{}] spi_mode: 0..3", section));
+  if (mode < 0 || mode > 3)
+    throw std::invalid_argument(fmt::format("[{}] spi_mode: 0..3", section));
   mode_ = static_cast<uint8_t>(mode);
   configure_ = ini.read_bool(section, "configure_counters", true, false);
   invert_right_ = ini.read_bool(section, "right_invert", false, false);
@@ -133,8 +135,10 @@ bool QuadratureCounterSensor::openSpi() {
   right_ = make(dev_right_, err);
   if (right_) left_ = make(dev_left_, err);
   if (right_ && left_ && configure_) {
-    if (!ls7366r::configure(*right_, err)) err = dev_right_ + ": " + err, right_.reset();
-    else if (!ls7366r::configure(*left_, err)) err = dev_left_ + ": " + err, left_.reset();
+    if (!ls7366r::configure(*right_, err))
+      err = dev_right_ + ": " + err, right_.reset();
+    else if (!ls7366r::configure(*left_, err))
+      err = dev_left_ + ": " + err, left_.reset();
   }
   if (!right_ || !left_) {
     right_.reset();

@@ -6,12 +6,12 @@
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/serialization/CArchive.h>
 
-#include <array>
-#include <cerrno>
-#include <cstring>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <array>
+#include <cerrno>
+#include <cstring>
 
 namespace wheelchair::capture {
 
@@ -113,16 +113,19 @@ void RawlogAppender::writeMember() {
   if (::fstat(fd_, &stt) != 0) fail("fstat", errno);
   const auto size = static_cast<uint64_t>(stt.st_size);
   uint8_t head[2] = {0, 0}, tail[8] = {};
-  bool ok = size >= good_size_ + 18 &&
-            ::pread(fd_, head, 2, static_cast<off_t>(good_size_)) == 2 && head[0] == 0x1f &&
-            head[1] == 0x8b && ::pread(fd_, tail, 8, static_cast<off_t>(size - 8)) == 8;
+  bool ok = size >= good_size_ + 18 && ::pread(fd_, head, 2, static_cast<off_t>(good_size_)) == 2 &&
+            head[0] == 0x1f && head[1] == 0x8b &&
+            ::pread(fd_, tail, 8, static_cast<off_t>(size - 8)) == 8;
   if (ok) {
     auto le32 = [](const uint8_t* p) {
-      return uint32_t(p[0]) | (uint32_t(p[1]) << 8) | (uint32_t(p[2]) << 16) | (uint32_t(p[3]) << 24);
+      return uint32_t(p[0]) | (uint32_t(p[1]) << 8) | (uint32_t(p[2]) << 16) |
+             (uint32_t(p[3]) << 24);
     };
     ok = le32(tail) == crc32(data, n) && le32(tail + 4) == static_cast<uint32_t>(n);
   }
-  if (!ok) fail("incomplete write (gzip member not complete on disk)", e == ENOSPC || e == EFBIG || e == EIO || e == EDQUOT ? e : 0);
+  if (!ok)
+    fail("incomplete write (gzip member not complete on disk)",
+         e == ENOSPC || e == EFBIG || e == EIO || e == EDQUOT ? e : 0);
   if (opt_.fsync && ::fsync(fd_) != 0) {
     const int fe = errno;
     if (fe != EINVAL && fe != EROFS) fail("fsync", fe);  // not supported: nothing to sync

@@ -32,9 +32,9 @@ struct WriteError : std::runtime_error {
 class RawlogAppender {
  public:
   struct Options {
-    int compression_level = 1;      ///< 0 (stored) .. 9; 1 = fast, MRPT's grabber default
-    double flush_period_s = 1.0;    ///< a member is written at least this often
-    bool fsync = true;              ///< fsync after every member (power-cut safety)
+    int compression_level = 1;    ///< 0 (stored) .. 9; 1 = fast, MRPT's grabber default
+    double flush_period_s = 1.0;  ///< a member is written at least this often
+    bool fsync = true;            ///< fsync after every member (power-cut safety)
     std::size_t max_pending_bytes = 8u << 20;  ///< flush early above this (uncompressed)
   };
 

@@ -7,18 +7,18 @@
 #include <fmt/format.h>
 #include <mrpt/config/CConfigFileMemory.h>
 
+#include <fcntl.h>
+#include <poll.h>
+#include <termios.h>
+#include <unistd.h>
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
-#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
-#include <poll.h>
 #include <sstream>
 #include <stdexcept>
-#include <termios.h>
 #include <thread>
-#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -95,7 +95,8 @@ SerialReplayer::SerialReplayer(ReplayOptions opt) : opt_(std::move(opt)) {
     // The encoders' replay is always the serial fallback's format.
     s->format = LineFormat::fromConfig(ini, sec, *kind);
     if (!s->format->canFormat())
-      throw std::invalid_argument(fmt::format("[{}] uses line_regex: set line_format to replay it", sec));
+      throw std::invalid_argument(
+          fmt::format("[{}] uses line_regex: set line_format to replay it", sec));
     if (!s->format->hasDeviceTime())
       throw std::invalid_argument(fmt::format(
           "[{}] line format '{}' has no {{t}} field: the replay needs it to carry the recording's "
@@ -129,7 +130,9 @@ SerialReplayer::SerialReplayer(ReplayOptions opt) : opt_(std::move(opt)) {
                   ": the sources read the replay's pseudo-terminals.\n" + ini.getContent();
 }
 
-SerialReplayer::~SerialReplayer() { close(); }
+SerialReplayer::~SerialReplayer() {
+  close();
+}
 
 std::string SerialReplayer::linkPath(const std::string& section) const {
   for (const auto& s : sources_)
@@ -184,8 +187,10 @@ void SerialReplayer::setup() {
   for (auto& s : sources_) {
     const bool absent = std::any_of(s->outages.begin(), s->outages.end(),
                                     [](const auto& o) { return o.first <= 0; });
-    if (!absent) openPty(*s);
-    else ::unlink(s->link.c_str());
+    if (!absent)
+      openPty(*s);
+    else
+      ::unlink(s->link.c_str());
   }
   if (!opt_.derived_config.empty()) {
     std::ofstream out(opt_.derived_config, std::ios::binary | std::ios::trunc);
@@ -299,8 +304,11 @@ ReplayReport SerialReplayer::run(const std::atomic<bool>* stop) {
           const std::string body = s->last_line.substr(0, s->last_line.size() - 1);
           const auto c1 = body.find(',');
           const auto c2 = c1 == std::string::npos ? c1 : body.find(',', c1 + 1);
-          if (c1 == std::string::npos) g = body + ",err\n";
-          else g = body.substr(0, c1 + 1) + "err" + (c2 == std::string::npos ? "" : body.substr(c2)) + "\n";
+          if (c1 == std::string::npos)
+            g = body + ",err\n";
+          else
+            g = body.substr(0, c1 + 1) + "err" + (c2 == std::string::npos ? "" : body.substr(c2)) +
+                "\n";
           break;
         }
         default:  // an overlong line (no end of line for a long time)

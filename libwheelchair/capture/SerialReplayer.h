@@ -30,8 +30,8 @@
 namespace wheelchair::capture {
 
 struct Outage {
-  std::string source;       ///< section name or sensorLabel (case-insensitive)
-  double start_s = 0;       ///< from the recording's first sample
+  std::string source;  ///< section name or sensorLabel (case-insensitive)
+  double start_s = 0;  ///< from the recording's first sample
   double duration_s = 0;
 };
 

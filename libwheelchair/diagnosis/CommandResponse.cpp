@@ -19,7 +19,9 @@ using model::CommandSignal;
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-double wrap(double a) { return std::remainder(a, 2 * kPi); }
+double wrap(double a) {
+  return std::remainder(a, 2 * kPi);
+}
 
 struct Window {
   double t0, t1, v, w;
@@ -280,7 +282,9 @@ void setActive(FullModel& M, const Candidate& c, bool on) {
   }
 }
 
-const char* channelName(int ch) { return ch == 0 ? "v" : ch == 1 ? "omega" : "v+omega"; }
+const char* channelName(int ch) {
+  return ch == 0 ? "v" : ch == 1 ? "omega" : "v+omega";
+}
 
 Groups groupsOf(const std::vector<Prep>& preps) {
   Groups g;
@@ -301,11 +305,12 @@ double fixedRss(const std::vector<Prep>& preps, int ch, const FullModel& M,
 }
 
 // Ground-truth pose interpolated at t; false if outside or in a gap.
-bool gtAt(const std::vector<io::GroundTruthPoseSample>& gt, double t, double max_gap,
-          double& x, double& y, double& phi) {
+bool gtAt(const std::vector<io::GroundTruthPoseSample>& gt, double t, double max_gap, double& x,
+          double& y, double& phi) {
   if (gt.empty() || t < gt.front().t_s || t > gt.back().t_s) return false;
-  auto it = std::lower_bound(gt.begin(), gt.end(), t,
-                             [](const io::GroundTruthPoseSample& s, double tt) { return s.t_s < tt; });
+  auto it =
+      std::lower_bound(gt.begin(), gt.end(), t,
+                       [](const io::GroundTruthPoseSample& s, double tt) { return s.t_s < tt; });
   if (it == gt.begin()) {
     x = it->x_m, y = it->y_m, phi = it->phi_rad;
     return true;
@@ -346,8 +351,7 @@ Eigen::MatrixXd libraryFeatures(const Prep& p, bool clean) {
     for (int q = 0; q < K; ++q) {
       const double t = p.win[i].t0 + (q + 0.5) / K * (p.win[i].t1 - p.win[i].t0);
       const Eigen::Vector2d c = s.at(t);
-      acc += (Eigen::Matrix<double, 5, 1>() << 1, c(0), c(1), std::abs(c(1)),
-              c(0) * std::abs(c(1)))
+      acc += (Eigen::Matrix<double, 5, 1>() << 1, c(0), c(1), std::abs(c(1)), c(0) * std::abs(c(1)))
                  .finished();
     }
     F.row(i) = acc.transpose() / K;
@@ -393,7 +397,8 @@ DriftMetrics openLoopDrift(const std::vector<io::Recording>& recs,
     const double tv = params.v.time_constant_s, tw = params.omega.time_constant_s;
     for (std::size_t k = 0; k < N; ++k) {
       const double tm = g0 + (k + 0.5) * dt;
-      const Eigen::Vector2d u = mdl.target(cv.at(tm - params.v.delay_s), cw.at(tm - params.omega.delay_s));
+      const Eigen::Vector2d u =
+          mdl.target(cv.at(tm - params.v.delay_s), cw.at(tm - params.omega.delay_s));
       const auto sv = model::lagStep(yv, u(0), dt, tv), sw = model::lagStep(yw, u(1), dt, tw);
       yv = sv.y_next, yw = sw.y_next;
       ds[k] = sv.integral, dphi[k] = sw.integral;
@@ -401,10 +406,12 @@ DriftMetrics openLoopDrift(const std::vector<io::Recording>& recs,
     for (double W : {10.0, 60.0}) {
       for (double t0 = std::max(g0, gt.front().t_s); t0 + W <= g1; t0 += o.drift_start_every_s) {
         double x, y, phi, xe, ye, phie;
-        if (!gtAt(gt, t0, o.max_gt_gap_s, x, y, phi) || !gtAt(gt, t0 + W, o.max_gt_gap_s, xe, ye, phie))
+        if (!gtAt(gt, t0, o.max_gt_gap_s, x, y, phi) ||
+            !gtAt(gt, t0 + W, o.max_gt_gap_s, xe, ye, phie))
           continue;
         const std::size_t k0 = static_cast<std::size_t>(std::llround((t0 - g0) / dt));
-        const std::size_t k1 = std::min(N, static_cast<std::size_t>(std::llround((t0 + W - g0) / dt)));
+        const std::size_t k1 =
+            std::min(N, static_cast<std::size_t>(std::llround((t0 + W - g0) / dt)));
         for (std::size_t k = k0; k < k1; ++k) {
           x += ds[k] * std::cos(phi + dphi[k] / 2);
           y += ds[k] * std::sin(phi + dphi[k] / 2);
@@ -448,14 +455,15 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
   if (res.fit_windows < 20) throw std::invalid_argument("diagnoseCommandResponse: too little data");
 
   // Catalogue.
-  std::vector<Candidate> cat = {
-      {"actuator_lag", 0, -1, 2},  {"actuator_lag", 1, -1, 2},
-      {"command_gain", 0, static_cast<int>(CommandKind::Straight), 1},
-      {"command_gain", 0, static_cast<int>(CommandKind::Arc), 1},
-      {"command_gain", 1, static_cast<int>(CommandKind::TurnInPlace), 1},
-      {"command_gain", 1, static_cast<int>(CommandKind::Arc), 1},
-      {"deadband", 0, -1, 1},      {"deadband", 1, -1, 1},
-      {"ignored_zero_commands", -1, -1, 1}};
+  std::vector<Candidate> cat = {{"actuator_lag", 0, -1, 2},
+                                {"actuator_lag", 1, -1, 2},
+                                {"command_gain", 0, static_cast<int>(CommandKind::Straight), 1},
+                                {"command_gain", 0, static_cast<int>(CommandKind::Arc), 1},
+                                {"command_gain", 1, static_cast<int>(CommandKind::TurnInPlace), 1},
+                                {"command_gain", 1, static_cast<int>(CommandKind::Arc), 1},
+                                {"deadband", 0, -1, 1},
+                                {"deadband", 1, -1, 1},
+                                {"ignored_zero_commands", -1, -1, 1}};
 
   FullModel M;
   ChannelFit cur[2];
@@ -507,8 +515,7 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
         const double g = tr.M.ch[c.ch].gain[c.kind];
         plausible = g >= o.min_gain && g <= o.max_gain;
       }
-      if (c.effect == "actuator_lag")
-        plausible = tr.M.ch[c.ch].delay > 0 || tr.M.ch[c.ch].tau > 0;
+      if (c.effect == "actuator_lag") plausible = tr.M.ch[c.ch].delay > 0 || tr.M.ch[c.ch].tau > 0;
       if (!plausible) continue;
       if (!best || tr.ev.delta_bic < best->ev.delta_bic) best = tr;
     }

@@ -44,17 +44,17 @@
 namespace wheelchair::diagnosis {
 
 struct CommandResponseOptions {
-  double window_s = 0.25;            ///< velocity windows (non-overlapping)
-  double grid_dt_s = 0.005;          ///< simulation grid of the model's response
-  double max_delay_s = 0.6;          ///< search range of actuator_lag
-  double max_time_constant_s = 0.8;  ///< search range of actuator_lag
-  double max_zero_run_s = 0.1;       ///< ignored_zero_commands: longest (0,0) run that is a blip
-  double alpha = 0.01;               ///< family-wise false-alarm rate (Bonferroni)
-  double min_delta_bic = 10;         ///< strong evidence (Kass & Raftery)
-  int hac_lags = 20;                 ///< windows for the effective sample size (5 s at 0.25 s)
+  double window_s = 0.25;               ///< velocity windows (non-overlapping)
+  double grid_dt_s = 0.005;             ///< simulation grid of the model's response
+  double max_delay_s = 0.6;             ///< search range of actuator_lag
+  double max_time_constant_s = 0.8;     ///< search range of actuator_lag
+  double max_zero_run_s = 0.1;          ///< ignored_zero_commands: longest (0,0) run that is a blip
+  double alpha = 0.01;                  ///< family-wise false-alarm rate (Bonferroni)
+  double min_delta_bic = 10;            ///< strong evidence (Kass & Raftery)
+  int hac_lags = 20;                    ///< windows for the effective sample size (5 s at 0.25 s)
   double min_gain = 0.2, max_gain = 5;  ///< plausible command_gain range
-  double drift_start_every_s = 5;    ///< open-loop drift windows
-  double max_gt_gap_s = 0.5;         ///< ground-truth gap that invalidates a window end
+  double drift_start_every_s = 5;       ///< open-loop drift windows
+  double max_gt_gap_s = 0.5;            ///< ground-truth gap that invalidates a window end
 };
 
 struct CommandResponseFinding {
@@ -85,7 +85,7 @@ struct CommandResponseResult {
   model::CommandResponseParams params;  ///< the selected (validated) model
   bool ignore_zero_runs = false;
   double max_zero_run_s = 0.1;
-  DriftMetrics fit_before, fit_after;          ///< on the VALIDATION recordings
+  DriftMetrics fit_before, fit_after;                ///< on the VALIDATION recordings
   DriftMetrics fit_before_on_fit, fit_after_on_fit;  ///< on the fit recordings (reference)
   ChannelResidualStats validation_v, validation_omega;
   std::size_t fit_windows = 0, validation_windows = 0;

@@ -6,6 +6,8 @@
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/sensors/Filtering.h"
 
+#include <Eigen/LU>
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -248,7 +250,7 @@ struct SparseResult {
 
 SparseResult stlsq(const Eigen::MatrixXd& L, const Eigen::VectorXd& y, const Groups& g,
                    const Eigen::MatrixXd& Lv, const Eigen::VectorXd& yv, const Groups& gv, int lags,
-                   const DiagnosisOptions& opt) {
+                   const DiagnosisOptions& opt, double min_contribution_rms) {
   SparseResult res;
   std::vector<int> act;
   for (int j = 0; j < L.cols(); ++j)
@@ -281,6 +283,11 @@ SparseResult stlsq(const Eigen::MatrixXd& L, const Eigen::VectorXd& y, const Gro
   if (res.terms.empty()) return res;
   const double alpha_b = opt.alpha / std::max<int>(1, static_cast<int>(L.cols()));
   if (!(res.ev.p_value < alpha_b) || !(res.ev.delta_bic < -opt.min_bic_drop)) return res;
+  {
+    Eigen::MatrixXd A(L.rows(), res.terms.size());
+    for (size_t k = 0; k < res.terms.size(); ++k) A.col(k) = L.col(res.terms[k]);
+    if ((A * res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) < min_contribution_rms) return res;
+  }
   if (yv.size() > 10) {
     Eigen::MatrixXd Av(Lv.rows(), res.terms.size());
     for (size_t k = 0; k < res.terms.size(); ++k) Av.col(k) = Lv.col(res.terms[k]);
@@ -329,6 +336,7 @@ void DiagnosisOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
       ini.read_double(s, "validation_fraction_of_expected", validation_fraction_of_expected);
   validation_min_expected_lr = ini.read_double(s, "validation_min_expected_lr", validation_min_expected_lr);
   enable_unmodeled = ini.read_bool(s, "enable_unmodeled", enable_unmodeled);
+  min_relevance = ini.read_double(s, "min_relevance", min_relevance);
   stlsq_threshold_sigma = ini.read_double(s, "stlsq_threshold_sigma", stlsq_threshold_sigma);
   enable_delay = ini.read_bool(s, "enable_delay", enable_delay);
   if (!(fit_fraction > 0.1 && fit_fraction < 0.95)) throw std::runtime_error("[diagnosis] fit_fraction must be in (0.1, 0.95)");
@@ -369,7 +377,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   if (any_gyro) {
     auto cands = kinematicCandidates(opt.enable_delay);
     KinRows kf = kinematicRows(fitS, corr, cfg, opt), kv = kinematicRows(valS, corr, cfg, opt);
-    SelectionData sd{kf.y, kv.y, kf.X, kv.X, kf.groups, kv.groups, lags1};
+    SelectionData sd{kf.y, kv.y, kf.X, kv.X, kf.groups, kv.groups, lags1,
+                     opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s};
     Selection sel = forwardSelect(sd, cands, opt);
     double alpha_b = opt.alpha / cands.size();
     // nonlinear refinement of a delay: shift the gyro and refit
@@ -504,7 +513,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
         return L;
       };
       Eigen::VectorXd rf = sel.fit.residual;
-      SparseResult sr = stlsq(lib(kf2), rf, kf2.groups, lib(kv2), rv_after, kv2.groups, lags1, opt);
+      SparseResult sr = stlsq(lib(kf2), rf, kf2.groups, lib(kv2), rv_after, kv2.groups, lags1, opt,
+                              opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
       if (sr.accepted) {
         static const char* names[] = {"v", "|omega|", "omega*|omega|", "cos(phi)", "sin(phi)", "v*omega"};
         Finding f;
@@ -537,7 +547,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
     DynRows df = dynamicRows(fitS, corr, cfg, opt), dv = dynamicRows(valS, corr, cfg, opt);
     int lags2 = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
     if (df.y.size() > 50) {
-      SelectionData sd{df.y, dv.y, df.X, dv.X, df.groups, dv.groups, lags2};
+      SelectionData sd{df.y, dv.y, df.X, dv.X, df.groups, dv.groups, lags2,
+                       opt.min_relevance * cfg.motors.current_noise_A};
       Selection sel = forwardSelect(sd, cands, opt);
       int di = -1;
       for (size_t a = 0; a < sel.accepted.size(); ++a)
@@ -699,7 +710,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
           // i_self is the measured quantity itself: keep it out (it would absorb everything)
           L.col(12).setZero(), Lv.col(12).setZero();
           SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
-                                  rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags2, opt);
+                                  rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags2, opt,
+                                  opt.min_relevance * cfg.motors.current_noise_A);
           if (!sr.accepted) continue;
           Finding f;
           f.effect = "unmodeled";

@@ -43,6 +43,10 @@ struct DiagnosisOptions {
   double min_bic_drop = 10.0;       ///< strong evidence (Kass & Raftery)
   double validation_fraction_of_expected = 0.25;  ///< held-out gain >= this x predicted gain
   double validation_min_expected_lr = 9.0;        ///< below: validation cannot test the term
+  /// A term must change its channel by at least this fraction of ONE sample's configured
+  /// noise (RMS over the fit data) to be reported: statistically significant but smaller
+  /// effects are within the reconstruction's approximation error.
+  double min_relevance = 0.25;
   bool enable_unmodeled = true;     ///< sparse regression on what remains
   double stlsq_threshold_sigma = 4.0;  ///< STLSQ keeps terms with |coef| > this x HAC sigma
   bool enable_delay = true;

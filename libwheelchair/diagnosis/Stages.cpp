@@ -413,6 +413,11 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
       if (!(ev.p_value < alpha_b)) why = "not significant (p = " + std::to_string(ev.p_value) + ")";
       else if (!(ev.delta_bic < -opt.min_bic_drop)) why = "BIC drop too small";
       else if (c.plausible && !c.plausible(coef)) why = "physically implausible parameters";
+      else {
+        double crms = (d.X_fit * c.S * coef).norm() / std::sqrt(std::max<double>(1, d.y_fit.size()));
+        if (crms < d.min_contribution_rms)
+          why = "irrelevant: contribution rms " + std::to_string(crms) + " below " + std::to_string(d.min_contribution_rms);
+      }
       if (why.empty() && have_val) {
         Eigen::MatrixXd D1v = acceptedDesign(d.X_val, cands, trial);
         Eigen::VectorXd r1 = d.y_val - D1v * f1.beta;

@@ -104,6 +104,10 @@ struct SelectionData {
   Eigen::MatrixXd X_fit, X_val;
   Groups g_fit, g_val;
   int lags = 5;
+  /// Relevance: the RMS of a term's contribution over the fit rows must reach this (units of
+  /// y), i.e. min_relevance x the configured noise of one sensor sample; below it a term is
+  /// within the approximation error of the reconstruction and not reported.
+  double min_contribution_rms = 0;
 };
 
 Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& cands,

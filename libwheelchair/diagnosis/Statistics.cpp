@@ -2,6 +2,7 @@
 
 #include "libwheelchair/estimation/ChiSquare.h"
 
+#include <Eigen/LU>
 #include <Eigen/QR>
 
 #include <algorithm>

@@ -90,7 +90,8 @@ void BaselineEkf::setObstacleBody(const Eigen::Vector2d& pb, const Eigen::Matrix
   Eigen::Matrix2d dR;
   dR << -s, -c, c, -s;
   // o = (x, y) + R(phi) pb: Jacobian wrt the pose, then landmark initialisation.
-  Eigen::Matrix<double, 2, kBaselineStateDim> Jp = Eigen::Matrix<double, 2, kBaselineStateDim>::Zero();
+  Eigen::Matrix<double, 2, kBaselineStateDim> Jp =
+      Eigen::Matrix<double, 2, kBaselineStateDim>::Zero();
   Jp(0, kBx) = 1;
   Jp(1, kBy) = 1;
   const Eigen::Vector2d dpb = dR * pb;
@@ -168,8 +169,7 @@ EstimateSample BaselineEkf::estimate() const {
   Eigen::Matrix<double, 7, 7> J;
   const model::FilterState m = toModelState(&J);
   const Eigen::MatrixXd Pm = J * P_ * J.transpose();
-  return canonicalFromFilterState(t_, m, Pm, model::ObstacleForm::Cartesian,
-                                  obstacle_initialised_);
+  return canonicalFromFilterState(t_, m, Pm, model::ObstacleForm::Cartesian, obstacle_initialised_);
 }
 
 }  // namespace wheelchair::estimation

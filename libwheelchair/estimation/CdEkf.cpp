@@ -53,8 +53,9 @@ struct CdEkfAccess {
 namespace {
 
 void check(int flag, const char* what) {
-  if (flag < 0) throw std::runtime_error(std::string("CdEkf: CVODE ") + what + " failed, flag " +
-                                         std::to_string(flag));
+  if (flag < 0)
+    throw std::runtime_error(std::string("CdEkf: CVODE ") + what + " failed, flag " +
+                             std::to_string(flag));
 }
 
 }  // namespace
@@ -121,7 +122,8 @@ void CdEkf::evalRhs(double t, const double* y, double* ydot) {
   for (int i = 0; i < n_; ++i) ydot[i] = wxd_(i);
   k = n_;
   for (int c = 0; c < n_; ++c)
-    for (int r = c; r < n_; ++r) ydot[k++] = wFP_(r, c) + wFP_(c, r) + 0.5 * (wQ_(r, c) + wQ_(c, r));
+    for (int r = c; r < n_; ++r)
+      ydot[k++] = wFP_(r, c) + wFP_(c, r) + 0.5 * (wQ_(r, c) + wQ_(c, r));
 }
 
 void CdEkf::reset(double t0_s, const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0) {
@@ -132,7 +134,9 @@ void CdEkf::reset(double t0_s, const Eigen::VectorXd& x0, const Eigen::MatrixXd&
   setCovariance(P0);
 }
 
-void CdEkf::setCovariance(const Eigen::MatrixXd& P) { P_ = 0.5 * (P + P.transpose()); }
+void CdEkf::setCovariance(const Eigen::MatrixXd& P) {
+  P_ = 0.5 * (P + P.transpose());
+}
 
 void CdEkf::propagate(double t1_s, const InputFunction& u) {
   if (!(t1_s >= t_)) throw std::invalid_argument("CdEkf::propagate: time goes backwards");
@@ -178,10 +182,7 @@ void CdEkf::propagate(double t1_s, const InputFunction& u) {
   }
   // Never step past t1: u(t) is only defined on [t0, t1].
   check(CVodeSetStopTime(mem, t1_s), "CVodeSetStopTime");
-  // Intervals between measurements are short against the model's time constants: try the
-  // whole interval as the first step (CVODE's error test shrinks it when needed) instead of
-  // CVODE's cautious restart heuristic, which costs ~10 steps per interval.
-  if (opt_.first_step_whole_interval) check(CVodeSetInitStep(mem, dt), "CVodeSetInitStep");
+
   double tret = t_;
   const int flag = CVode(mem, t1_s, cv_->y, &tret, CV_NORMAL);
   u_ = nullptr;

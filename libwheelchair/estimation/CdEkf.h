@@ -56,14 +56,11 @@ struct CvodeOptions {
   enum class Method { Adams, Bdf };
   Method method = Method::Adams;  ///< Adams + fixed-point iteration, or BDF + dense Newton
   double rel_tol = 1e-6;          ///< relative tolerance (-)
-  double abs_tol_state = 1e-8;   ///< absolute tolerance on the state (state units)
-  double abs_tol_cov = 1e-9;     ///< absolute tolerance on covariance entries (state units^2)
+  double abs_tol_state = 1e-8;    ///< absolute tolerance on the state (state units)
+  double abs_tol_cov = 1e-10;     ///< absolute tolerance on covariance entries (state units^2)
   long max_num_steps = 50000;     ///< per interval
   double max_step_s = 0.0;        ///< 0: no limit
   int max_order = 0;              ///< 0: CVODE's default (12 Adams, 5 BDF)
-  /// First step of every interval = the whole interval (CVODE shrinks it if the error test
-  /// fails); false: CVODE's own initial-step heuristic.
-  bool first_step_whole_interval = false;
 };
 
 /// Result of one measurement update.
@@ -143,6 +140,8 @@ UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::V
                           const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate);
 
 /// Packed lower triangle (column-major) size of an n x n symmetric matrix.
-inline int packedSize(int n) { return n * (n + 1) / 2; }
+inline int packedSize(int n) {
+  return n * (n + 1) / 2;
+}
 
 }  // namespace wheelchair::estimation

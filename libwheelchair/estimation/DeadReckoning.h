@@ -13,7 +13,8 @@
 //
 // Example:
 //   auto dr = deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom);
-//   auto eg = deadReckoningEncoderGyro(rec.encoders, rec.imu, cfg.encoders.params, cfg.vehicle.geom);
+//   auto eg = deadReckoningEncoderGyro(rec.encoders, rec.imu, cfg.encoders.params,
+//   cfg.vehicle.geom);
 #pragma once
 
 #include "libwheelchair/io/Recording.h"

@@ -40,7 +40,8 @@ std::string fmtDouble(double v) {
 template <typename E>
 using Names = std::vector<std::pair<E, const char*>>;
 
-const Names<FilterKind> kFilter{{FilterKind::Physics, "physics"}, {FilterKind::Baseline, "baseline"}};
+const Names<FilterKind> kFilter{{FilterKind::Physics, "physics"},
+                                {FilterKind::Baseline, "baseline"}};
 const Names<ObstacleFormOption> kForm{{ObstacleFormOption::Cartesian, "cartesian"},
                                       {ObstacleFormOption::Polar, "polar"}};
 const Names<EncoderMeasurementModel> kEnc{{EncoderMeasurementModel::Mean, "mean"},
@@ -214,8 +215,10 @@ void EkfOptions::validate() const {
   if (cvode.max_num_steps <= 0) throw std::invalid_argument("cvode_max_num_steps must be > 0");
   nonneg(cvode.max_step_s, "cvode_max_step_s");
   if (cvode.max_order < 0) throw std::invalid_argument("cvode_max_order must be >= 0");
-  for (auto [v, k] : {std::pair{q_v_m2_s3, "q_v_m2_s3"}, {q_omega_rad2_s3, "q_omega_rad2_s3"},
-                      {q_xy_m2_s, "q_xy_m2_s"}, {q_phi_rad2_s, "q_phi_rad2_s"},
+  for (auto [v, k] : {std::pair{q_v_m2_s3, "q_v_m2_s3"},
+                      {q_omega_rad2_s3, "q_omega_rad2_s3"},
+                      {q_xy_m2_s, "q_xy_m2_s"},
+                      {q_phi_rad2_s, "q_phi_rad2_s"},
                       {q_obstacle_m2_s, "q_obstacle_m2_s"},
                       {q_obstacle_bearing_rad2_s, "q_obstacle_bearing_rad2_s"},
                       {encoder_extra_noise_m_s, "encoder_extra_noise_m_s"},

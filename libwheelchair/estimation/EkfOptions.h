@@ -36,7 +36,7 @@ enum class ObstacleFormOption { Cartesian, Polar };
 
 struct EkfOptions {
   // --- what runs --------------------------------------------------------------------------
-  FilterKind filter = FilterKind::Physics;                   ///< filter = physics | baseline
+  FilterKind filter = FilterKind::Physics;  ///< filter = physics | baseline
   ObstacleFormOption obstacle_form = ObstacleFormOption::Cartesian;  ///< (7) | (8)
   EncoderMeasurementModel encoder_model = EncoderMeasurementModel::Mean;
   InputInterpolation input_interpolation = InputInterpolation::Linear;
@@ -53,11 +53,11 @@ struct EkfOptions {
   CvodeOptions cvode;
 
   // --- process noise (continuous-time spectral densities) ---------------------------------
-  double q_v_m2_s3 = 0.01;             ///< on vdot (model error of (6))
-  double q_omega_rad2_s3 = 0.02;       ///< on omegadot
-  double q_xy_m2_s = 1e-5;             ///< on xdot, ydot (wheel slip)
-  double q_phi_rad2_s = 1e-6;          ///< on phidot
-  double q_obstacle_m2_s = 1e-5;       ///< on the obstacle (px, py) or d
+  double q_v_m2_s3 = 0.01;                  ///< on vdot (model error of (6))
+  double q_omega_rad2_s3 = 0.02;            ///< on omegadot
+  double q_xy_m2_s = 1e-5;                  ///< on xdot, ydot (wheel slip)
+  double q_phi_rad2_s = 1e-6;               ///< on phidot
+  double q_obstacle_m2_s = 1e-5;            ///< on the obstacle (px, py) or d
   double q_obstacle_bearing_rad2_s = 1e-5;  ///< on beta (polar form)
   /// Density of the motor-current measurement noise mapped through G = df/du (A^2 s);
   /// negative: [motors] current_noise_A^2 / rate_hz.
@@ -80,13 +80,13 @@ struct EkfOptions {
   double initial_sigma_phi_rad = 1e-3;
   ObstacleInit initial_obstacle = ObstacleInit::FirstSonar;
   double initial_obstacle_x_m = 2.0, initial_obstacle_y_m = 0.0;  ///< body frame at start (m)
-  double initial_obstacle_range_sigma_m = 0.5;  ///< Config mode (m)
+  double initial_obstacle_range_sigma_m = 0.5;                    ///< Config mode (m)
   /// Bearing 1 sigma at initialisation (deg); negative: cone half-angle / sqrt(3) (uniform).
   double initial_obstacle_bearing_sigma_deg = -1;
 
   // --- baseline (discrete constant-velocity EKF) ------------------------------------------
-  double baseline_q_v_m2_s3 = 0.5;       ///< random-walk density of v
-  double baseline_q_omega_rad2_s3 = 0.5; ///< random-walk density of omega
+  double baseline_q_v_m2_s3 = 0.5;        ///< random-walk density of v
+  double baseline_q_omega_rad2_s3 = 0.5;  ///< random-walk density of omega
   double baseline_q_xy_m2_s = 1e-4;
   double baseline_q_phi_rad2_s = 1e-5;
   double baseline_q_obstacle_m2_s = 1e-5;

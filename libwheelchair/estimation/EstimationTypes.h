@@ -58,10 +58,10 @@ struct NisRecord {
 };
 
 struct SensorStats {
-  long used = 0;      ///< measurement updates applied (and obstacle initialisations)
-  long rejected = 0;  ///< failed the NIS gate
-  long dropouts = 0;  ///< invalid readings (sonar 0 / out of range, encoder gaps)
-  long skipped = 0;   ///< not used by choice (sensor disabled)
+  long used = 0;               ///< measurement updates applied (and obstacle initialisations)
+  long rejected = 0;           ///< failed the NIS gate
+  long dropouts = 0;           ///< invalid readings (sonar 0 / out of range, encoder gaps)
+  long skipped = 0;            ///< not used by choice (sensor disabled)
   long reinitialisations = 0;  ///< sonar: obstacle re-initialised after repeated rejections
   // NIS over the ACCEPTED updates.
   long nis_count = 0;

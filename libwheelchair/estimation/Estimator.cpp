@@ -17,10 +17,14 @@ namespace wheelchair::estimation {
 
 const char* sensorName(Sensor s) {
   switch (s) {
-    case Sensor::Encoders: return "encoders";
-    case Sensor::Gyro: return "gyro";
-    case Sensor::Sonar: return "sonar";
-    case Sensor::Pozyx: return "pozyx";
+    case Sensor::Encoders:
+      return "encoders";
+    case Sensor::Gyro:
+      return "gyro";
+    case Sensor::Sonar:
+      return "sonar";
+    case Sensor::Pozyx:
+      return "pozyx";
   }
   return "?";
 }
@@ -165,7 +169,8 @@ Eigen::Matrix2d Estimator::encoderNoise(double dt) const {
 }
 
 Eigen::Vector2d Estimator::sonarPointBody(double range) const {
-  return sonar_offset_m_ + range * Eigen::Vector2d(std::cos(sonar_yaw_rad_), std::sin(sonar_yaw_rad_));
+  return sonar_offset_m_ +
+         range * Eigen::Vector2d(std::cos(sonar_yaw_rad_), std::sin(sonar_yaw_rad_));
 }
 
 Eigen::Matrix2d Estimator::sonarPointCovBody(double range) const {
@@ -189,8 +194,9 @@ Eigen::Matrix2d Estimator::configObstacleCov() const {
   const double c = std::cos(b), s = std::sin(b);
   Eigen::Matrix2d Rot;
   Rot << c, -s, s, c;
-  const Eigen::Vector2d var(opt_.initial_obstacle_range_sigma_m * opt_.initial_obstacle_range_sigma_m,
-                            d * d * sb * sb + 1e-6);
+  const Eigen::Vector2d var(
+      opt_.initial_obstacle_range_sigma_m * opt_.initial_obstacle_range_sigma_m,
+      d * d * sb * sb + 1e-6);
   return Rot * var.asDiagonal() * Rot.transpose();
 }
 
@@ -249,7 +255,8 @@ void Estimator::pozyx(double t, const Eigen::Vector2d& z_anchor) {
   // p_anchor = R(yaw) p_start + t  =>  p_start = R(yaw)' (p_anchor - t).
   const double yaw = opt_.pozyx_anchor_yaw_deg * M_PI / 180.0;
   const double c = std::cos(yaw), s = std::sin(yaw);
-  const Eigen::Vector2d d = z_anchor - Eigen::Vector2d(opt_.pozyx_anchor_x_m, opt_.pozyx_anchor_y_m);
+  const Eigen::Vector2d d =
+      z_anchor - Eigen::Vector2d(opt_.pozyx_anchor_x_m, opt_.pozyx_anchor_y_m);
   const Eigen::Vector2d z(c * d.x() + s * d.y(), -s * d.x() + c * d.y());
   const Eigen::Matrix2d R = opt_.pozyx_noise_m * opt_.pozyx_noise_m * Eigen::Matrix2d::Identity();
   const double g = gate(2);
@@ -259,8 +266,8 @@ void Estimator::pozyx(double t, const Eigen::Vector2d& z_anchor) {
 // ---------------------------------------------------------------------------------------------
 // Factory and driver
 
-std::unique_ptr<Estimator> makeEstimator(const config::WheelchairConfig& cfg,
-                                         const EkfOptions& opt, const InputSignal* input) {
+std::unique_ptr<Estimator> makeEstimator(const config::WheelchairConfig& cfg, const EkfOptions& opt,
+                                         const InputSignal* input) {
   if (opt.filter == FilterKind::Baseline) return std::make_unique<BaselineEkf>(cfg, opt);
   return std::make_unique<WheelchairEkf>(cfg, opt, input);
 }
@@ -296,9 +303,11 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
   EstimationResult& res = est->result();
 
   // Every stream sorted by (time, value): the same multiset of samples gives the same order.
-  const auto enc = sortedCopy(rec.encoders, [](const io::EncoderSample& a, const io::EncoderSample& b) {
-    return std::tie(a.t_s, a.right_ticks, a.left_ticks) < std::tie(b.t_s, b.right_ticks, b.left_ticks);
-  });
+  const auto enc =
+      sortedCopy(rec.encoders, [](const io::EncoderSample& a, const io::EncoderSample& b) {
+        return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
+               std::tie(b.t_s, b.right_ticks, b.left_ticks);
+      });
   const auto imu = sortedCopy(rec.imu, [](const io::ImuSample& a, const io::ImuSample& b) {
     return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);
   });
@@ -325,9 +334,12 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
     }
     for (std::size_t i = 0; i < n; ++i) ev.push_back({timeOf(i), kind, i});
   };
-  addStream(opt.use_gyro, imu.size(), [&](std::size_t i) { return imu[i].t_s; }, kGyro, Sensor::Gyro);
-  addStream(opt.use_sonar, son.size(), [&](std::size_t i) { return son[i].t_s; }, kSonar, Sensor::Sonar);
-  addStream(opt.use_pozyx, poz.size(), [&](std::size_t i) { return poz[i].t_s; }, kPozyx, Sensor::Pozyx);
+  addStream(
+      opt.use_gyro, imu.size(), [&](std::size_t i) { return imu[i].t_s; }, kGyro, Sensor::Gyro);
+  addStream(
+      opt.use_sonar, son.size(), [&](std::size_t i) { return son[i].t_s; }, kSonar, Sensor::Sonar);
+  addStream(
+      opt.use_pozyx, poz.size(), [&](std::size_t i) { return poz[i].t_s; }, kPozyx, Sensor::Pozyx);
   std::stable_sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) {
     return std::tie(a.t, a.kind, a.index) < std::tie(b.t, b.kind, b.index);
   });
@@ -356,14 +368,25 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
     }
     est->predictTo(E.t);
     switch (E.kind) {
-      case kEncStart: est->encoderStart(E.t); break;
-      case kEncInterval: est->encoderInterval(iv[E.index]); break;
-      case kGyro: est->gyro(E.t, imu[E.index].gyro_z_rad_s); break;
-      case kSonar: est->sonar(E.t, son[E.index].range_m); break;
-      case kPozyx: est->pozyx(E.t, Eigen::Vector2d(poz[E.index].x_m, poz[E.index].y_m)); break;
+      case kEncStart:
+        est->encoderStart(E.t);
+        break;
+      case kEncInterval:
+        est->encoderInterval(iv[E.index]);
+        break;
+      case kGyro:
+        est->gyro(E.t, imu[E.index].gyro_z_rad_s);
+        break;
+      case kSonar:
+        est->sonar(E.t, son[E.index].range_m);
+        break;
+      case kPozyx:
+        est->pozyx(E.t, Eigen::Vector2d(poz[E.index].x_m, poz[E.index].y_m));
+        break;
     }
     // One output per measurement time (after all measurements of that time).
-    if (!fixed_rate && (e + 1 == ev.size() || ev[e + 1].t != E.t)) res.estimates.push_back(est->estimate());
+    if (!fixed_rate && (e + 1 == ev.size() || ev[e + 1].t != E.t))
+      res.estimates.push_back(est->estimate());
   }
   if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) res.cvode = w->filter().stats();
   return std::move(res);

@@ -128,8 +128,8 @@ class Estimator {
 
 /// The filter selected by opt.filter. `input` (motor currents) must outlive it; the baseline
 /// ignores it.
-std::unique_ptr<Estimator> makeEstimator(const config::WheelchairConfig& cfg,
-                                         const EkfOptions& opt, const InputSignal* input);
+std::unique_ptr<Estimator> makeEstimator(const config::WheelchairConfig& cfg, const EkfOptions& opt,
+                                         const InputSignal* input);
 
 /// Runs the selected filter over a whole recording (see the header comment).
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,

@@ -51,8 +51,7 @@ void WheelchairProcessModel::Q(const Eigen::VectorXd&, const Eigen::VectorXd&,
 // Canonical output
 
 EstimateSample canonicalFromFilterState(double t, const Eigen::VectorXd& x,
-                                        const Eigen::MatrixXd& P, ObstacleForm form,
-                                        bool init) {
+                                        const Eigen::MatrixXd& P, ObstacleForm form, bool init) {
   EstimateSample s;
   s.t_s = t;
   s.obstacle_initialised = init;
@@ -67,8 +66,8 @@ EstimateSample canonicalFromFilterState(double t, const Eigen::VectorXd& x,
     T(6, 5) = sn;
     T(6, 6) = d * c;
   }
-  s.P = T * P.topLeftCorner<7, 7>() * T.transpose();
-  s.P = 0.5 * (s.P + s.P.transpose());
+  const CanonicalCov Pc = T * P.topLeftCorner<7, 7>() * T.transpose();
+  s.P = 0.5 * (Pc + Pc.transpose());
   s.sd = s.P.diagonal().cwiseMax(0.0).cwiseSqrt();
   // d_o^M and theta_o^M with first-order standard deviations.
   const Eigen::Vector2d p = s.x.segment<2>(5);
@@ -103,8 +102,8 @@ model::FilterModel makeFilterModel(const config::WheelchairConfig& cfg, const Ek
 Eigen::Matrix<double, 7, 1> processNoiseDiag(const EkfOptions& o) {
   const bool polar = o.obstacle_form == ObstacleFormOption::Polar;
   Eigen::Matrix<double, 7, 1> q;
-  q << o.q_v_m2_s3, o.q_omega_rad2_s3, o.q_xy_m2_s, o.q_xy_m2_s, o.q_phi_rad2_s,
-      o.q_obstacle_m2_s, polar ? o.q_obstacle_bearing_rad2_s : o.q_obstacle_m2_s;
+  q << o.q_v_m2_s3, o.q_omega_rad2_s3, o.q_xy_m2_s, o.q_xy_m2_s, o.q_phi_rad2_s, o.q_obstacle_m2_s,
+      polar ? o.q_obstacle_bearing_rad2_s : o.q_obstacle_m2_s;
   return q;
 }
 
@@ -120,7 +119,9 @@ WheelchairEkf::WheelchairEkf(const config::WheelchairConfig& cfg, const EkfOptio
   if (!input_) input_ = &zero_input_;
 }
 
-FilterState WheelchairEkf::head() const { return ekf_.x().head<7>(); }
+FilterState WheelchairEkf::head() const {
+  return ekf_.x().head<7>();
+}
 
 void WheelchairEkf::start(double t0) {
   Eigen::VectorXd x = Eigen::VectorXd::Zero(kPhysicsStateDim);
@@ -206,9 +207,11 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     return;
   }
   const double dt = iv.dt();
-  const bool aligned = acc_valid_ && std::fabs(acc_start_s_ - iv.t0_s) <= 1e-9 * std::max(1.0, std::fabs(iv.t0_s));
+  const bool aligned =
+      acc_valid_ && std::fabs(acc_start_s_ - iv.t0_s) <= 1e-9 * std::max(1.0, std::fabs(iv.t0_s));
   if (!(dt > 0) || dt > opt_.max_encoder_interval_s || !std::isfinite(iv.v_m_s) ||
-      !std::isfinite(iv.omega_rad_s) || (opt_.encoder_model == EncoderMeasurementModel::Mean && !aligned)) {
+      !std::isfinite(iv.omega_rad_s) ||
+      (opt_.encoder_model == EncoderMeasurementModel::Mean && !aligned)) {
     ++st.dropouts;
     resetAccumulators(iv.t1_s);
     return;

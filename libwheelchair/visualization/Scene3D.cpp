@@ -147,7 +147,7 @@ DriveScene::DriveScene(const DriveData& d) : d_(d) {
     }
     arc.emplace_back(0, 0);
     if (filled) {
-      tris->setColor_u8(255, 140, 0, 110);
+      tris->setColor_u8(mrpt::img::TColor(255, 140, 0, 110));
       set->insert(tris);
     }
     set->insert(polyline(arc, filled ? Color{230, 110, 0} : Color{150, 150, 150}, 2.0f, 0.06));

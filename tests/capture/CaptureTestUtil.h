@@ -17,26 +17,29 @@
 #include <gtest/gtest.h>
 #include <mrpt/config/CConfigFileMemory.h>
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdint>
-#include <fcntl.h>
-#include <spawn.h>
 #include <string>
-#include <sys/wait.h>
 #include <thread>
-#include <unistd.h>
 #include <vector>
 
 extern char** environ;
 
 namespace wheelchair::test {
 
-inline std::string captureTemplate() { return sourcePath("config/capture.ini"); }
+inline std::string captureTemplate() {
+  return sourcePath("config/capture.ini");
+}
 
 /// The template with test-friendly timings: short reconnect backoff and reorder window.
-inline std::string writeTestCaptureConfig(const TempDir& dir, const std::string& name = "capture.ini",
+inline std::string writeTestCaptureConfig(const TempDir& dir,
+                                          const std::string& name = "capture.ini",
                                           double window_s = 0.3) {
   mrpt::config::CConfigFileMemory ini(readFile(captureTemplate()));
   ini.write("capture", "vehicle_config", sourcePath("config/wheelchair.ini"));
@@ -69,23 +72,28 @@ inline io::Recording captureRecording(double duration_s = 4.0) {
   for (int k = 0; k * 0.02 <= duration_s; ++k) {
     right += 5 + (k % 4);
     left += 6 + (k % 3);
-    auto wrap = [](int64_t x) { return static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint64_t>(x))); };
+    auto wrap = [](int64_t x) {
+      return static_cast<int32_t>(static_cast<uint32_t>(static_cast<uint64_t>(x)));
+    };
     r.encoders.push_back({t0 + 0.02 * k, wrap(right), wrap(left)});
   }
   for (int k = 0; k * 0.01 <= duration_s; ++k) {
     io::ImuSample s{t0 + 0.004 + 0.01 * k, 0.3 * std::sin(0.9 * k * 0.01), true, {}};
-    s.extra = {0.01 * std::cos(0.05 * k), -0.002 * (k % 5), 0.4 * std::sin(0.02 * k), -0.05, 9.81 + 0.001 * (k % 9)};
+    s.extra = {0.01 * std::cos(0.05 * k), -0.002 * (k % 5), 0.4 * std::sin(0.02 * k), -0.05,
+               9.81 + 0.001 * (k % 9)};
     r.imu.push_back(s);
   }
   for (int k = 0; k * 0.01 <= duration_s; ++k)
-    r.motors.push_back({t0 + 0.007 + 0.01 * k, ci.toPhysical(540 + (k * 7) % 90), cl.toPhysical(535 + (k * 5) % 80),
-                        vr.toPhysical(300 + (k * 3) % 200), vl.toPhysical(290 + (k * 11) % 210)});
+    r.motors.push_back({t0 + 0.007 + 0.01 * k, ci.toPhysical(540 + (k * 7) % 90),
+                        cl.toPhysical(535 + (k * 5) % 80), vr.toPhysical(300 + (k * 3) % 200),
+                        vl.toPhysical(290 + (k * 11) % 210)});
   for (int k = 0; k * 0.1 <= duration_s; ++k)
     r.sonar.push_back({t0 + 0.05 + 0.1 * k, (k % 6 == 2) ? 0.0 : 3.2 - 0.04 * (k % 50)});
   for (int k = 0; k * 0.1 <= duration_s; ++k)
     r.pozyx.push_back({t0 + 0.033 + 0.1 * k, 4.25 + 0.031 * k, -1.5 + 0.017 * k, false, 0.0});
   for (int k = 0; k * 0.02 <= duration_s; ++k)
-    r.joystick.push_back({t0 + 0.011 + 0.02 * k, 0.5 * std::min(1.0, k * 0.02), (k % 200 > 80) ? 0.25 : 0.0});
+    r.joystick.push_back(
+        {t0 + 0.011 + 0.02 * k, 0.5 * std::min(1.0, k * 0.02), (k % 200 > 80) ? 0.25 : 0.0});
   r.meta["operator"] = "capture-test";
   return r;
 }
@@ -126,9 +134,11 @@ inline bool sameSample(const io::AnySample& a, const io::AnySample& b, std::stri
         else if constexpr (std::is_same_v<T, io::SonarSample>)
           return x.t_s == y.t_s && x.range_m == y.range_m;
         else if constexpr (std::is_same_v<T, io::PozyxSample>)
-          return x.t_s == y.t_s && x.x_m == y.x_m && x.y_m == y.y_m && x.has_z == y.has_z && x.z_m == y.z_m;
+          return x.t_s == y.t_s && x.x_m == y.x_m && x.y_m == y.y_m && x.has_z == y.has_z &&
+                 x.z_m == y.z_m;
         else if constexpr (std::is_same_v<T, io::JoystickSample>)
-          return x.t_s == y.t_s && x.v_cmd_m_s == y.v_cmd_m_s && x.omega_cmd_rad_s == y.omega_cmd_rad_s;
+          return x.t_s == y.t_s && x.v_cmd_m_s == y.v_cmd_m_s &&
+                 x.omega_cmd_rad_s == y.omega_cmd_rad_s;
         else
           return false;
       },
@@ -143,7 +153,8 @@ constexpr io::StreamKind kCapturedStreams[] = {io::StreamKind::Encoders, io::Str
 
 /// Every sample of `expected` equals the one at the same position of `got` (stream by
 /// stream), and there is nothing more: nothing lost, nothing duplicated, nothing altered.
-inline void expectSameStream(const io::Recording& expected, const io::Recording& got, io::StreamKind k) {
+inline void expectSameStream(const io::Recording& expected, const io::Recording& got,
+                             io::StreamKind k) {
   const auto e = samplesOf(expected, k), g = samplesOf(got, k);
   EXPECT_EQ(e.size(), g.size()) << io::streamLabel(k);
   std::size_t bad = 0;
@@ -183,7 +194,8 @@ struct Child {
     int status = 0;
     waitpid(pid, &status, 0);
     pid = -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : (WIFSIGNALED(status) ? 128 + WTERMSIG(status) : -1);
+    return WIFEXITED(status) ? WEXITSTATUS(status)
+                             : (WIFSIGNALED(status) ? 128 + WTERMSIG(status) : -1);
   }
   /// Waits at most timeout_s; -2 if still running.
   int waitFor(double timeout_s) {
@@ -191,7 +203,8 @@ struct Child {
       int status = 0;
       if (waitpid(pid, &status, WNOHANG) == pid) {
         pid = -1;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : (WIFSIGNALED(status) ? 128 + WTERMSIG(status) : -1);
+        return WIFEXITED(status) ? WEXITSTATUS(status)
+                                 : (WIFSIGNALED(status) ? 128 + WTERMSIG(status) : -1);
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     }
@@ -220,6 +233,8 @@ inline void spawn(Child& c, const std::vector<std::string>& args, const std::str
   ASSERT_EQ(rc, 0) << "cannot start " << args[0];
 }
 
-inline void sleepFor(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }
+inline void sleepFor(double s) {
+  std::this_thread::sleep_for(std::chrono::duration<double>(s));
+}
 
 }  // namespace wheelchair::test

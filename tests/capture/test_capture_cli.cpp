@@ -47,11 +47,13 @@ struct InProcessReplay {
     r->setup();
   }
   void start() {
-    started_mono = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    started_mono =
+        std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
     th = std::thread([this] { report = r->run(&stop); });
   }
   double elapsed() const {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count() -
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+               .count() -
            started_mono;
   }
   ~InProcessReplay() {
@@ -69,15 +71,17 @@ TEST(CaptureCli, ReplaySerialIntoCaptureThenSigintGivesTheOriginalBack) {
   const auto expected = test::importedOriginal(dir, tmp);
   const std::string cfg = test::writeTestCaptureConfig(tmp);
   test::Child replay, cap;
-  test::spawn(replay,
-              {kCli, "replay-serial", dir, "--config", cfg, "--link-dir", tmp / "dev", "--write-config",
-               tmp / "replay.ini", "--speed", "6", "--start-delay", "4", "--hold", "0.5"},
-              tmp / "replay.log");
+  test::spawn(
+      replay,
+      {kCli, "replay-serial", dir, "--config", cfg, "--link-dir", tmp / "dev", "--write-config",
+       tmp / "replay.ini", "--speed", "6", "--start-delay", "4", "--hold", "0.5"},
+      tmp / "replay.log");
   ASSERT_TRUE(waitForFile(tmp / "replay.ini", 10)) << test::readFile(tmp / "replay.log");
   // (Program start-up links MRPT's hardware drivers and takes a few seconds here; the replay
   // starts 4 s after its ptys are ready, and lines wait in the ptys anyway.)
-  test::spawn(cap, {kCli, "capture", "--config", tmp / "replay.ini", "-o", tmp / "out.rawlog", "--verbose"},
-              tmp / "capture.log");
+  test::spawn(
+      cap, {kCli, "capture", "--config", tmp / "replay.ini", "-o", tmp / "out.rawlog", "--verbose"},
+      tmp / "capture.log");
   ASSERT_EQ(replay.waitFor(30), 0) << test::readFile(tmp / "replay.log");
   kill(cap.pid, SIGINT);
   ASSERT_EQ(cap.waitFor(10), 0) << test::readFile(tmp / "capture.log");
@@ -85,7 +89,8 @@ TEST(CaptureCli, ReplaySerialIntoCaptureThenSigintGivesTheOriginalBack) {
   test::expectSameRecording(expected, got);
   const std::string log = test::readFile(tmp / "capture.log");
   EXPECT_NE(log.find("records written to"), std::string::npos) << log;
-  EXPECT_NE(log.find("/s  records"), std::string::npos) << "no live status with --verbose:\n" << log;
+  EXPECT_NE(log.find("/s  records"), std::string::npos) << "no live status with --verbose:\n"
+                                                        << log;
   EXPECT_NE(test::readFile(tmp / "replay.log").find("lines"), std::string::npos);
   EXPECT_NE(test::readFile(tmp / "out.rawlog.log").find("capture stopped"), std::string::npos);
   // `wheelchair info` and MRPT's own tool read it.
@@ -96,6 +101,20 @@ TEST(CaptureCli, ReplaySerialIntoCaptureThenSigintGivesTheOriginalBack) {
     const auto r = test::run("rawlog-edit --info -i " + (tmp / "out.rawlog"));
     EXPECT_EQ(r.exit_code, 0) << r.out;
     EXPECT_NE(r.out.find("ENCODERS"), std::string::npos) << r.out;
+  }
+  // The estimator cannot tell the captured rawlog from the imported original.
+  if (test::cli("filter --help").exit_code == 0) {
+    ASSERT_EQ(test::cli("import " + dir + " -o " + (tmp / "imported-cli.rawlog")).exit_code, 0);
+    const std::string cfg_ini = test::sourcePath("config/wheelchair.ini");
+    const auto a = test::cli("filter " + (tmp / "out.rawlog") + " --config " + cfg_ini +
+                             " --estimates " + (tmp / "captured.csv"));
+    const auto b = test::cli("filter " + (tmp / "imported-cli.rawlog") + " --config " + cfg_ini +
+                             " --estimates " + (tmp / "imported.csv"));
+    ASSERT_EQ(a.exit_code, 0) << a.out;
+    ASSERT_EQ(b.exit_code, 0) << b.out;
+    const std::string ea = test::readFile(tmp / "captured.csv"), eb = test::readFile(tmp / "imported.csv");
+    EXPECT_GT(ea.size(), 100u);
+    EXPECT_EQ(ea, eb) << "filtering the captured rawlog differs from filtering the imported one";
   }
 }
 
@@ -138,7 +157,8 @@ TEST(CaptureCli, KillDashNineLeavesEverythingUpToTheLastFlushReadable) {
   // before it (a cut in the last member's trailer loses no record) and never fails.
   const std::string full = test::readFile(out);
   std::size_t prev = got.size() + 1;  // + META
-  for (std::size_t cut : {full.size() - 1, full.size() - 9, full.size() * 3 / 4, full.size() / 2, full.size() / 3}) {
+  for (std::size_t cut :
+       {full.size() - 1, full.size() - 9, full.size() * 3 / 4, full.size() / 2, full.size() / 3}) {
     test::writeFile(tmp / "cut.rawlog", full.substr(0, cut));
     io::RawlogReader in(tmp / "cut.rawlog");
     mrpt::serialization::CSerializable::Ptr obj;
@@ -146,7 +166,8 @@ TEST(CaptureCli, KillDashNineLeavesEverythingUpToTheLastFlushReadable) {
     while (in.next(obj)) ++n;
     EXPECT_EQ(n, in.recordsRead());
     EXPECT_LE(n, prev) << "cut at " << cut;
-    if (cut == full.size() - 1) EXPECT_EQ(n, got.size() + 1) << "a record was lost to a trailer cut";
+    if (cut == full.size() - 1)
+      EXPECT_EQ(n, got.size() + 1) << "a record was lost to a trailer cut";
     prev = n;
     io::RawlogReadReport r2;
     test::expectPrefix(rp.expected, io::readRawlog(tmp / "cut.rawlog", &r2, true));
@@ -158,14 +179,16 @@ TEST(CaptureCli, FullDiskStopsWithAClearErrorAndTheFileIntact) {
   InProcessReplay rp(tmp, 10.0, 4.0, 2.5);  // (the program takes ~2 s to start here)
   const std::string mnt = tmp / "mnt";
   std::filesystem::create_directories(mnt);
-  const std::string cmd = fmt::format("{} capture --config {} -o {}/out.rawlog --duration 15; echo \"rc=$?\"; cp {}/out.rawlog {}",
-                                      kCli, rp.config, mnt, mnt, tmp / "saved.rawlog");
+  const std::string cmd = fmt::format(
+      "{} capture --config {} -o {}/out.rawlog --duration 15; echo \"rc=$?\"; cp {}/out.rawlog {}",
+      kCli, rp.config, mnt, mnt, tmp / "saved.rawlog");
   // A real full disk: a 64 KiB tmpfs in a private mount namespace. Without the privilege
   // for that, a file-size limit (ulimit -f, EFBIG) fails the writes the same way.
   std::string how = "tmpfs";
   std::string script = fmt::format("mount -t tmpfs -o size=64k tmpfs {} && {}", mnt, cmd);
   if (test::run("unshare --mount true").exit_code != 0 ||
-      test::run(fmt::format("unshare --mount sh -c 'mount -t tmpfs -o size=64k tmpfs {}'", mnt)).exit_code != 0) {
+      test::run(fmt::format("unshare --mount sh -c 'mount -t tmpfs -o size=64k tmpfs {}'", mnt))
+              .exit_code != 0) {
     how = "ulimit";
     script = "ulimit -f 64 && " + cmd;
   }
@@ -173,6 +196,7 @@ TEST(CaptureCli, FullDiskStopsWithAClearErrorAndTheFileIntact) {
   const auto r = how == "tmpfs" ? test::run("unshare --mount bash -c '" + script + "'")
                                 : test::run("bash -c '" + script + "'");
   rp.stop = true;
+  std::cout << "[ full disk simulated with " << how << " ]\n";
   EXPECT_NE(r.out.find("rc=1"), std::string::npos) << how << ": " << r.out;
   EXPECT_TRUE(r.out.find("No space left on device") != std::string::npos ||
               r.out.find("File too large") != std::string::npos)
@@ -195,7 +219,8 @@ TEST(CaptureCli, SigtermWithEveryDeviceMissingStopsCleanly) {
   ini.write("encoders", "interface", "serial");
   test::writeFile(tmp / "absent.ini", ini.getContent());
   test::Child cap;
-  test::spawn(cap, {kCli, "capture", "--config", tmp / "absent.ini", "-o", tmp / "out.rawlog"}, tmp / "log");
+  test::spawn(cap, {kCli, "capture", "--config", tmp / "absent.ini", "-o", tmp / "out.rawlog"},
+              tmp / "log");
   ASSERT_TRUE(waitForFile(tmp / "out.rawlog", 15));  // up: signal handlers installed
   test::sleepFor(0.5);
   kill(cap.pid, SIGTERM);
@@ -215,13 +240,15 @@ TEST(CaptureCli, SigtermWithEveryDeviceMissingStopsCleanly) {
 TEST(CaptureCli, UsageAndConfigurationErrors) {
   TempDir tmp;
   EXPECT_EQ(test::cli("capture -o " + (tmp / "x.rawlog")).exit_code, 2);  // --config missing
-  test::writeFile(tmp / "bad.ini", "[imu]\ndriver = RazorImuSensor\nserial_port = /dev/null\nline_format = {t},{yaw}\n");
+  test::writeFile(
+      tmp / "bad.ini",
+      "[imu]\ndriver = RazorImuSensor\nserial_port = /dev/null\nline_format = {t},{yaw}\n");
   auto r = test::cli("capture --config " + (tmp / "bad.ini") + " -o " + (tmp / "x.rawlog"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("unknown field '{yaw}'"), std::string::npos) << r.out;
   test::writeFile(tmp / "exists.rawlog", "");
-  r = test::cli("capture --config " + test::writeTestCaptureConfig(tmp) + " -o " + (tmp / "exists.rawlog") +
-                " --duration 0.1");
+  r = test::cli("capture --config " + test::writeTestCaptureConfig(tmp) + " -o " +
+                (tmp / "exists.rawlog") + " --duration 0.1");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("already exists"), std::string::npos) << r.out;
 }

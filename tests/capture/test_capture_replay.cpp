@@ -44,7 +44,8 @@ bool hasEvent(const ScenarioResult& r, const std::string& section, const std::st
 }
 
 // Replays `rec` (written as a text recording) into the capture and reads the result back.
-ScenarioResult runScenario(const TempDir& tmp, const io::Recording& rec, capture::ReplayOptions ro) {
+ScenarioResult runScenario(const TempDir& tmp, const io::Recording& rec,
+                           capture::ReplayOptions ro) {
   ScenarioResult res;
   const std::string dir = tmp / "recording";
   io::writeTextRecording(rec, dir);
@@ -185,8 +186,8 @@ TEST(CaptureReplay, UnplugReplugLogsTheGapAndLeavesOtherSourcesAlone) {
   EXPECT_LE(e[missing_begin].t_s, gap_begin);
   EXPECT_GE(e[missing_begin].t_s, gap_begin - 0.25) << "lost more than the lines in flight";
   EXPECT_GT(e[i - 1].t_s, gap_end - 1e-5)
-      << fmt::format("missing {:.4f}..{:.4f}, outage {:.4f}..{:.4f}", e[missing_begin].t_s, e[i - 1].t_s,
-                     gap_begin, gap_end);
+      << fmt::format("missing {:.4f}..{:.4f}, outage {:.4f}..{:.4f}", e[missing_begin].t_s,
+                     e[i - 1].t_s, gap_begin, gap_end);
   EXPECT_LT(e[i - 1].t_s, gap_end + 1e-5) << "lost lines after the replug";
   io::Recording e_rest, g_rest;
   e_rest.imu.assign(e.begin() + i, e.end());

@@ -53,7 +53,8 @@ TEST(LineFormat, ArduinoSendsIntegerAdcCountsConvertedByTheCalibration) {
 
 TEST(LineFormat, StockRazorFirmwareFormatWithUnitGains) {
   const std::string ini =
-      "[imu]\nline_format = {t}, {acc_x}, {acc_y}, {acc_z}, {gyro_x}, {gyro_y}, {gyro_z}, {_}, {_}, {_}\n"
+      "[imu]\nline_format = {t}, {acc_x}, {acc_y}, {acc_z}, {gyro_x}, {gyro_y}, {gyro_z}, {_}, "
+      "{_}, {_}\n"
       "t_gain = 0.001\nacc_x_gain = 9.80665\nacc_y_gain = 9.80665\nacc_z_gain = 9.80665\n"
       "gyro_x_gain = 0.017453292519943295\ngyro_y_gain = 0.017453292519943295\n"
       "gyro_z_gain = 0.017453292519943295\n";
@@ -87,13 +88,14 @@ TEST(LineFormat, MalformedLinesAreRejected) {
   const auto pozyx = LineFormat::fromConfig(ini, "pozyx", StreamKind::Pozyx);
   ParsedLine p;
   for (const char* bad : {"", "1.0", "1.0,5", "1.0,5,6,7", "1.0,5.5,6", "1.0,5e3,6", "1.0,,6",
-                          "1.0,5,6,", "x1.0,5,6", "1.0;5;6", "1.0,4294967296,6", "1.0,-2147483649,6",
-                          "nan,5,6", "1.0,0x10,6", "\x80\x81\x82"})
+                          "1.0,5,6,", "x1.0,5,6", "1.0;5;6", "1.0,4294967296,6",
+                          "1.0,-2147483649,6", "nan,5,6", "1.0,0x10,6", "\x80\x81\x82"})
     EXPECT_FALSE(enc.parse(bad, p)) << "'" << bad << "'";
-  for (const char* bad : {"1.0,0.1,0.2", "1.0,0.1,0.2,0.3,0.4,0.5", "1.0,inf", "1.0,0.1,", "1.0,err"})
+  for (const char* bad :
+       {"1.0,0.1,0.2", "1.0,0.1,0.2,0.3,0.4,0.5", "1.0,inf", "1.0,0.1,", "1.0,err"})
     EXPECT_FALSE(imu.parse(bad, p)) << bad;
-  EXPECT_FALSE(sonar.parse("1.0,-0.5", p));  // a negative range
-  EXPECT_FALSE(pozyx.parse("1.0,1,2,", p));  // a dangling optional group
+  EXPECT_FALSE(sonar.parse("1.0,-0.5", p));           // a negative range
+  EXPECT_FALSE(pozyx.parse("1.0,1,2,", p));           // a dangling optional group
   EXPECT_FALSE(enc.parse(std::string(600, '1'), p));  // longer than max_line_length
 }
 
@@ -125,7 +127,8 @@ TEST(LineFormat, PrefixesAndRegexFormats) {
   EXPECT_EQ(f.format(io::SonarSample{10.5, 1.25}), "$RNG 10.5 ; 125 cm");
 
   const auto r = fromIni(
-      "[p]\nline_regex = ^POS,0x[0-9a-f]+,x\\(mm\\): (-?\\d+) y\\(mm\\): (-?\\d+)( z\\(mm\\): (-?\\d+))?$\n"
+      "[p]\nline_regex = ^POS,0x[0-9a-f]+,x\\(mm\\): (-?\\d+) y\\(mm\\): (-?\\d+)( z\\(mm\\): "
+      "(-?\\d+))?$\n"
       "line_fields = x,y,_,z\nx_gain = 0.001\ny_gain = 0.001\nz_gain = 0.001\n",
       "p", StreamKind::Pozyx);
   ASSERT_TRUE(r.parse("POS,0x6951,x(mm): 1234 y(mm): -50", p));
@@ -147,14 +150,20 @@ TEST(LineFormat, ConfigurationErrorsNameTheProblem) {
     }
     return "";
   };
-  EXPECT_NE(err("[s]\nline_format = {t},{speed}\n", StreamKind::Sonar).find("unknown field"), std::string::npos);
-  EXPECT_NE(err("[s]\nline_format = {t}\n", StreamKind::Sonar).find("required field {range}"), std::string::npos);
-  EXPECT_NE(err("[s]\nline_format = {t}.{range}\n", StreamKind::Sonar).find("ambiguous"), std::string::npos);
-  EXPECT_NE(err("[s]\nline_format = {t},{range},{range}\n", StreamKind::Sonar).find("twice"), std::string::npos);
-  EXPECT_NE(err("[s]\nright_ticks_gain = 2\n", StreamKind::Encoders).find("tick counts"), std::string::npos);
+  EXPECT_NE(err("[s]\nline_format = {t},{speed}\n", StreamKind::Sonar).find("unknown field"),
+            std::string::npos);
+  EXPECT_NE(err("[s]\nline_format = {t}\n", StreamKind::Sonar).find("required field {range}"),
+            std::string::npos);
+  EXPECT_NE(err("[s]\nline_format = {t}.{range}\n", StreamKind::Sonar).find("ambiguous"),
+            std::string::npos);
+  EXPECT_NE(err("[s]\nline_format = {t},{range},{range}\n", StreamKind::Sonar).find("twice"),
+            std::string::npos);
+  EXPECT_NE(err("[s]\nright_ticks_gain = 2\n", StreamKind::Encoders).find("tick counts"),
+            std::string::npos);
   EXPECT_NE(err("[s]\nline_format = {t},{gyro_z},{gyro_x}\n", StreamKind::Imu).find("go together"),
             std::string::npos);
-  EXPECT_NE(err("[s]\nrange_gain = abc\n", StreamKind::Sonar).find("range_gain"), std::string::npos);
+  EXPECT_NE(err("[s]\nrange_gain = abc\n", StreamKind::Sonar).find("range_gain"),
+            std::string::npos);
 }
 
 namespace {
@@ -162,15 +171,16 @@ namespace {
 struct FedSensor {
   capture::SonarSensor s;
   FedSensor() {
-    mrpt::config::CConfigFileMemory ini("[sonar]\ndriver = SonarSensor\nserial_port = /nonexistent\n"
-                                        "time_source = device\nmax_line_length = 64\n");
+    mrpt::config::CConfigFileMemory ini(
+        "[sonar]\ndriver = SonarSensor\nserial_port = /nonexistent\n"
+        "time_source = device\nmax_line_length = 64\n");
     s.loadConfig(ini, "sonar");
   }
   std::vector<double> ranges() {
     std::vector<double> v;
     for (auto& [t, o] : s.getObservations())
-      v.push_back(std::get<io::SonarSample>(*io::fromObservation(
-                                                 *std::dynamic_pointer_cast<mrpt::obs::CObservation>(o)))
+      v.push_back(std::get<io::SonarSample>(
+                      *io::fromObservation(*std::dynamic_pointer_cast<mrpt::obs::CObservation>(o)))
                       .range_m);
     return v;
   }
@@ -202,7 +212,8 @@ TEST(LineSensor, MrptFactoryCreatesTheDrivers) {
     ASSERT_TRUE(s) << d;
     EXPECT_STREQ(s->GetRuntimeClass()->className, d);
     // Also through MRPT's own factory, as rawlog-grabber would.
-    std::unique_ptr<mrpt::hwdrivers::CGenericSensor> g(mrpt::hwdrivers::CGenericSensor::createSensor(d));
+    std::unique_ptr<mrpt::hwdrivers::CGenericSensor> g(
+        mrpt::hwdrivers::CGenericSensor::createSensor(d));
     EXPECT_TRUE(g) << d;
   }
   EXPECT_FALSE(capture::createCaptureSource("CGPSInterface"));  // an MRPT driver, not ours

@@ -32,15 +32,22 @@ class FakeBus : public SpiBus {
     std::fill(rx, rx + n, c_.present ? 0x00 : 0xFF);
     if (!c_.present) return true;  // MISO floats high: reads 0xFF
     switch (tx[0]) {
-      case ls7366r::kWriteMdr0: c_.mdr0 = tx[1]; break;
-      case ls7366r::kWriteMdr1: c_.mdr1 = tx[1]; break;
-      case ls7366r::kReadMdr0: rx[1] = c_.mdr0; break;
+      case ls7366r::kWriteMdr0:
+        c_.mdr0 = tx[1];
+        break;
+      case ls7366r::kWriteMdr1:
+        c_.mdr1 = tx[1];
+        break;
+      case ls7366r::kReadMdr0:
+        rx[1] = c_.mdr0;
+        break;
       case ls7366r::kReadCntr: {
         const auto u = static_cast<uint32_t>(c_.count.load());
         for (int i = 0; i < 4; ++i) rx[1 + i] = static_cast<uint8_t>(u >> (24 - 8 * i));
         break;
       }
-      default: break;
+      default:
+        break;
     }
     return true;
   }
@@ -49,14 +56,17 @@ class FakeBus : public SpiBus {
   FakeChip& c_;
 };
 
-std::unique_ptr<QuadratureCounterSensor> makeSensor(FakeChip& right, FakeChip& left, const std::string& extra = "") {
+std::unique_ptr<QuadratureCounterSensor> makeSensor(FakeChip& right, FakeChip& left,
+                                                    const std::string& extra = "") {
   auto s = std::make_unique<QuadratureCounterSensor>();
-  s->setBusFactory([&right, &left](const std::string& dev, std::string&) -> std::unique_ptr<SpiBus> {
-    return std::make_unique<FakeBus>(dev == "/dev/spidev0.0" ? right : left);
-  });
-  mrpt::config::CConfigFileMemory ini("[encoders]\ndriver = QuadratureCounterSensor\nprocess_rate = 200\n"
-                                      "interface = spi\nreconnect_min_s = 0.01\nreconnect_max_s = 0.02\n" +
-                                      extra);
+  s->setBusFactory(
+      [&right, &left](const std::string& dev, std::string&) -> std::unique_ptr<SpiBus> {
+        return std::make_unique<FakeBus>(dev == "/dev/spidev0.0" ? right : left);
+      });
+  mrpt::config::CConfigFileMemory ini(
+      "[encoders]\ndriver = QuadratureCounterSensor\nprocess_rate = 200\n"
+      "interface = spi\nreconnect_min_s = 0.01\nreconnect_max_s = 0.02\n" +
+      extra);
   s->loadConfig(ini, "encoders");
   return s;
 }
@@ -133,14 +143,16 @@ TEST(SpiCounter, MissingBoardIsRetriedAndATransferErrorReconnects) {
   EXPECT_EQ(s->status().connects, 2u);
   EXPECT_EQ(s->status().gaps, 1u);
   bool gap_logged = false;
-  for (const auto& e : s->takeEvents()) gap_logged = gap_logged || e.text.find("gap in ENCODERS") != std::string::npos;
+  for (const auto& e : s->takeEvents())
+    gap_logged = gap_logged || e.text.find("gap in ENCODERS") != std::string::npos;
   EXPECT_TRUE(gap_logged);
 }
 
 TEST(SpiCounter, RealSpidevAbsentIsAConnectionErrorNotACrash) {
   auto s = std::make_unique<QuadratureCounterSensor>();
   mrpt::config::CConfigFileMemory ini(
-      "[e]\ninterface = spi\nspi_device_right = /nonexistent/spidev9.0\nspi_device_left = /nonexistent/spidev9.1\n");
+      "[e]\ninterface = spi\nspi_device_right = /nonexistent/spidev9.0\nspi_device_left = "
+      "/nonexistent/spidev9.1\n");
   s->loadConfig(ini, "e");
   s->initialize();
   EXPECT_FALSE(s->status().connected);
@@ -150,7 +162,8 @@ TEST(SpiCounter, RealSpidevAbsentIsAConnectionErrorNotACrash) {
 
 TEST(SpiCounter, SerialFallbackReadsLines) {
   auto s = std::make_unique<QuadratureCounterSensor>();
-  mrpt::config::CConfigFileMemory ini("[e]\ninterface = serial\nserial_port = /nonexistent\ntime_source = device\n");
+  mrpt::config::CConfigFileMemory ini(
+      "[e]\ninterface = serial\nserial_port = /nonexistent\ntime_source = device\n");
   s->loadConfig(ini, "e");
   EXPECT_FALSE(s->usesSpi());
   const std::string lines = "1.5,100,-100\n1.52,105,-94\n";

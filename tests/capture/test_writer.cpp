@@ -20,7 +20,9 @@ mrpt::obs::CObservation::Ptr obsAt(const io::AnySample& s) {
 
 }  // namespace
 
-TEST(Writer, Crc32OfTheCheckString) { EXPECT_EQ(crc32("123456789", 9), 0xCBF43926u); }
+TEST(Writer, Crc32OfTheCheckString) {
+  EXPECT_EQ(crc32("123456789", 9), 0xCBF43926u);
+}
 
 TEST(Writer, EachFlushIsACompleteMemberAndEveryCutReadsAsAPrefix) {
   TempDir tmp;
@@ -63,7 +65,8 @@ TEST(Writer, EachFlushIsACompleteMemberAndEveryCutReadsAsAPrefix) {
     ASSERT_NO_THROW(got = io::readRawlog(p, &rep, true)) << "cut at " << cut;
     EXPECT_GE(got.size(), last_count) << "cut at " << cut;
     last_count = got.size();
-    const bool at_member_end = cut == 0 || std::count(member_ends.begin(), member_ends.end(), cut) > 0;
+    const bool at_member_end =
+        cut == 0 || std::count(member_ends.begin(), member_ends.end(), cut) > 0;
     if (at_member_end) EXPECT_FALSE(rep.broken.has_value()) << "cut at " << cut;
     test::expectPrefix(whole, got);
     // Every record of every complete member is there.

@@ -38,8 +38,8 @@ struct SynthOptions {
   double encoder_extra_noise_m_s = 0.005;  ///< 1 sigma of the interval mean at 50 Hz, per wheel
   double left_encoder_scale = 1.0;         ///< fault: left ticks scaled
   Eigen::Vector2d obstacle_world{3.0, 0.6};
-  bool sonar_cone = false;              ///< only see the obstacle inside the 15 deg cone
-  std::set<int> forced_sonar_zeros;     ///< indices of sonar samples that read 0
+  bool sonar_cone = false;           ///< only see the obstacle inside the 15 deg cone
+  std::set<int> forced_sonar_zeros;  ///< indices of sonar samples that read 0
   bool pozyx = false;
   double start_pause_s = 1.0;
   /// Motor currents (A) as a function of time since the start (after the pause).
@@ -79,7 +79,8 @@ inline std::function<Eigen::Vector2d(double)> curvyCurrents(double phase, double
                                                             double diff_amp = 0.55) {
   return [=](double t) {
     const double sum = sum_mean * (1.0 + 0.33 * std::sin(0.31 * t + phase));
-    const double diff = diff_amp * std::sin(0.45 * t + 0.7 * phase) + 0.36 * diff_amp * std::sin(1.3 * t);
+    const double diff =
+        diff_amp * std::sin(0.45 * t + 0.7 * phase) + 0.36 * diff_amp * std::sin(1.3 * t);
     return Eigen::Vector2d(0.5 * (sum + diff), 0.5 * (sum - diff));
   };
 }

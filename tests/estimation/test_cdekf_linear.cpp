@@ -20,8 +20,12 @@ struct LinearModel : CdModel {
   void f(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::VectorXd& xd) const override {
     xd = A * x + B * u;
   }
-  void F(const Eigen::VectorXd&, const Eigen::VectorXd&, Eigen::MatrixXd& F) const override { F = A; }
-  void Q(const Eigen::VectorXd&, const Eigen::VectorXd&, Eigen::MatrixXd& Q) const override { Q = Qc; }
+  void F(const Eigen::VectorXd&, const Eigen::VectorXd&, Eigen::MatrixXd& F) const override {
+    F = A;
+  }
+  void Q(const Eigen::VectorXd&, const Eigen::VectorXd&, Eigen::MatrixXd& Q) const override {
+    Q = Qc;
+  }
 };
 
 LinearModel makeModel() {
@@ -92,9 +96,8 @@ void runAgainstClosedForm(CvodeOptions::Method method) {
     u0 << std::sin(k), 0.5 * k;
     u1 << std::cos(3 * k), -0.2 * k;
     const double ta = t;
-    ekf.propagate(t + dt, [&](double tt) -> Eigen::VectorXd {
-      return u0 + (tt - ta) / dt * (u1 - u0);
-    });
+    ekf.propagate(t + dt,
+                  [&](double tt) -> Eigen::VectorXd { return u0 + (tt - ta) / dt * (u1 - u0); });
     x = exactState(m, x, u0, u1, dt);
     P = exactCov(m, P, dt);
     t += dt;
@@ -108,9 +111,13 @@ void runAgainstClosedForm(CvodeOptions::Method method) {
 
 }  // namespace
 
-TEST(CdEkfLinear, AdamsMatchesMatrixExponential) { runAgainstClosedForm(CvodeOptions::Method::Adams); }
+TEST(CdEkfLinear, AdamsMatchesMatrixExponential) {
+  runAgainstClosedForm(CvodeOptions::Method::Adams);
+}
 
-TEST(CdEkfLinear, BdfMatchesMatrixExponential) { runAgainstClosedForm(CvodeOptions::Method::Bdf); }
+TEST(CdEkfLinear, BdfMatchesMatrixExponential) {
+  runAgainstClosedForm(CvodeOptions::Method::Bdf);
+}
 
 TEST(CdEkfLinear, JosephUpdateMatchesTextbookAndGates) {
   const LinearModel m = makeModel();

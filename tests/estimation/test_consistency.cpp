@@ -22,7 +22,7 @@ namespace {
 
 struct McConfig {
   int runs = 20;
-  double duration_s = 15.0;
+  double duration_s = 12.0;
   ObstacleFormOption form = ObstacleFormOption::Cartesian;
 };
 
@@ -152,24 +152,25 @@ McResult monteCarlo(const McConfig& mc) {
 }
 
 void report(const char* name, const McResult& r, const McConfig& mc) {
-  std::printf("[%s] %d runs x %.0f s: mean NEES %.3f (7 dof; 95%% band of a %d-run mean "
-              "[%.3f, %.3f]); times with run-averaged NEES inside the band: %.1f%%\n",
-              name, mc.runs, mc.duration_s, r.mean_nees, mc.runs, r.band.first, r.band.second,
-              100 * r.frac_times_inside);
+  std::printf(
+      "[%s] %d runs x %.0f s: mean NEES %.3f (7 dof; 95%% band of a %d-run mean "
+      "[%.3f, %.3f]); times with run-averaged NEES inside the band: %.1f%%\n",
+      name, mc.runs, mc.duration_s, r.mean_nees, mc.runs, r.band.first, r.band.second,
+      100 * r.frac_times_inside);
   std::printf("[%s]   per state err^2/var (v omega x y phi o1 o2):%s\n", name,
               fmtv(r.per_component).c_str());
   for (int s = 0; s < 3; ++s)
-    std::printf("[%s]   NIS %-8s mean %.3f (band of one run's mean [%.3f, %.3f]), inside the "
-                "single-sample 95%% band %.1f%%\n",
-                name, sensorName(Sensor(s)), r.mean_nis[s], r.nis_band[s].first,
-                r.nis_band[s].second, 100 * r.nis_inside95[s]);
+    std::printf(
+        "[%s]   NIS %-8s mean %.3f (band of one run's mean [%.3f, %.3f]), inside the "
+        "single-sample 95%% band %.1f%%\n",
+        name, sensorName(Sensor(s)), r.mean_nis[s], r.nis_band[s].first, r.nis_band[s].second,
+        100 * r.nis_inside95[s]);
 }
 
 void checkConsistency(const McConfig& mc, const char* name) {
   const auto t0 = std::chrono::steady_clock::now();
   const McResult r = monteCarlo(mc);
-  const double secs =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   report(name, r, mc);
   std::printf("[%s]   wall time %.2f s\n", name, secs);
   EXPECT_GT(r.mean_nees, r.band.first);

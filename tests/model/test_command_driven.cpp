@@ -90,11 +90,11 @@ TEST(CommandDriven, KindsGainsAndDeadband) {
   EXPECT_EQ(classifyCommand(0, 0.4, p), CommandKind::TurnInPlace);
   EXPECT_EQ(classifyCommand(0.1, 0.4, p), CommandKind::Arc);
   const CommandDrivenModel m(p);
-  EXPECT_NEAR(m.target(Eigen::Vector2d(0, 0.4))(1), 0.28, 1e-12);   // in place x0.7
-  EXPECT_NEAR(m.target(Eigen::Vector2d(0.1, 0.4))(1), 0.4, 1e-12);  // arc x1
-  EXPECT_NEAR(m.target(Eigen::Vector2d(0.1, 0.4))(0), 0.09, 1e-12); // arc v x0.9
+  EXPECT_NEAR(m.target(Eigen::Vector2d(0, 0.4))(1), 0.28, 1e-12);    // in place x0.7
+  EXPECT_NEAR(m.target(Eigen::Vector2d(0.1, 0.4))(1), 0.4, 1e-12);   // arc x1
+  EXPECT_NEAR(m.target(Eigen::Vector2d(0.1, 0.4))(0), 0.09, 1e-12);  // arc v x0.9
   EXPECT_NEAR(m.target(Eigen::Vector2d(0.1, 0))(0), 0.1, 1e-12);
-  EXPECT_EQ(m.target(Eigen::Vector2d(0.015, 0.03)).norm(), 0.0);      // both in the deadband
+  EXPECT_EQ(m.target(Eigen::Vector2d(0.015, 0.03)).norm(), 0.0);  // both in the deadband
   p.v_gain_backward = 0.5;
   EXPECT_NEAR(CommandDrivenModel(p).target(Eigen::Vector2d(-0.1, 0))(0), -0.05, 1e-12);
 }
@@ -102,10 +102,9 @@ TEST(CommandDriven, KindsGainsAndDeadband) {
 TEST(CommandDriven, SignalResolvesDuplicatesAndShortZeroRuns) {
   // t: 0 moving, 0.01 duplicated (conflicting; last wins), 1.00/1.01 a two-line (0,0) blip,
   // 2.0 .. 2.5 a real stop.
-  const std::vector<CommandSample> rows = {{0.00, 0.1, 0.0},  {0.01, 0.1, 0.2},
-                                           {0.01, 0.1, 0.3},  {1.00, 0.0, 0.0},
-                                           {1.01, 0.0, 0.0},  {1.02, 0.1, 0.3},
-                                           {2.00, 0.0, 0.0},  {2.50, 0.1, 0.3}};
+  const std::vector<CommandSample> rows = {{0.00, 0.1, 0.0}, {0.01, 0.1, 0.2}, {0.01, 0.1, 0.3},
+                                           {1.00, 0.0, 0.0}, {1.01, 0.0, 0.0}, {1.02, 0.1, 0.3},
+                                           {2.00, 0.0, 0.0}, {2.50, 0.1, 0.3}};
   const CommandSignal raw(rows, {});
   EXPECT_EQ(raw.droppedDuplicates(), 1u);
   EXPECT_DOUBLE_EQ(raw.at(0.5)(1), 0.3);
