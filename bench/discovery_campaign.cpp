@@ -21,26 +21,36 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) throw std::runtime_error("missing value after " + a);
       return argv[++i];
     };
-    if (a == "--runs") o.runs_per_effect = std::stoi(next());
-    else if (a == "--pairs") o.pair_runs = std::stoi(next());
-    else if (a == "--clean") o.clean_runs = std::stoi(next());
-    else if (a == "--seed") o.seed = std::stoull(next());
-    else if (a == "--duration") o.duration_s = std::stod(next());
-    else if (a == "--config") cfg_path = next();
-    else if (a == "--json") json_path = next();
+    if (a == "--runs")
+      o.runs_per_effect = std::stoi(next());
+    else if (a == "--pairs")
+      o.pair_runs = std::stoi(next());
+    else if (a == "--clean")
+      o.clean_runs = std::stoi(next());
+    else if (a == "--seed")
+      o.seed = std::stoull(next());
+    else if (a == "--duration")
+      o.duration_s = std::stod(next());
+    else if (a == "--config")
+      cfg_path = next();
+    else if (a == "--json")
+      json_path = next();
     else if (a == "--scenarios" || a == "--effects") {
       std::vector<std::string> v;
       std::stringstream ss(next());
       for (std::string t; std::getline(ss, t, ',');) v.push_back(t);
       (a == "--effects" ? o.effects : o.scenarios) = v;
-    } else if (a == "-v") o.verbose = true;
+    } else if (a == "-v")
+      o.verbose = true;
     else {
-      std::cerr << "usage: discovery_campaign [--runs N] [--pairs N] [--clean N] [--seed S] [--duration S] "
+      std::cerr << "usage: discovery_campaign [--runs N] [--pairs N] [--clean N] [--seed S] "
+                   "[--duration S] "
                    "[--effects a,b] [--scenarios a,b] [--config F] [--json OUT] [-v]\n";
       return 2;
     }
   }
-  auto cfg = cfg_path.empty() ? config::WheelchairConfig() : config::WheelchairConfig::load(cfg_path);
+  auto cfg =
+      cfg_path.empty() ? config::WheelchairConfig() : config::WheelchairConfig::load(cfg_path);
   diagnosis::DiagnosisOptions dopt;
   dopt.loadFromConfig(cfg.ini());
   auto res = diagnosis::runCampaign(cfg, o, dopt);

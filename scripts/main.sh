@@ -1,19 +1,49 @@
 #!/usr/bin/env bash
-# The main job on a drive bundled in datasets/: installs, builds, then replays the paper's
-# three-task drive (faulty left encoder, unequal motors, failing sonar) through the tool and
-# prints what a user needs to see. Results go to out/ (override with OUT_DIR=...).
+# The main job on drives bundled in datasets/: installs, builds, then takes the paper's
+# three-task drive (left encoder with a wrong pulley ratio, unequal motors, failing sonar)
+# through the whole tool — import, inspect, filter, compare with ground truth, diagnose what
+# the model leaves out, re-filter with the corrected model, and write the report.
+# Results go to out/ (override with OUT_DIR=...).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/build.sh
 BIN=${BUILD_DIR:-build}/bin/wheelchair
 OUT=${OUT_DIR:-out}
+CFG=config/wheelchair.ini
 mkdir -p "$OUT"
-DRIVE=datasets/three_task_faulty
 
 step() { printf '\n=== %s\n' "$*"; }
 
-step "1. import the plain-text recording $DRIVE/ into an MRPT rawlog"
-"$BIN" import "$DRIVE" -o "$OUT/three_task_faulty.rawlog"
+step "1. import the plain-text recordings into MRPT rawlogs"
+"$BIN" import datasets/three_task_faulty -o "$OUT/three_task_faulty.rawlog" --config "$CFG"
+"$BIN" import datasets/three_task_faulty_b -o "$OUT/three_task_faulty_b.rawlog" --config "$CFG"
 
-step "2. what is in it"
+step "2. what is in the drive"
 "$BIN" info "$OUT/three_task_faulty.rawlog"
+
+step "3. replay it through the CVODE-integrated EKF (and the paper's Fig. 5 raw variants)"
+"$BIN" filter "$OUT/three_task_faulty.rawlog" --config "$CFG" --variants \
+  --trajectory "$OUT/ekf.tum" --estimates "$OUT/estimates.csv"
+
+step "4. compare every variant with the Pozyx ground truth (nominal model)"
+"$BIN" evaluate "$OUT/three_task_faulty.rawlog" --config "$CFG" -q \
+  --markdown "$OUT/metrics_nominal.md" --csv "$OUT/metrics_nominal.csv"
+sed -n '/^| recording/,/^$/p' "$OUT/metrics_nominal.md"
+
+step "5. diagnose: what physics does the model leave out? (validated on another drive)"
+"$BIN" diagnose "$OUT/three_task_faulty.rawlog" --validate "$OUT/three_task_faulty_b.rawlog" \
+  --config "$CFG" --json "$OUT/diagnosis.json" --write-config "$OUT/corrected.ini"
+
+step "6. the other drive, filtered with the nominal and with the corrected configuration"
+"$BIN" evaluate "$OUT/three_task_faulty_b.rawlog" --config "$CFG" -q --no-baseline \
+  --markdown "$OUT/metrics_validation_nominal.md"
+"$BIN" evaluate "$OUT/three_task_faulty_b.rawlog" --config "$OUT/corrected.ini" -q --no-baseline \
+  --markdown "$OUT/metrics_validation_corrected.md"
+echo "nominal model:";   sed -n '/^| recording/,/^$/p' "$OUT/metrics_validation_nominal.md"
+echo "corrected model:"; sed -n '/^| recording/,/^$/p' "$OUT/metrics_validation_corrected.md"
+
+step "7. report: figures like the paper's Fig. 5-8 and the metrics"
+"$BIN" report "$OUT/three_task_faulty.rawlog" --config "$CFG" -o "$OUT/report" \
+  --truth datasets/three_task_faulty.truth.json --no-3d
+echo
+echo "done: results in $OUT/ (report: $OUT/report/index.md)"

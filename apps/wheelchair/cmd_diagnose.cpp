@@ -66,8 +66,10 @@ int runDiagnose(const DiagnoseOptions& o) {
     auto& t = rep.validation["trajectory_full_recordings"];
     for (size_t k = 0; k < t["before"].size(); ++k)
       text += fmt::format(
-          "  recording {}: odometry terminal error {:.3f} m -> {:.3f} m, encoder+gyro {:.3f} m -> {:.3f} m\n", k,
-          t["before"][k]["odometry_terminal_m"].get<double>(), t["after"][k]["odometry_terminal_m"].get<double>(),
+          "  recording {}: odometry terminal error {:.3f} m -> {:.3f} m, encoder+gyro {:.3f} m -> "
+          "{:.3f} m\n",
+          k, t["before"][k]["odometry_terminal_m"].get<double>(),
+          t["after"][k]["odometry_terminal_m"].get<double>(),
           t["before"][k]["encoder_gyro_terminal_m"].get<double>(),
           t["after"][k]["encoder_gyro_terminal_m"].get<double>());
   }
@@ -88,14 +90,17 @@ const RegisterCommand reg{Command{
     [](CLI::App& sub) -> std::function<int()> {
       auto o = std::make_shared<DiagnoseOptions>();
       sub.add_option("inputs", o->inputs, "Recording(s) of one vehicle to fit on")->required();
-      sub.add_option("--config", o->config_path,
-                     "Configuration INI (default: the nominal vehicle); [diagnosis] holds the options");
+      sub.add_option(
+          "--config", o->config_path,
+          "Configuration INI (default: the nominal vehicle); [diagnosis] holds the options");
       sub.add_option("--validate", o->validate,
-                     "Held-out recording(s) for the before/after comparison (default: the last 30% of each input)");
+                     "Held-out recording(s) for the before/after comparison (default: the last 30% "
+                     "of each input)");
       sub.add_option("--json", o->json_path, "Write the findings as JSON here")->required();
       sub.add_option("--write-config", o->write_config,
                      "Write the configuration with a [model_extensions] section here");
-      sub.add_option("--report", o->report_dir, "Write a summary and the full JSON into this directory");
+      sub.add_option("--report", o->report_dir,
+                     "Write a summary and the full JSON into this directory");
       return [o] { return runDiagnose(*o); };
     }}};
 

@@ -55,8 +55,8 @@ int runEvaluate(const EvaluateOptions& o) {
   if (o.csv.empty() && o.json.empty() && o.markdown.empty()) std::cout << evaluation::batchCsv(res);
   for (const auto& r : res.rows)
     if (!r.error.empty())
-      std::cerr << "wheelchair evaluate: " << r.recording << (r.variant.empty() ? "" : " [" + r.variant + "]")
-                << ": " << r.error << "\n";
+      std::cerr << "wheelchair evaluate: " << r.recording
+                << (r.variant.empty() ? "" : " [" + r.variant + "]") << ": " << r.error << "\n";
   if (!o.quiet)
     fmt::print(stderr, "evaluated {} recording(s), {} failed\n", res.recordings,
                res.failed_recordings);

@@ -8,6 +8,7 @@
 #include "libwheelchair/estimation/DeadReckoning.h"
 #include "libwheelchair/estimation/EkfOptions.h"
 #include "libwheelchair/estimation/Estimator.h"
+#include "libwheelchair/estimation/ModelExtensions.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Trajectory.h"
 #include "libwheelchair/io/RawlogIO.h"
@@ -62,7 +63,15 @@ int runFilter(const FilterCliOptions& o) {
   opt.resolveSensorDefaults(cfg);
 
   io::RawlogReadReport rep;
-  const io::Recording rec = io::readRawlog(o.input, &rep);
+  io::Recording rec = io::readRawlog(o.input, &rep);
+  // A corrected configuration (`wheelchair diagnose --write-config`) calibrates the sensors
+  // and the drive train before filtering (estimation/ModelExtensions.h).
+  const auto ext = estimation::ModelExtensions::fromConfig(cfg.ini());
+  if (!ext.empty()) {
+    cfg = ext.adjustConfig(cfg);
+    rec = ext.apply(rec, cfg);
+    fmt::print("model extensions applied: {}\n", ext.summary());
+  }
   const auto t0 = std::chrono::steady_clock::now();
   const estimation::EstimationResult res = estimation::runEstimator(rec, cfg, opt);
   const double wall_s =

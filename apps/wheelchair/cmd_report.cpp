@@ -54,9 +54,11 @@ const RegisterCommand reg{Command{
       sub.add_option("--at", o->at_s,
                      "Time of Fig. 7 and the 3-D snapshot, s since the start of the drive "
                      "(default: inside the obstacle-estimate span)");
-      sub.add_option("--alignment", o->alignment, "Metrics table: none | origin | se2 | se2-first:S")
+      sub.add_option("--alignment", o->alignment,
+                     "Metrics table: none | origin | se2 | se2-first:S")
           ->default_val("se2");
-      sub.add_option("--truth", o->truth, "Simulator truth JSON (default FILE.truth.json if present)");
+      sub.add_option("--truth", o->truth,
+                     "Simulator truth JSON (default FILE.truth.json if present)");
       sub.add_flag("--no-3d", o->no_3d, "Skip the offscreen 3-D snapshot");
       return [o] { return runReport(*o); };
     }}};

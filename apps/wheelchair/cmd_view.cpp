@@ -37,8 +37,7 @@ int runView(const ViewCliOptions& o) {
     std::cerr << "wheelchair view: " << r.message << "\n";
     return kExitBadInput;
   }
-  if (!o.screenshot.empty())
-    fmt::print("wrote {} ({}: {})\n", o.screenshot, r.method, r.message);
+  if (!o.screenshot.empty()) fmt::print("wrote {} ({}: {})\n", o.screenshot, r.method, r.message);
   return kExitOk;
 }
 
@@ -48,7 +47,8 @@ const RegisterCommand reg{Command{
       auto o = std::make_shared<ViewCliOptions>();
       sub.add_option("file", o->file, "Rawlog recording")->required();
       sub.add_option("--config", o->config_path, "Configuration INI (default: nominal vehicle)");
-      sub.add_option("--truth", o->truth, "Simulator truth JSON (default FILE.truth.json if present)");
+      sub.add_option("--truth", o->truth,
+                     "Simulator truth JSON (default FILE.truth.json if present)");
       sub.add_option("--screenshot", o->screenshot, "Save one frame as PNG and exit");
       sub.add_option("--at", o->at_s, "Time of the frame, s since the start of the drive");
       sub.add_option("--width", o->width, "Window width (px)")->default_val(1200);

@@ -236,10 +236,21 @@ int CaptureSession::run(const std::atomic<bool>* stop) {
           false);
   for (auto& s : sources_) s->initialize();
   handleEvents();
-  std::vector<std::thread> threads;
+  // The source threads; joined on every way out of run() (also an unexpected exception).
+  struct Threads {
+    std::atomic<bool>& stop;
+    std::vector<std::thread> v;
+    void joinAll() {
+      stop = true;
+      for (auto& t : v)
+        if (t.joinable()) t.join();
+      v.clear();
+    }
+    ~Threads() { joinAll(); }
+  } threads{stop_threads_, {}};
   for (auto& s : sources_) {
     CaptureSource* src = s.get();
-    threads.emplace_back([this, src] {
+    threads.v.emplace_back([this, src] {
       while (!stop_threads_) {
         try {
           src->doProcess();
@@ -269,9 +280,7 @@ int CaptureSession::run(const std::atomic<bool>* stop) {
           (opt_.duration_s > 0 && mono - start_mono_ >= opt_.duration_s))
         break;
     }
-    stop_threads_ = true;
-    for (auto& t : threads) t.join();
-    threads.clear();
+    threads.joinAll();
     for (auto& s : sources_) s->shutdown();
     const double mono = HostClock::monotonic();
     collect(mono);
@@ -282,8 +291,7 @@ int CaptureSession::run(const std::atomic<bool>* stop) {
     logLine(fmt::format("capture stopped: {} records in {}", out_->recordsOnDisk(), opt_.output),
             false);
   } catch (const WriteError& e) {
-    stop_threads_ = true;
-    for (auto& t : threads) t.join();
+    threads.joinAll();
     for (auto& s : sources_) s->shutdown();
     handleEvents();
     error_ = fmt::format(

@@ -201,7 +201,7 @@ void SerialReplayer::setup() {
 
 bool SerialReplayer::writeLine(Source& s, const std::string& line) {
   std::size_t off = 0;
-  const double deadline = HostClock::monotonic() + 0.2;
+  const double start = HostClock::monotonic();
   while (off < line.size()) {
     const ssize_t k = ::write(s.master, line.data() + off, line.size() - off);
     if (k > 0) {
@@ -209,10 +209,10 @@ bool SerialReplayer::writeLine(Source& s, const std::string& line) {
       continue;
     }
     if (k < 0 && errno != EAGAIN && errno != EINTR) return false;
-    if (HostClock::monotonic() > deadline) {
-      if (off == 0) return false;  // nothing written: drop the whole line
-      continue;                    // never leave half a line: keep trying
-    }
+    // Nobody reading: drop a line not yet begun after 0.2 s; finish one begun (a half line
+    // would corrupt the next) unless the reader is gone for good (2 s).
+    const double waited = HostClock::monotonic() - start;
+    if ((off == 0 && waited > 0.2) || waited > 2.0) return false;
     pollfd p{s.master, POLLOUT, 0};
     ::poll(&p, 1, 10);
   }

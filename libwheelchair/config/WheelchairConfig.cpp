@@ -97,6 +97,22 @@ WheelchairConfig::WheelchairConfig() : ini_(std::make_shared<mrpt::config::CConf
   syncToIni();
 }
 
+WheelchairConfig::WheelchairConfig(const WheelchairConfig& o)
+    : vehicle(o.vehicle),
+      encoders(o.encoders),
+      imu(o.imu),
+      motors(o.motors),
+      sonar(o.sonar),
+      pozyx(o.pozyx),
+      joystick(o.joystick),
+      ini_(std::make_shared<mrpt::config::CConfigFileMemory>(o.text())),
+      origin_(o.origin_) {}
+
+WheelchairConfig& WheelchairConfig::operator=(const WheelchairConfig& o) {
+  if (this != &o) *this = WheelchairConfig(o);
+  return *this;
+}
+
 WheelchairConfig WheelchairConfig::load(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(fmt::format("{}: cannot open configuration file", path));

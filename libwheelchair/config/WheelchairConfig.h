@@ -73,6 +73,11 @@ class WheelchairConfig {
 
   /// Nominal configuration (the defaults above, i.e. vehicle.md), as INI text too.
   WheelchairConfig();
+  /// Copies are independent (the INI is deep-copied).
+  WheelchairConfig(const WheelchairConfig& other);
+  WheelchairConfig& operator=(const WheelchairConfig& other);
+  WheelchairConfig(WheelchairConfig&&) = default;
+  WheelchairConfig& operator=(WheelchairConfig&&) = default;
   /// Loads `path`; throws std::runtime_error naming the file and key on bad values.
   static WheelchairConfig load(const std::string& path);
   static WheelchairConfig fromText(const std::string& ini_text, const std::string& origin);

@@ -17,8 +17,12 @@ namespace {
 double U(std::mt19937_64& rng, double a, double b) {
   return std::uniform_real_distribution<double>(a, b)(rng);
 }
-double sgn(std::mt19937_64& rng) { return U(rng, 0, 1) < 0.5 ? -1.0 : 1.0; }
-std::string side(std::mt19937_64& rng) { return U(rng, 0, 1) < 0.5 ? "right" : "left"; }
+double sgn(std::mt19937_64& rng) {
+  return U(rng, 0, 1) < 0.5 ? -1.0 : 1.0;
+}
+std::string side(std::mt19937_64& rng) {
+  return U(rng, 0, 1) < 0.5 ? "right" : "left";
+}
 double median(std::vector<double> v) {
   v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
@@ -39,34 +43,54 @@ simulation::EffectSpec randomEffect(const std::string& id, std::mt19937_64& rng)
   e.id = id;
   if (id == "gyro_bias") e.params["bias_rad_s"] = f(sgn(rng) * U(rng, 0.003, 0.02));
   if (id == "gyro_scale") e.params["scale"] = f(1 + sgn(rng) * U(rng, 0.01, 0.05));
-  if (id == "encoder_scale") e.params = {{"side", side(rng)}, {"scale", f(1 + sgn(rng) * U(rng, 0.01, 0.05))}};
+  if (id == "encoder_scale")
+    e.params = {{"side", side(rng)}, {"scale", f(1 + sgn(rng) * U(rng, 0.01, 0.05))}};
   if (id == "sensor_delay") {
     const char* s[] = {"imu", "encoders", "motors"};
-    e.params = {{"sensor", s[std::uniform_int_distribution<int>(0, 2)(rng)]}, {"delay_s", f(U(rng, 0.03, 0.1))}};
+    e.params = {{"sensor", s[std::uniform_int_distribution<int>(0, 2)(rng)]},
+                {"delay_s", f(U(rng, 0.03, 0.1))}};
   }
-  if (id == "motor_asymmetry") e.params = {{"side", side(rng)}, {"friction_ratio", f(U(rng, 1.15, 1.5))}};
+  if (id == "motor_asymmetry")
+    e.params = {{"side", side(rng)}, {"friction_ratio", f(U(rng, 1.15, 1.5))}};
   if (id == "coulomb_friction") e.params["current_A"] = f(U(rng, 0.2, 0.6));
-  if (id == "ground_slope") e.params = {{"angle_deg", f(U(rng, 1.0, 3.0))}, {"downhill_heading_deg", f(U(rng, -180, 180))}};
+  if (id == "ground_slope")
+    e.params = {{"angle_deg", f(U(rng, 1.0, 3.0))}, {"downhill_heading_deg", f(U(rng, -180, 180))}};
   if (id == "payload_mass") e.params["body_mass_kg"] = f(130 + sgn(rng) * U(rng, 25, 60));
   return e;
 }
 
-double parameterError(const simulation::EffectSpec& t, const Finding& f, const config::WheelchairConfig& cfg) {
-  auto num = [&](const char* k) { return f.parameters.contains(k) && f.parameters[k].is_number() ? f.parameters[k].get<double>() : std::nan(""); };
-  auto str = [&](const char* k) { return f.parameters.contains(k) && f.parameters[k].is_string() ? f.parameters[k].get<std::string>() : std::string(); };
+double parameterError(const simulation::EffectSpec& t, const Finding& f,
+                      const config::WheelchairConfig& cfg) {
+  auto num = [&](const char* k) {
+    return f.parameters.contains(k) && f.parameters[k].is_number() ? f.parameters[k].get<double>()
+                                                                   : std::nan("");
+  };
+  auto str = [&](const char* k) {
+    return f.parameters.contains(k) && f.parameters[k].is_string()
+               ? f.parameters[k].get<std::string>()
+               : std::string();
+  };
   auto rel = [](double est, double tru) { return std::abs(est - tru) / std::abs(tru); };
   const double nan = std::nan("");
   if (t.id == "gyro_bias") return rel(num("bias_rad_s"), t.number("bias_rad_s"));
   if (t.id == "gyro_scale") return rel(num("scale") - 1, t.number("scale") - 1);
-  if (t.id == "encoder_scale") return str("side") == t.text("side") ? rel(num("scale") - 1, t.number("scale") - 1) : 1.0;
-  if (t.id == "sensor_delay") return str("sensor") == t.text("sensor") ? rel(num("delay_s"), t.number("delay_s")) : 1.0;
-  if (t.id == "motor_asymmetry") return str("side") == t.text("side") ? rel(num("friction_ratio") - 1, t.number("friction_ratio") - 1) : 1.0;
+  if (t.id == "encoder_scale")
+    return str("side") == t.text("side") ? rel(num("scale") - 1, t.number("scale") - 1) : 1.0;
+  if (t.id == "sensor_delay")
+    return str("sensor") == t.text("sensor") ? rel(num("delay_s"), t.number("delay_s")) : 1.0;
+  if (t.id == "motor_asymmetry")
+    return str("side") == t.text("side")
+               ? rel(num("friction_ratio") - 1, t.number("friction_ratio") - 1)
+               : 1.0;
   if (t.id == "coulomb_friction") return rel(num("current_A"), t.number("current_A"));
   if (t.id == "ground_slope") {
-    double a = t.number("angle_deg") * M_PI / 180, h = t.number("downhill_heading_deg") * M_PI / 180;
+    double a = t.number("angle_deg") * M_PI / 180,
+           h = t.number("downhill_heading_deg") * M_PI / 180;
     double ae = num("angle_deg") * M_PI / 180, he = num("downhill_heading_deg") * M_PI / 180;
     // error of the slope vector relative to its length
-    return std::hypot(std::sin(ae) * std::cos(he) - std::sin(a) * std::cos(h), std::sin(ae) * std::sin(he) - std::sin(a) * std::sin(h)) / std::sin(a);
+    return std::hypot(std::sin(ae) * std::cos(he) - std::sin(a) * std::cos(h),
+                      std::sin(ae) * std::sin(he) - std::sin(a) * std::sin(h)) /
+           std::sin(a);
   }
   if (t.id == "payload_mass") {
     double m0 = cfg.vehicle.geom.body_mass_kg;
@@ -97,12 +121,15 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
   simulation::SimulationOptions so;
   so.loadFromConfig(cfg.ini());
   so.record_ground_truth = true;
-  auto sim = simulation::simulate(cfg, scenario, seed, scenario == "excite" ? duration_s : 0, effects, so);
+  auto sim =
+      simulation::simulate(cfg, scenario, seed, scenario == "excite" ? duration_s : 0, effects, so);
   auto t0 = std::chrono::steady_clock::now();
   DiagnosisReport rep = diagnose({sim.recording}, {}, cfg, dopt);
   c.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::multiset<std::string> rs, ts;
-  for (auto& f : rep.findings) c.reported.push_back(f.effect + (f.effectText().empty() ? "" : " " + f.effectText())), rs.insert(f.effect);
+  for (auto& f : rep.findings)
+    c.reported.push_back(f.effect + (f.effectText().empty() ? "" : " " + f.effectText())),
+        rs.insert(f.effect);
   for (auto& e : effects) ts.insert(e.id);
   std::set<std::string> rset(rs.begin(), rs.end()), tset(ts.begin(), ts.end());
   c.correct = rset == tset;
@@ -133,7 +160,8 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
     return opt.scenarios[std::uniform_int_distribution<size_t>(0, opt.scenarios.size() - 1)(rng)];
   };
   auto log = [&](const std::string& label, const CaseResult& c) {
-    if (opt.verbose) std::cerr << label << (c.correct ? " OK  " : " FAIL") << " " << c.toJson().dump() << "\n";
+    if (opt.verbose)
+      std::cerr << label << (c.correct ? " OK  " : " FAIL") << " " << c.toJson().dump() << "\n";
   };
   nlohmann::json single = nlohmann::json::object();
   int tot = 0, totc = 0;
@@ -155,8 +183,11 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
     tot += n, totc += ok;
     int within = 0;
     for (double e : errs) within += e <= 0.25;
-    single[id] = {{"runs", n}, {"correct", ok}, {"rate", n ? double(ok) / n : 0},
-                  {"median_param_error", median(errs)}, {"p90_param_error", quantile(errs, 0.9)},
+    single[id] = {{"runs", n},
+                  {"correct", ok},
+                  {"rate", n ? double(ok) / n : 0},
+                  {"median_param_error", median(errs)},
+                  {"p90_param_error", quantile(errs, 0.9)},
                   {"within_25pct", within}};
   }
   out["single"] = single;
@@ -180,8 +211,12 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
     }
     int within = 0;
     for (double e : errs) within += e <= 0.25;
-    out["pairs"] = {{"runs", n}, {"correct", ok}, {"rate", n ? double(ok) / n : 0},
-                    {"median_param_error", median(errs)}, {"within_25pct", within}, {"params", errs.size()}};
+    out["pairs"] = {{"runs", n},
+                    {"correct", ok},
+                    {"rate", n ? double(ok) / n : 0},
+                    {"median_param_error", median(errs)},
+                    {"within_25pct", within},
+                    {"params", errs.size()}};
   }
   {
     int n = 0, alarms = 0;

@@ -28,10 +28,10 @@ struct CampaignOptions {
   int pair_runs = 20;        ///< runs with two effects at once
   uint64_t seed = 1;
   std::vector<std::string> scenarios = {"excite", "square"};
-  double duration_s = 90;    ///< excite duration (waypoint scenarios use their default)
-  std::vector<std::string> effects = {"gyro_bias",        "gyro_scale",      "encoder_scale",
-                                      "sensor_delay",     "motor_asymmetry", "coulomb_friction",
-                                      "ground_slope",     "payload_mass"};
+  double duration_s = 90;  ///< excite duration (waypoint scenarios use their default)
+  std::vector<std::string> effects = {"gyro_bias",    "gyro_scale",      "encoder_scale",
+                                      "sensor_delay", "motor_asymmetry", "coulomb_friction",
+                                      "ground_slope", "payload_mass"};
   bool verbose = false;
 };
 
@@ -47,7 +47,7 @@ struct CaseResult {
   std::vector<simulation::EffectSpec> truth;
   std::vector<std::string> reported;
   bool correct = false;
-  std::vector<double> param_errors;  ///< per concealed effect
+  std::vector<double> param_errors;              ///< per concealed effect
   double val_rms_before = 0, val_rms_after = 0;  ///< current channels (A) or gyro (rad)
   double runtime_s = 0;
   nlohmann::json toJson() const;

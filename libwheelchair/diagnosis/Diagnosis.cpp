@@ -31,14 +31,17 @@ Eigen::MatrixXd unit(int n, std::initializer_list<int> cols) {
 std::vector<Candidate> kinematicCandidates(bool delay) {
   std::vector<Candidate> c;
   auto scaleOk = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; };
-  c.push_back({"gyro_bias", "gyro_bias", unit(5, {0}), {},
-               [](const Eigen::VectorXd& b) { return std::abs(b(0)) < 0.5; }});
+  c.push_back({"gyro_bias", "gyro_bias", unit(5, {0}), {}, [](const Eigen::VectorXd& b) {
+                 return std::abs(b(0)) < 0.5;
+               }});
   c.push_back({"gyro_scale", "gyro_scale", unit(5, {1}), {}, scaleOk});
   c.push_back({"encoder_scale/right", "encoder_scale", unit(5, {2}), {}, scaleOk});
   c.push_back({"encoder_scale/left", "encoder_scale", unit(5, {3}), {}, scaleOk});
   if (delay)
-    c.push_back({"sensor_delay/imu", "sensor_delay", unit(5, {4}), {},
-                 [](const Eigen::VectorXd& b) { return std::abs(b(0)) < 0.5; }});
+    c.push_back(
+        {"sensor_delay/imu", "sensor_delay", unit(5, {4}), {}, [](const Eigen::VectorXd& b) {
+           return std::abs(b(0)) < 0.5;
+         }});
   return c;
 }
 
@@ -48,21 +51,27 @@ std::vector<Candidate> dynamicCandidates(double body_mass, bool delay) {
   auto coulOk = [](const Eigen::VectorXd& b) { return b(0) > 0 && b(0) < 10; };
   c.push_back({"motor_asymmetry/right", "motor_asymmetry", unit(8, {0}), {}, ratioOk});
   c.push_back({"motor_asymmetry/left", "motor_asymmetry", unit(8, {1}), {}, ratioOk});
-  c.push_back({"coulomb_friction/both", "coulomb_friction", unit(8, {2, 3}),
-               {"coulomb_friction/right", "coulomb_friction/left"}, coulOk});
+  c.push_back({"coulomb_friction/both",
+               "coulomb_friction",
+               unit(8, {2, 3}),
+               {"coulomb_friction/right", "coulomb_friction/left"},
+               coulOk});
   c.push_back({"coulomb_friction/right", "coulomb_friction", unit(8, {2}), {}, coulOk});
   c.push_back({"coulomb_friction/left", "coulomb_friction", unit(8, {3}), {}, coulOk});
-  c.push_back({"payload_mass", "payload_mass", unit(8, {4}), {}, [body_mass](const Eigen::VectorXd& b) {
-                 return body_mass + b(0) > 0.2 * body_mass && body_mass + b(0) < 5 * body_mass;
-               }});
+  c.push_back(
+      {"payload_mass", "payload_mass", unit(8, {4}), {}, [body_mass](const Eigen::VectorXd& b) {
+         return body_mass + b(0) > 0.2 * body_mass && body_mass + b(0) < 5 * body_mass;
+       }});
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(8, 2);
   S(5, 0) = 1, S(6, 1) = 1;
   c.push_back({"ground_slope", "ground_slope", S, {}, [](const Eigen::VectorXd& b) {
                  return std::hypot(b(0), b(1)) < std::sin(30.0 / kRad2Deg);
                }});
   if (delay)
-    c.push_back({"sensor_delay/motors", "sensor_delay", unit(8, {7}), {},
-                 [](const Eigen::VectorXd& b) { return b(0) > 0 && b(0) < 0.5; }});
+    c.push_back(
+        {"sensor_delay/motors", "sensor_delay", unit(8, {7}), {}, [](const Eigen::VectorXd& b) {
+           return std::abs(b(0)) < 0.5;
+         }});
   return c;
 }
 
@@ -82,7 +91,8 @@ std::vector<std::pair<double, double>> activeSegments(std::vector<std::pair<doub
   for (auto& s : segs)
     if (s.second - s.first >= 0.5) out.push_back(s);
   if (out.size() > 20) {
-    std::sort(out.begin(), out.end(), [](auto& a, auto& b) { return a.second - a.first > b.second - b.first; });
+    std::sort(out.begin(), out.end(),
+              [](auto& a, auto& b) { return a.second - a.first > b.second - b.first; });
     out.resize(20);
     std::sort(out.begin(), out.end());
   }
@@ -97,7 +107,8 @@ struct ChannelSet {
   double noise_var = 0;
 };
 
-nlohmann::json channelMetrics(const Eigen::VectorXd& r, const Groups& g, int lags, double noise_var) {
+nlohmann::json channelMetrics(const Eigen::VectorXd& r, const Groups& g, int lags,
+                              double noise_var) {
   nlohmann::json j;
   if (r.size() < 3) return j;
   BiasTest b = biasTest(r, g, lags);
@@ -144,8 +155,8 @@ nlohmann::json regimeStats(const Eigen::VectorXd& r, const std::vector<double>& 
     if (sub.size() < 10) continue;
     Eigen::VectorXd s = Eigen::Map<Eigen::VectorXd>(sub.data(), sub.size());
     BiasTest b = biasTest(s, singleGroup(static_cast<int>(s.size())), lags);
-    j[name] = {{"n", b.n}, {"mean", b.mean}, {"rms", b.rms}, {"t", b.t}, {"p", b.p_value},
-               {"biased", b.p_value < alpha / reg.size()}};
+    j[name] = {{"n", b.n}, {"mean", b.mean}, {"rms", b.rms},
+               {"t", b.t}, {"p", b.p_value}, {"biased", b.p_value < alpha / reg.size()}};
   }
   return j;
 }
@@ -157,7 +168,9 @@ std::vector<std::string> biasedRegimes(const nlohmann::json& reg) {
   return out;
 }
 
-std::string sideName(int s) { return s == 0 ? "right" : "left"; }
+std::string sideName(int s) {
+  return s == 0 ? "right" : "left";
+}
 
 // ---------- trajectory check (dead reckoning against ground truth) ----------
 
@@ -172,7 +185,8 @@ TrajMetrics deadReckoningMetrics(const Streams& s, const Corrections& c,
   if (s.gt.size() < 2 || s.te.size() < 3 || (gyro && !s.hasGyro())) return m;
   const double lw = cfg.vehicle.geom.track_width_m;
   std::vector<double> tgt, gx, gy, gp;
-  for (auto& p : s.gt) tgt.push_back(p.t_s), gx.push_back(p.x_m), gy.push_back(p.y_m), gp.push_back(p.phi_rad);
+  for (auto& p : s.gt)
+    tgt.push_back(p.t_s), gx.push_back(p.x_m), gy.push_back(p.y_m), gp.push_back(p.phi_rad);
   for (size_t i = 1; i < gp.size(); ++i) {
     double d = gp[i] - gp[i - 1];
     gp[i] -= 2 * M_PI * std::round(d / (2 * M_PI));
@@ -195,7 +209,8 @@ TrajMetrics deadReckoningMetrics(const Streams& s, const Corrections& c,
     while (t < b) {
       double tn = b;
       if (it != s.tg.end() && *it - c.delay_imu < b) tn = *it - c.delay_imu, ++it;
-      sum += 0.5 * (interp(s.tg, gzc, t + c.delay_imu) + interp(s.tg, gzc, tn + c.delay_imu)) * (tn - t);
+      sum += 0.5 * (interp(s.tg, gzc, t + c.delay_imu) + interp(s.tg, gzc, tn + c.delay_imu)) *
+             (tn - t);
       t = tn;
     }
     return sum;
@@ -230,8 +245,10 @@ nlohmann::json trajectoryJson(const std::vector<Streams>& recs, const Correction
     if (s.gt.size() < 2) continue;
     TrajMetrics o = deadReckoningMetrics(s, c, cfg, false);
     TrajMetrics g = deadReckoningMetrics(s, c, cfg, true);
-    j.push_back({{"odometry_ate_m", o.ate}, {"odometry_terminal_m", o.terminal},
-                 {"encoder_gyro_ate_m", g.ate}, {"encoder_gyro_terminal_m", g.terminal},
+    j.push_back({{"odometry_ate_m", o.ate},
+                 {"odometry_terminal_m", o.terminal},
+                 {"encoder_gyro_ate_m", g.ate},
+                 {"encoder_gyro_terminal_m", g.terminal},
                  {"duration_s", s.t_end - s.t_begin}});
   }
   return j;
@@ -286,7 +303,8 @@ SparseResult stlsq(const Eigen::MatrixXd& L, const Eigen::VectorXd& y, const Gro
   {
     Eigen::MatrixXd A(L.rows(), res.terms.size());
     for (size_t k = 0; k < res.terms.size(); ++k) A.col(k) = L.col(res.terms[k]);
-    if ((A * res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) < min_contribution_rms) return res;
+    if ((A * res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) < min_contribution_rms)
+      return res;
   }
   if (yv.size() > 10) {
     Eigen::MatrixXd Av(Lv.rows(), res.terms.size());
@@ -294,7 +312,8 @@ SparseResult stlsq(const Eigen::MatrixXd& L, const Eigen::VectorXd& y, const Gro
     Eigen::VectorXd r1 = yv - Av * res.coef;
     double nev = effectiveSampleSize(r1, gv, lags);
     res.lr_val = nev * std::log(yv.squaredNorm() / std::max(1e-300, r1.squaredNorm()));
-    res.lr_val_expected = nev * std::log(1 + (Av * res.coef).squaredNorm() / std::max(1e-300, r1.squaredNorm()));
+    res.lr_val_expected =
+        nev * std::log(1 + (Av * res.coef).squaredNorm() / std::max(1e-300, r1.squaredNorm()));
     res.rms_before_val = std::sqrt(yv.squaredNorm() / yv.size());
     res.rms_after_val = std::sqrt(r1.squaredNorm() / yv.size());
     if (res.lr_val_expected >= opt.validation_min_expected_lr &&
@@ -318,7 +337,9 @@ nlohmann::json evidenceJson(const SelectionStep& st, double alpha_b) {
           {"validation_tested", st.val_tested}};
 }
 
-double rmsOf(double rss, Eigen::Index n) { return n > 0 ? std::sqrt(rss / n) : 0.0; }
+double rmsOf(double rss, Eigen::Index n) {
+  return n > 0 ? std::sqrt(rss / n) : 0.0;
+}
 
 }  // namespace
 
@@ -334,14 +355,18 @@ void DiagnosisOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
   min_bic_drop = ini.read_double(s, "min_bic_drop", min_bic_drop);
   validation_fraction_of_expected =
       ini.read_double(s, "validation_fraction_of_expected", validation_fraction_of_expected);
-  validation_min_expected_lr = ini.read_double(s, "validation_min_expected_lr", validation_min_expected_lr);
+  validation_min_expected_lr =
+      ini.read_double(s, "validation_min_expected_lr", validation_min_expected_lr);
   enable_unmodeled = ini.read_bool(s, "enable_unmodeled", enable_unmodeled);
   min_relevance = ini.read_double(s, "min_relevance", min_relevance);
   stlsq_threshold_sigma = ini.read_double(s, "stlsq_threshold_sigma", stlsq_threshold_sigma);
   enable_delay = ini.read_bool(s, "enable_delay", enable_delay);
-  if (!(fit_fraction > 0.1 && fit_fraction < 0.95)) throw std::runtime_error("[diagnosis] fit_fraction must be in (0.1, 0.95)");
-  if (!(window_s > 0) || !(cutoff_hz > 0) || !(grid_rate_hz > 2 * cutoff_hz) || !(alpha > 0 && alpha < 1))
-    throw std::runtime_error("[diagnosis] window_s, cutoff_hz > 0, grid_rate_hz > 2 cutoff_hz, alpha in (0,1)");
+  if (!(fit_fraction > 0.1 && fit_fraction < 0.95))
+    throw std::runtime_error("[diagnosis] fit_fraction must be in (0.1, 0.95)");
+  if (!(window_s > 0) || !(cutoff_hz > 0) || !(grid_rate_hz > 2 * cutoff_hz) ||
+      !(alpha > 0 && alpha < 1))
+    throw std::runtime_error(
+        "[diagnosis] window_s, cutoff_hz > 0, grid_rate_hz > 2 cutoff_hz, alpha in (0,1)");
 }
 
 DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
@@ -363,11 +388,14 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   }
   for (auto& r : val_recs) valS.push_back(makeStreams(r, cfg));
   bool any_enc = false, any_gyro = false, any_mot = false;
-  for (auto& s : allS) any_enc |= s.hasEncoders(), any_gyro |= s.hasGyro(), any_mot |= s.hasMotors();
+  for (auto& s : allS)
+    any_enc |= s.hasEncoders(), any_gyro |= s.hasGyro(), any_mot |= s.hasMotors();
   if (!any_enc) throw std::runtime_error("diagnose: no encoder data in the fit recordings");
   rep.info["streams"] = {{"encoders", any_enc}, {"gyro", any_gyro}, {"motors", any_mot}};
-  rep.info["validation"] = val_recs.empty() ? fmt::format("held-out last {:.0f}% of each recording", 100 * (1 - opt.fit_fraction))
-                                            : fmt::format("{} --validate recording(s)", val_recs.size());
+  rep.info["validation"] =
+      val_recs.empty()
+          ? fmt::format("held-out last {:.0f}% of each recording", 100 * (1 - opt.fit_fraction))
+          : fmt::format("{} --validate recording(s)", val_recs.size());
   const double lw = cfg.vehicle.geom.track_width_m;
   Corrections corr;
   const int lags1 = 5;
@@ -377,8 +405,9 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   if (any_gyro) {
     auto cands = kinematicCandidates(opt.enable_delay);
     KinRows kf = kinematicRows(fitS, corr, cfg, opt), kv = kinematicRows(valS, corr, cfg, opt);
-    SelectionData sd{kf.y, kv.y, kf.X, kv.X, kf.groups, kv.groups, lags1,
-                     opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s};
+    SelectionData sd{
+        kf.y,      kv.y,      kf.X,  kv.X,
+        kf.groups, kv.groups, lags1, opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s};
     Selection sel = forwardSelect(sd, cands, opt);
     double alpha_b = opt.alpha / cands.size();
     // nonlinear refinement of a delay: shift the gyro and refit
@@ -398,6 +427,18 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
       }
       delay += sel.fit.beta(sel.ranges[di].first);
       Corrections c2;
+      c2.delay_imu = delay;
+      kf2 = kinematicRows(fitS, c2, cfg, opt);
+      kv2 = kinematicRows(valS, c2, cfg, opt);
+      // re-select the other terms on the delay-corrected rows (the linearised delay leaves
+      // second-order structure that other terms may have absorbed)
+      SelectionStep dstep = sel.steps[di];
+      int dcand = sel.accepted[di];
+      SelectionData sd2{kf2.y,      kv2.y,      kf2.X, kv2.X,
+                        kf2.groups, kv2.groups, lags1, sd.min_contribution_rms};
+      sel = forwardSelect(sd2, cands, opt, {dcand});
+      sel.steps.insert(sel.steps.begin(), dstep);
+      delay += sel.fit.beta(sel.ranges[0].first);
       c2.delay_imu = delay;
       kf2 = kinematicRows(fitS, c2, cfg, opt);
       kv2 = kinematicRows(valS, c2, cfg, opt);
@@ -421,8 +462,10 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
     corr.gyro_bias = b0;
     corr.enc_scale[0] = g / (1 + bg + bR);
     corr.enc_scale[1] = g / (1 + bg + bL);
-    if (delay > 0) corr.delay_imu = delay;
-    else corr.delay_enc = -delay;
+    if (delay > 0)
+      corr.delay_imu = delay;
+    else
+      corr.delay_enc = -delay;
     // residuals before/after on validation
     Eigen::VectorXd rv_after = kv2.y - acceptedDesign(kv2.X, cands, sel.accepted) * sel.fit.beta;
     double nv_per = 0;
@@ -449,29 +492,36 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
       f.channels = {"gyro", "encoders"};
       f.evidence = evidenceJson(st, alpha_b);
       f.evidence["regimes_biased_before"] = regimes;
-      f.fit_before = {{"channel", "gyro_vs_encoders"}, {"validation_rms_rad", rmsOf(st.rss0_val, kv.y.size())},
+      f.fit_before = {{"channel", "gyro_vs_encoders"},
+                      {"validation_rms_rad", rmsOf(st.rss0_val, kv.y.size())},
                       {"fit_rms_rad", rmsOf(st.rss0_fit, kf.y.size())}};
-      f.fit_after = {{"channel", "gyro_vs_encoders"}, {"validation_rms_rad", rmsOf(st.rss1_val, kv.y.size())},
+      f.fit_after = {{"channel", "gyro_vs_encoders"},
+                     {"validation_rms_rad", rmsOf(st.rss1_val, kv.y.size())},
                      {"fit_rms_rad", rmsOf(st.rss1_fit, kf.y.size())}};
       Eigen::MatrixXd Dc = kf2.X * c.S;
-      Eigen::VectorXd contrib = Dc * sel.fit.beta.segment(sel.ranges[a].first, sel.ranges[a].second);
+      Eigen::VectorXd contrib =
+          Dc * sel.fit.beta.segment(sel.ranges[a].first, sel.ranges[a].second);
       std::vector<std::pair<double, double>> tc;
-      for (int i = 0; i < contrib.size(); ++i) tc.push_back({0.5 * (kf2.t0[i] + kf2.t1[i]), contrib(i)});
+      for (int i = 0; i < contrib.size(); ++i)
+        tc.push_back({0.5 * (kf2.t0[i] + kf2.t1[i]), contrib(i)});
       f.segments = activeSegments(tc, sigma);
       if (c.name == "gyro_bias") {
         f.parameters = {{"bias_rad_s", b0}};
         f.uncertainty = {{"bias_rad_s", sb0}};
         f.channels = {"gyro"};
         f.description = fmt::format(
-            "the gyro reads {:+.4f} rad/s ({:+.2f} deg/s) when the encoders say the chair does not turn: a "
-            "constant gyro bias (+-{:.4f} rad/s); uncorrected it adds {:.1f} deg of heading per minute",
+            "the gyro reads {:+.4f} rad/s ({:+.2f} deg/s) when the encoders say the chair does not "
+            "turn: a "
+            "constant gyro bias (+-{:.4f} rad/s); uncorrected it adds {:.1f} deg of heading per "
+            "minute",
             b0, b0 * kRad2Deg, sb0, b0 * kRad2Deg * 60);
       } else if (c.name == "gyro_scale") {
         f.parameters = {{"scale", g}};
         f.uncertainty = {{"scale", sbg}};
         f.channels = {"gyro"};
         f.description = fmt::format(
-            "the gyro reports {:.2f}% {} turn than both encoders agree on (scale {:.4f} +- {:.4f}): a gyro "
+            "the gyro reports {:.2f}% {} turn than both encoders agree on (scale {:.4f} +- "
+            "{:.4f}): a gyro "
             "scale-factor error (symmetric in both wheels, so not an encoder fault)",
             std::abs(bg) * 100, bg > 0 ? "more" : "less", g, sbg);
       } else if (c.effect == "encoder_scale") {
@@ -483,8 +533,10 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
         f.uncertainty = {{"scale", sk}};
         f.channels = {"encoders"};
         f.description = fmt::format(
-            "the {} encoder reports {:.4f} x the distance its wheel rolls (+- {:.4f}; the gyro and the other "
-            "encoder agree): a wrong pulley ratio on that side; uncorrected, odometry drifts to the {} by "
+            "the {} encoder reports {:.4f} x the distance its wheel rolls (+- {:.4f}; the gyro and "
+            "the other "
+            "encoder agree): a wrong pulley ratio on that side; uncorrected, odometry drifts to "
+            "the {} by "
             "{:.1f} deg per 10 m driven straight",
             sideName(s), k, sk, (s == 0) == (k < 1) ? "right" : "left",
             std::abs(10.0 * (1 - k) / lw) * kRad2Deg);
@@ -494,10 +546,11 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
         f.uncertainty = {{"delay_s", sdel}};
         f.channels = {sensor == "imu" ? "gyro" : "encoders"};
         f.description = fmt::format(
-            "the {} stream is time-stamped {:.1f} ms late relative to the {} (+- {:.1f} ms): the gyro integral "
+            "the {} stream is time-stamped {:.1f} ms late relative to the {} (+- {:.1f} ms): the "
+            "gyro integral "
             "lags the odometric heading change whenever the turn rate changes",
-            sensor == "imu" ? "gyro" : "encoder", 1000 * std::abs(delay), sensor == "imu" ? "encoders" : "gyro",
-            1000 * sdel);
+            sensor == "imu" ? "gyro" : "encoder", 1000 * std::abs(delay),
+            sensor == "imu" ? "encoders" : "gyro", 1000 * sdel);
       }
       rep.addFinding(f);
     }
@@ -516,7 +569,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
       SparseResult sr = stlsq(lib(kf2), rf, kf2.groups, lib(kv2), rv_after, kv2.groups, lags1, opt,
                               opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
       if (sr.accepted) {
-        static const char* names[] = {"v", "|omega|", "omega*|omega|", "cos(phi)", "sin(phi)", "v*omega"};
+        static const char* names[] = {"v",        "|omega|",  "omega*|omega|",
+                                      "cos(phi)", "sin(phi)", "v*omega"};
         Finding f;
         f.effect = "unmodeled";
         f.channels = {"gyro_vs_encoders"};
@@ -527,9 +581,13 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
           eq += fmt::format(" {:+.4g}*{}", sr.coef(k), names[sr.terms[k]]);
         }
         f.parameters["channel"] = "gyro_vs_encoders";
-        f.description = "a term outside the catalogue acts on the turn-rate consistency: " + eq + " (rad/s)";
-        f.evidence = {{"likelihood_ratio", sr.ev.lr}, {"p_value", sr.ev.p_value}, {"delta_bic", sr.ev.delta_bic},
-                      {"n_eff", sr.ev.n_eff}, {"validation_likelihood_ratio", sr.lr_val}};
+        f.description =
+            "a term outside the catalogue acts on the turn-rate consistency: " + eq + " (rad/s)";
+        f.evidence = {{"likelihood_ratio", sr.ev.lr},
+                      {"p_value", sr.ev.p_value},
+                      {"delta_bic", sr.ev.delta_bic},
+                      {"n_eff", sr.ev.n_eff},
+                      {"validation_likelihood_ratio", sr.lr_val}};
         f.fit_before = {{"validation_rms_rad", sr.rms_before_val}};
         f.fit_after = {{"validation_rms_rad", sr.rms_after_val}};
         rep.addFinding(f);
@@ -547,8 +605,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
     DynRows df = dynamicRows(fitS, corr, cfg, opt), dv = dynamicRows(valS, corr, cfg, opt);
     int lags2 = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
     if (df.y.size() > 50) {
-      SelectionData sd{df.y, dv.y, df.X, dv.X, df.groups, dv.groups, lags2,
-                       opt.min_relevance * cfg.motors.current_noise_A};
+      SelectionData sd{df.y,      dv.y,      df.X,  dv.X,
+                       df.groups, dv.groups, lags2, opt.min_relevance * cfg.motors.current_noise_A};
       Selection sel = forwardSelect(sd, cands, opt);
       int di = -1;
       for (size_t a = 0; a < sel.accepted.size(); ++a)
@@ -568,6 +626,17 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
         corr.delay_motors = delay;
         df2 = dynamicRows(fitS, c2, cfg, opt);
         dv2 = dynamicRows(valS, c2, cfg, opt);
+        SelectionStep dstep = sel.steps[di];
+        int dcand = sel.accepted[di];
+        SelectionData sd2{df2.y,      dv2.y,      df2.X, dv2.X,
+                          df2.groups, dv2.groups, lags2, sd.min_contribution_rms};
+        sel = forwardSelect(sd2, cands, opt, {dcand});
+        sel.steps.insert(sel.steps.begin(), dstep);
+        delay += sel.fit.beta(sel.ranges[0].first);
+        c2.delay_motors = delay;
+        corr.delay_motors = delay;
+        df2 = dynamicRows(fitS, c2, cfg, opt);
+        dv2 = dynamicRows(valS, c2, cfg, opt);
         sel.fit = fitLinear(acceptedDesign(df2.X, cands, sel.accepted), df2.y, df2.groups, lags2);
       }
       Eigen::VectorXd rv_after = dv2.y - acceptedDesign(dv2.X, cands, sel.accepted) * sel.fit.beta;
@@ -575,7 +644,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
       auto half = [](const Groups& g, int nR, bool left) {
         Groups o;
         for (auto [a, b] : g)
-          if ((a >= nR) == left) o.push_back(left ? std::make_pair(a - nR, b - nR) : std::make_pair(a, b));
+          if ((a >= nR) == left)
+            o.push_back(left ? std::make_pair(a - nR, b - nR) : std::make_pair(a, b));
         return o;
       };
       for (int sd2 = 0; sd2 < 2; ++sd2) {
@@ -588,15 +658,18 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
         rep.channels[ch] = {
             {"unit", "A (equation error of (6), zero-phase filtered)"},
             {"cutoff_hz", opt.cutoff_hz},
-            {"before", channelMetrics(dv.y.segment(sd2 * nRv, nRv), half(dv.groups, nRv, sd2 == 1), lags2, dv.noise_var)},
-            {"after", channelMetrics(rv_after.segment(sd2 * nRv2, nRv2), half(dv2.groups, nRv2, sd2 == 1), lags2,
-                                     dv.noise_var)},
-            {"regimes_before", regimeStats(df.y.segment(sd2 * nRf, nRf), v, w, vd, ph, lags2, opt.alpha)},
+            {"before", channelMetrics(dv.y.segment(sd2 * nRv, nRv), half(dv.groups, nRv, sd2 == 1),
+                                      lags2, dv.noise_var)},
+            {"after", channelMetrics(rv_after.segment(sd2 * nRv2, nRv2),
+                                     half(dv2.groups, nRv2, sd2 == 1), lags2, dv.noise_var)},
+            {"regimes_before",
+             regimeStats(df.y.segment(sd2 * nRf, nRf), v, w, vd, ph, lags2, opt.alpha)},
             {"rejected_candidates", sel.log}};
       }
       std::vector<std::string> regimes;
       for (auto ch : {"current_right", "current_left"})
-        for (auto& r : biasedRegimes(rep.channels[ch]["regimes_before"])) regimes.push_back(std::string(ch) + ":" + r);
+        for (auto& r : biasedRegimes(rep.channels[ch]["regimes_before"]))
+          regimes.push_back(std::string(ch) + ":" + r);
       double sigma = std::sqrt(sel.fit.rss / std::max<Eigen::Index>(1, df2.y.size()));
       // asymmetry: combine both sides into one finding
       double asym[2] = {0, 0}, sasym[2] = {0, 0};
@@ -625,9 +698,11 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
         f.effect = c.effect;
         f.evidence = evidenceJson(st, alpha_b);
         f.evidence["regimes_biased_before"] = regimes;
-        f.fit_before = {{"channel", "currents"}, {"validation_rms_A", rmsOf(st.rss0_val, dv.y.size())},
+        f.fit_before = {{"channel", "currents"},
+                        {"validation_rms_A", rmsOf(st.rss0_val, dv.y.size())},
                         {"fit_rms_A", rmsOf(st.rss0_fit, df.y.size())}};
-        f.fit_after = {{"channel", "currents"}, {"validation_rms_A", rmsOf(st.rss1_val, dv.y.size())},
+        f.fit_after = {{"channel", "currents"},
+                       {"validation_rms_A", rmsOf(st.rss1_val, dv.y.size())},
                        {"fit_rms_A", rmsOf(st.rss1_fit, df.y.size())}};
         Eigen::VectorXd contrib = (df2.X * c.S) * b;
         std::vector<std::pair<double, double>> tc;
@@ -648,8 +723,10 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
           if (has_asym[0] && has_asym[1]) f.channels = {"current_right", "current_left"};
           double dI = std::abs(asym[0] - asym[1]) * theta5 * rGr * 0.8;
           f.description = fmt::format(
-              "the {} drive needs {:.2f} A more than the {} to go straight at 0.8 m/s: unequal gearbox "
-              "(viscous) friction, {:.0f}% more on the {} (friction ratio {:.3f} +- {:.3f}); the symmetric "
+              "the {} drive needs {:.2f} A more than the {} to go straight at 0.8 m/s: unequal "
+              "gearbox "
+              "(viscous) friction, {:.0f}% more on the {} (friction ratio {:.3f} +- {:.3f}); the "
+              "symmetric "
               "model (6) reads the current difference as a turn",
               sideName(side), dI, sideName(1 - side), (ratio - 1) * 100, sideName(side), ratio, sr);
           if (has_asym[0] && has_asym[1]) f.parameters["friction_ratio_right_left"] = {fr, fl};
@@ -659,7 +736,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
           f.uncertainty = {{"current_A", std::sqrt(C(0, 0))}};
           if (side != "both") f.channels = {"current_" + side};
           f.description = fmt::format(
-              "{} needs {:.3f} A (+- {:.3f}) more current at any speed, in the direction of motion: dry "
+              "{} needs {:.3f} A (+- {:.3f}) more current at any speed, in the direction of "
+              "motion: dry "
               "(Coulomb) friction in the drive, not modelled by the viscous term of (6)",
               side == "both" ? "each motor" : "the " + side + " motor", b(0), std::sqrt(C(0, 0)));
         } else if (c.effect == "payload_mass") {
@@ -667,10 +745,11 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
           f.parameters = {{"body_mass_kg", m}};
           f.uncertainty = {{"body_mass_kg", std::sqrt(C(0, 0))}};
           f.description = fmt::format(
-              "accelerating takes {:.0f}% {} current than the model predicts with the same cruise current: "
+              "accelerating takes {:.0f}% {} current than the model predicts with the same cruise "
+              "current: "
               "the mass of chair and user is {:.1f} kg (+- {:.1f}), not the configured {:.1f} kg",
-              std::abs(b(0)) / (mb + 2 * cfg.vehicle.geom.wheel_mass_kg + 17.1) * 100, b(0) > 0 ? "more" : "less", m,
-              std::sqrt(C(0, 0)), mb);
+              std::abs(b(0)) / (mb + 2 * cfg.vehicle.geom.wheel_mass_kg + 17.1) * 100,
+              b(0) > 0 ? "more" : "less", m, std::sqrt(C(0, 0)), mb);
         } else if (c.effect == "ground_slope") {
           double s = std::hypot(b(0), b(1));
           double ang = std::asin(std::min(1.0, s)) * kRad2Deg;
@@ -678,26 +757,34 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
           // delta method
           Eigen::RowVector2d ja = Eigen::RowVector2d(b(0), b(1)) / std::max(1e-12, s) /
                                   std::sqrt(std::max(1e-12, 1 - s * s)) * kRad2Deg;
-          Eigen::RowVector2d jh = Eigen::RowVector2d(-b(1), b(0)) / std::max(1e-24, s * s) * kRad2Deg;
+          Eigen::RowVector2d jh =
+              Eigen::RowVector2d(-b(1), b(0)) / std::max(1e-24, s * s) * kRad2Deg;
           double sa = std::sqrt(std::max(0.0, (ja * C * ja.transpose())(0)));
           double sh = std::sqrt(std::max(0.0, (jh * C * jh.transpose())(0)));
           f.parameters = {{"angle_deg", ang}, {"downhill_heading_deg", head}};
           f.uncertainty = {{"angle_deg", sa}, {"downhill_heading_deg", sh}};
           f.description = fmt::format(
-              "both motors need less current heading {:.0f} deg and more heading {:.0f} deg (start frame), "
-              "{:.2f} A each at the extremes: the floor slopes by {:.2f} deg (+- {:.2f}) downhill towards "
+              "both motors need less current heading {:.0f} deg and more heading {:.0f} deg (start "
+              "frame), "
+              "{:.2f} A each at the extremes: the floor slopes by {:.2f} deg (+- {:.2f}) downhill "
+              "towards "
               "{:.0f} deg (+- {:.0f})",
-              head, head + 180, s * (cfg.vehicle.geom.body_mass_kg + 2 * cfg.vehicle.geom.wheel_mass_kg) * 9.81 / 2 *
-                                   cfg.vehicle.geom.wheel_radius_m / cfg.vehicle.geom.gear_ratio /
-                                   (cfg.vehicle.gearbox_efficiency * cfg.vehicle.torque_constant_Nm_A),
+              head, head + 180,
+              s * (cfg.vehicle.geom.body_mass_kg + 2 * cfg.vehicle.geom.wheel_mass_kg) * 9.81 / 2 *
+                  cfg.vehicle.geom.wheel_radius_m / cfg.vehicle.geom.gear_ratio /
+                  (cfg.vehicle.gearbox_efficiency * cfg.vehicle.torque_constant_Nm_A),
               ang, sa, head, sh);
         } else if (c.effect == "sensor_delay") {
-          f.parameters = {{"sensor", "motors"}, {"delay_s", delay}};
+          std::string sensor = delay >= 0 ? "motors" : "encoders";
+          f.parameters = {{"sensor", sensor}, {"delay_s", std::abs(delay)}};
           f.uncertainty = {{"delay_s", std::sqrt(C(0, 0))}};
+          f.channels = {sensor == "motors" ? "currents" : "encoders"};
           f.description = fmt::format(
-              "the motor currents are time-stamped {:.1f} ms (+- {:.1f}) late relative to the encoders: the "
-              "current leads the acceleration it causes",
-              1000 * delay, 1000 * std::sqrt(C(0, 0)));
+              "the {} are time-stamped {:.1f} ms (+- {:.1f}) late relative to the {}: {}",
+              sensor == "motors" ? "motor currents" : "encoder counts", 1000 * std::abs(delay),
+              1000 * std::sqrt(C(0, 0)), sensor == "motors" ? "encoders" : "motor currents",
+              sensor == "motors" ? "the current leads the acceleration it causes"
+                                 : "the motion lags the current that causes it");
         }
         rep.addFinding(f);
       }
@@ -709,9 +796,10 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
           Eigen::MatrixXd Lv = dv2.lib.middleRows(s2 * nRv2, nRv2);
           // i_self is the measured quantity itself: keep it out (it would absorb everything)
           L.col(12).setZero(), Lv.col(12).setZero();
-          SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
-                                  rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags2, opt,
-                                  opt.min_relevance * cfg.motors.current_noise_A);
+          SparseResult sr =
+              stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
+                    rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags2, opt,
+                    opt.min_relevance * cfg.motors.current_noise_A);
           if (!sr.accepted) continue;
           Finding f;
           f.effect = "unmodeled";
@@ -725,9 +813,13 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
             eq += fmt::format(" {:+.4g}*{}", sr.coef(k), nm);
           }
           f.parameters["channel"] = ch;
-          f.description = "a term outside the catalogue acts on the " + ch + " equation: " + eq + " (A)";
-          f.evidence = {{"likelihood_ratio", sr.ev.lr}, {"p_value", sr.ev.p_value}, {"delta_bic", sr.ev.delta_bic},
-                        {"n_eff", sr.ev.n_eff}, {"validation_likelihood_ratio", sr.lr_val}};
+          f.description =
+              "a term outside the catalogue acts on the " + ch + " equation: " + eq + " (A)";
+          f.evidence = {{"likelihood_ratio", sr.ev.lr},
+                        {"p_value", sr.ev.p_value},
+                        {"delta_bic", sr.ev.delta_bic},
+                        {"n_eff", sr.ev.n_eff},
+                        {"validation_likelihood_ratio", sr.lr_val}};
           f.fit_before = {{"validation_rms_A", sr.rms_before_val}};
           f.fit_after = {{"validation_rms_A", sr.rms_after_val}};
           rep.addFinding(f);
@@ -747,9 +839,12 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   if (!tb.empty()) rep.validation["trajectory_heldout"] = {{"before", tb}, {"after", ta}};
   nlohmann::json fb = trajectoryJson(allS, none, cfg), fa = trajectoryJson(allS, corr, cfg);
   if (!fb.empty()) rep.validation["trajectory_full_recordings"] = {{"before", fb}, {"after", fa}};
-  rep.validation["corrections"] = {{"encoder_scale_right", corr.enc_scale[0]}, {"encoder_scale_left", corr.enc_scale[1]},
-                                   {"gyro_scale", corr.gyro_scale}, {"gyro_bias_rad_s", corr.gyro_bias},
-                                   {"delay_imu_s", corr.delay_imu}, {"delay_encoders_s", corr.delay_enc},
+  rep.validation["corrections"] = {{"encoder_scale_right", corr.enc_scale[0]},
+                                   {"encoder_scale_left", corr.enc_scale[1]},
+                                   {"gyro_scale", corr.gyro_scale},
+                                   {"gyro_bias_rad_s", corr.gyro_bias},
+                                   {"delay_imu_s", corr.delay_imu},
+                                   {"delay_encoders_s", corr.delay_enc},
                                    {"delay_motors_s", corr.delay_motors}};
   rep.info["runtime_s"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - tstart).count();
@@ -768,15 +863,18 @@ std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep
         for (auto& p : simulation::findEffect(e.id)->params) known |= p.name == it.key();
         if (!known) continue;
       }
-      if (it->is_number()) e.params[it.key()] = fmt::format("{:.8g}", it->get<double>());
-      else if (it->is_string()) e.params[it.key()] = it->get<std::string>();
+      if (it->is_number())
+        e.params[it.key()] = fmt::format("{:.8g}", it->get<double>());
+      else if (it->is_string())
+        e.params[it.key()] = it->get<std::string>();
     }
     out.push_back(e);
   }
   return out;
 }
 
-config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg, const DiagnosisReport& rep) {
+config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
+                                         const DiagnosisReport& rep) {
   config::WheelchairConfig out = cfg;
   auto effects = findingsAsEffects(rep);
   out.set("model_extensions", "count", std::to_string(effects.size()));
@@ -784,15 +882,18 @@ config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg, co
   for (auto& f : rep.findings) {
     if (f.effect == "unmodeled" || f.is_fault) continue;
     ++k;
-    out.set("model_extensions", fmt::format("effect_{}", k), simulation::formatEffect(effects[k - 1]));
+    out.set("model_extensions", fmt::format("effect_{}", k),
+            simulation::formatEffect(effects[k - 1]));
     std::string u;
     for (auto it = f.uncertainty.begin(); it != f.uncertainty.end(); ++it)
-      if (it->is_number()) u += fmt::format("{}{}={:.6g}", u.empty() ? "" : ",", it.key(), it->get<double>());
+      if (it->is_number())
+        u += fmt::format("{}{}={:.6g}", u.empty() ? "" : ",", it.key(), it->get<double>());
     out.set("model_extensions", fmt::format("sigma_{}", k), u);
   }
   int u = 0;
   for (auto& f : rep.findings)
-    if (f.effect == "unmodeled") out.set("model_extensions", fmt::format("unmodeled_{}", ++u), f.parameters.dump());
+    if (f.effect == "unmodeled")
+      out.set("model_extensions", fmt::format("unmodeled_{}", ++u), f.parameters.dump());
   return out;
 }
 
@@ -822,17 +923,21 @@ io::Recording correctRecording(const io::Recording& rec, const config::Wheelchai
       if (s == "encoders") d_enc += e.number("delay_s");
       if (s == "motors") d_mot += e.number("delay_s");
     }
-    if (e.id == "motor_asymmetry") asym[e.text("side") == "right" ? 0 : 1] += e.number("friction_ratio") - 1;
+    if (e.id == "motor_asymmetry")
+      asym[e.text("side") == "right" ? 0 : 1] += e.number("friction_ratio") - 1;
     if (e.id == "coulomb_friction")
       for (int s : simulation::effectSides(e)) coul[s] += e.number("current_A");
     if (e.id == "payload_mass") dm = e.number("body_mass_kg") - cfg.vehicle.geom.body_mass_kg;
-    if (e.id == "ground_slope") slope = e.number("angle_deg") / kRad2Deg, head = e.number("downhill_heading_deg") / kRad2Deg;
+    if (e.id == "ground_slope")
+      slope = e.number("angle_deg") / kRad2Deg, head = e.number("downhill_heading_deg") / kRad2Deg;
   }
   auto un = sensors::unwrapTicks(rec.encoders);
   for (size_t i = 0; i < out.encoders.size() && i < un.t_s.size(); ++i) {
     out.encoders[i].t_s -= d_enc;
-    out.encoders[i].right_ticks = sensors::toHardwareCounter(std::llround(double(un.right[i]) / ks[0]));
-    out.encoders[i].left_ticks = sensors::toHardwareCounter(std::llround(double(un.left[i]) / ks[1]));
+    out.encoders[i].right_ticks =
+        sensors::toHardwareCounter(std::llround(double(un.right[i]) / ks[0]));
+    out.encoders[i].left_ticks =
+        sensors::toHardwareCounter(std::llround(double(un.left[i]) / ks[1]));
   }
   for (auto& s : out.imu) s.t_s -= d_imu, s.gyro_z_rad_s = (s.gyro_z_rad_s - b) / g;
   for (auto& s : out.motors) s.t_s -= d_mot;
@@ -842,9 +947,11 @@ io::Recording correctRecording(const io::Recording& rec, const config::Wheelchai
     Streams s = makeStreams(out, cfg);
     std::vector<double> tm;
     for (auto& m : out.motors) tm.push_back(m.t_s);
-    std::vector<double> uR = sensors::centralDerivative(s.te, s.sR), uL = sensors::centralDerivative(s.te, s.sL);
+    std::vector<double> uR = sensors::centralDerivative(s.te, s.sR),
+                        uL = sensors::centralDerivative(s.te, s.sL);
     double fs = 1.0 / std::max(1e-3, sensors::medianSpacing(s.te));
-    if (fs > 5) uR = sensors::filtfiltButter2(s.te, uR, 2.0), uL = sensors::filtfiltButter2(s.te, uL, 2.0);
+    if (fs > 5)
+      uR = sensors::filtfiltButter2(s.te, uR, 2.0), uL = sensors::filtfiltButter2(s.te, uL, 2.0);
     std::vector<double> vd = sensors::centralDerivative(s.te, [&] {
       std::vector<double> v(uR.size());
       for (size_t i = 0; i < v.size(); ++i) v[i] = 0.5 * (uR[i] + uL[i]);
@@ -856,7 +963,8 @@ io::Recording correctRecording(const io::Recording& rec, const config::Wheelchai
     auto uRm = sensors::resampleLinear(s.te, uR, tm), uLm = sensors::resampleLinear(s.te, uL, tm);
     auto vdm = sensors::resampleLinear(s.te, vd, tm), phm = sensors::resampleLinear(s.te, phi, tm);
     const auto& P = cfg.vehicle;
-    const double theta5 = P.motor_viscous_Nm_s_rad / P.torque_constant_Nm_A, rG = P.geom.gear_ratio, r = P.geom.wheel_radius_m;
+    const double theta5 = P.motor_viscous_Nm_s_rad / P.torque_constant_Nm_A, rG = P.geom.gear_ratio,
+                 r = P.geom.wheel_radius_m;
     const double alpha = 1.0 / (P.gearbox_efficiency * P.torque_constant_Nm_A);
     const double Mg2 = (P.geom.body_mass_kg + 2 * P.geom.wheel_mass_kg) * 9.81 / 2;
     for (size_t i = 0; i < out.motors.size(); ++i) {
@@ -864,7 +972,8 @@ io::Recording correctRecording(const io::Recording& rec, const config::Wheelchai
       double extra[2];
       for (int sd = 0; sd < 2; ++sd)
         extra[sd] = asym[sd] * theta5 * (rG / r) * u[sd] + coul[sd] * std::tanh(u[sd] / 0.01) +
-                    alpha * (r / rG) * dm * vdm[i] / 2 - alpha * (r / rG) * Mg2 * std::sin(slope) * std::cos(phm[i] - head);
+                    alpha * (r / rG) * dm * vdm[i] / 2 -
+                    alpha * (r / rG) * Mg2 * std::sin(slope) * std::cos(phm[i] - head);
       out.motors[i].current_right_A -= extra[0];
       out.motors[i].current_left_A -= extra[1];
     }

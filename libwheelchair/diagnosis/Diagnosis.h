@@ -33,21 +33,21 @@ namespace wheelchair::diagnosis {
 
 /// Section [diagnosis] of the configuration.
 struct DiagnosisOptions {
-  double fit_fraction = 0.7;        ///< without --validate: fit on this first part of the time
-  double window_s = 0.2;            ///< stage 1 window length (s)
-  double cutoff_hz = 2.0;           ///< stage 2 zero-phase low-pass (Hz), currents and speeds
-  double grid_rate_hz = 50.0;       ///< stage 2 time base (Hz)
-  double edge_trim_s = 1.0;         ///< stage 2: dropped at both ends of every segment
-  double max_gap_s = 0.25;          ///< a stream gap longer than this splits a segment
-  double alpha = 0.01;              ///< family-wise false-alarm level (Bonferroni)
-  double min_bic_drop = 10.0;       ///< strong evidence (Kass & Raftery)
+  double fit_fraction = 0.7;   ///< without --validate: fit on this first part of the time
+  double window_s = 0.2;       ///< stage 1 window length (s)
+  double cutoff_hz = 2.0;      ///< stage 2 zero-phase low-pass (Hz), currents and speeds
+  double grid_rate_hz = 50.0;  ///< stage 2 time base (Hz)
+  double edge_trim_s = 1.0;    ///< stage 2: dropped at both ends of every segment
+  double max_gap_s = 0.25;     ///< a stream gap longer than this splits a segment
+  double alpha = 0.01;         ///< family-wise false-alarm level (Bonferroni)
+  double min_bic_drop = 10.0;  ///< strong evidence (Kass & Raftery)
   double validation_fraction_of_expected = 0.25;  ///< held-out gain >= this x predicted gain
   double validation_min_expected_lr = 9.0;        ///< below: validation cannot test the term
   /// A term must change its channel by at least this fraction of ONE sample's configured
   /// noise (RMS over the fit data) to be reported: statistically significant but smaller
   /// effects are within the reconstruction's approximation error.
   double min_relevance = 0.25;
-  bool enable_unmodeled = true;     ///< sparse regression on what remains
+  bool enable_unmodeled = true;        ///< sparse regression on what remains
   double stlsq_threshold_sigma = 4.0;  ///< STLSQ keeps terms with |coef| > this x HAC sigma
   bool enable_delay = true;
   bool enable_pozyx = true;

@@ -23,8 +23,8 @@ namespace wheelchair::diagnosis {
 struct Finding {
   std::string effect;       ///< catalogue id (motor_asymmetry, encoder_scale, ..., unmodeled)
   std::string description;  ///< plain words with numbers
-  std::vector<std::string> channels;                 ///< where it shows (gyro, encoders, ...)
-  std::vector<std::pair<double, double>> segments;   ///< [t0, t1] where it acts most (s)
+  std::vector<std::string> channels;                      ///< where it shows (gyro, encoders, ...)
+  std::vector<std::pair<double, double>> segments;        ///< [t0, t1] where it acts most (s)
   nlohmann::json parameters = nlohmann::json::object();   ///< name -> value (number or text)
   nlohmann::json uncertainty = nlohmann::json::object();  ///< name -> 1-sigma
   nlohmann::json evidence = nlohmann::json::object();     ///< lr, p_value, delta_bic, n_eff, ...

@@ -31,7 +31,8 @@ struct LinearIntegral {
   void init(const std::vector<double>& tt, const std::vector<double>& xx, double sh) {
     t = &tt, x = &xx, shift = sh;
     C.assign(tt.size(), 0.0);
-    for (size_t k = 1; k < tt.size(); ++k) C[k] = C[k - 1] + 0.5 * (xx[k] + xx[k - 1]) * (tt[k] - tt[k - 1]);
+    for (size_t k = 1; k < tt.size(); ++k)
+      C[k] = C[k - 1] + 0.5 * (xx[k] + xx[k - 1]) * (tt[k] - tt[k - 1]);
   }
   double value(double tq) const {  // value of x at tq (linear)
     double q = tq + shift;
@@ -61,7 +62,8 @@ struct LinearIntegral {
     size_t i = std::upper_bound(T.begin(), T.end(), qa) - T.begin();
     size_t j = std::lower_bound(T.begin(), T.end(), qb) - T.begin();
     double g = 0;
-    for (size_t k = std::max<size_t>(i, 1); k <= j && k < T.size(); ++k) g = std::max(g, T[k] - T[k - 1]);
+    for (size_t k = std::max<size_t>(i, 1); k <= j && k < T.size(); ++k)
+      g = std::max(g, T[k] - T[k - 1]);
     return g;
   }
 };
@@ -88,7 +90,8 @@ Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cf
     auto un = sensors::unwrapTicks(rec.encoders);
     std::vector<size_t> idx(un.t_s.size());
     std::iota(idx.begin(), idx.end(), 0);
-    std::stable_sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return un.t_s[a] < un.t_s[b]; });
+    std::stable_sort(idx.begin(), idx.end(),
+                     [&](size_t a, size_t b) { return un.t_s[a] < un.t_s[b]; });
     for (size_t k : idx) {
       if (!s.te.empty() && !(un.t_s[k] > s.te.back())) continue;
       s.te.push_back(un.t_s[k]);
@@ -168,9 +171,11 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
       double dL = (s.sL[j] - s.sL[i]) / c.enc_scale[1];
       double dphi_enc = (dR - dL) / lw;
       // heading in the start frame (cumulative distances are kept from the recording start)
-      double phi_mid = 0.5 * ((s.sR[i] + s.sR[j]) / c.enc_scale[0] - (s.sL[i] + s.sL[j]) / c.enc_scale[1]) / lw;
+      double phi_mid =
+          0.5 * ((s.sR[i] + s.sR[j]) / c.enc_scale[0] - (s.sL[i] + s.sL[j]) / c.enc_scale[1]) / lw;
       if (gap || G.maxGap(t0, t1) > opt.max_gap_s) {
-        if (static_cast<int>(y.size()) > begin) k.groups.push_back({begin, static_cast<int>(y.size())});
+        if (static_cast<int>(y.size()) > begin)
+          k.groups.push_back({begin, static_cast<int>(y.size())});
         begin = static_cast<int>(y.size());
         continue;
       }
@@ -196,10 +201,9 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
 }
 
 const std::vector<std::string>& dynLibNames() {
-  static const std::vector<std::string> n = {"1",       "v",      "omega",    "vdot",
-                                             "omegadot", "sgn(u)", "|u|",      "u^2",
-                                             "v*omega", "omega^2", "cos(phi)", "sin(phi)",
-                                             "i_self",  "i_other"};
+  static const std::vector<std::string> n = {
+      "1",   "v",       "omega",   "vdot",     "omegadot", "sgn(u)", "|u|",
+      "u^2", "v*omega", "omega^2", "cos(phi)", "sin(phi)", "i_self", "i_other"};
   return n;
 }
 
@@ -271,7 +275,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
       // currents: filtered on their own time base, then resampled
       std::vector<double> tmi, iRs, iLs;
       for (size_t i = 0; i < tm.size(); ++i)
-        if (tm[i] >= glo - 2 && tm[i] <= ghi + 2) tmi.push_back(tm[i]), iRs.push_back(s.iR[i]), iLs.push_back(s.iL[i]);
+        if (tm[i] >= glo - 2 && tm[i] <= ghi + 2)
+          tmi.push_back(tm[i]), iRs.push_back(s.iR[i]), iLs.push_back(s.iL[i]);
       if (tmi.size() < 10) continue;
       auto iRf = sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, iRs, fc), tg);
       auto iLf = sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, iLs, fc), tg);
@@ -307,7 +312,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
       for (int i = i0; i < i1; ++i) {
         for (int sd = 0; sd < 2; ++sd) {
           Row row;
-          row.t = tg[i], row.v = v[i], row.w = w[i], row.vd = vd[i], row.wd = wd[i], row.phi = phi[i];
+          row.t = tg[i], row.v = v[i], row.w = w[i], row.vd = vd[i], row.wd = wd[i],
+          row.phi = phi[i];
           row.side = sd;
           double u = sd == 0 ? uRf[i] : uLf[i];
           double im = sd == 0 ? iRf[i] : iLf[i];
@@ -321,8 +327,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
           row.x[6] = -alpha * (r / rG) * Mg2 * sph[i];
           row.x[7] = -(sd == 0 ? dpR[i] : dpL[i]);
           double sg = sd == 0 ? sgR[i] : sgL[i];
-          row.l = {1.0,       v[i],      w[i],        vd[i],   wd[i], sg,  std::abs(u),
-                   u * u,     v[i] * w[i], w[i] * w[i], cph[i], sph[i], im, io};
+          row.l = {1.0,   v[i],        w[i],        vd[i],  wd[i],  sg, std::abs(u),
+                   u * u, v[i] * w[i], w[i] * w[i], cph[i], sph[i], im, io};
           (sd == 0 ? rowsR : rowsL).push_back(row);
         }
       }
@@ -375,7 +381,8 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
   while (true) {
     Eigen::MatrixXd D0f = acceptedDesign(d.X_fit, cands, sel.accepted);
     LinearFit f0 = fitLinear(D0f, d.y_fit, d.g_fit, d.lags);
-    Eigen::MatrixXd D0v = have_val ? acceptedDesign(d.X_val, cands, sel.accepted) : Eigen::MatrixXd();
+    Eigen::MatrixXd D0v =
+        have_val ? acceptedDesign(d.X_val, cands, sel.accepted) : Eigen::MatrixXd();
     double rss0v = have_val ? (d.y_val - D0v * f0.beta).squaredNorm() : 0;
     int best = -1;
     SelectionStep best_step;
@@ -410,13 +417,18 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
       st.rss0_fit = f0.rss, st.rss1_fit = f1.rss;
       st.coef = coef;
       std::string why;
-      if (!(ev.p_value < alpha_b)) why = "not significant (p = " + std::to_string(ev.p_value) + ")";
-      else if (!(ev.delta_bic < -opt.min_bic_drop)) why = "BIC drop too small";
-      else if (c.plausible && !c.plausible(coef)) why = "physically implausible parameters";
+      if (!(ev.p_value < alpha_b))
+        why = "not significant (p = " + std::to_string(ev.p_value) + ")";
+      else if (!(ev.delta_bic < -opt.min_bic_drop))
+        why = "BIC drop too small";
+      else if (c.plausible && !c.plausible(coef))
+        why = "physically implausible parameters";
       else {
-        double crms = (d.X_fit * c.S * coef).norm() / std::sqrt(std::max<double>(1, d.y_fit.size()));
+        double crms =
+            (d.X_fit * c.S * coef).norm() / std::sqrt(std::max<double>(1, d.y_fit.size()));
         if (crms < d.min_contribution_rms)
-          why = "irrelevant: contribution rms " + std::to_string(crms) + " below " + std::to_string(d.min_contribution_rms);
+          why = "irrelevant: contribution rms " + std::to_string(crms) + " below " +
+                std::to_string(d.min_contribution_rms);
       }
       if (why.empty() && have_val) {
         Eigen::MatrixXd D1v = acceptedDesign(d.X_val, cands, trial);
@@ -440,6 +452,38 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     if (best < 0) break;
     sel.accepted.push_back(best);
     sel.steps.push_back(best_step);
+  }
+  // Backward elimination: a term accepted early may be made redundant by a later one.
+  while (sel.accepted.size() > forced.size()) {
+    Eigen::MatrixXd D1 = acceptedDesign(d.X_fit, cands, sel.accepted);
+    LinearFit f1 = fitLinear(D1, d.y_fit, d.g_fit, d.lags);
+    double ne = effectiveSampleSize(f1.residual, d.g_fit, d.lags);
+    int worst = -1;
+    double worst_lr = 1e300;
+    int col = 0;
+    for (size_t a = 0; a < sel.accepted.size(); ++a) {
+      const Candidate& c = cands[sel.accepted[a]];
+      int k = static_cast<int>(c.S.cols());
+      bool is_forced = a < forced.size();
+      if (!is_forced) {
+        std::vector<int> rest = sel.accepted;
+        rest.erase(rest.begin() + a);
+        LinearFit f0 = fitLinear(acceptedDesign(d.X_fit, cands, rest), d.y_fit, d.g_fit, d.lags);
+        Evidence ev = compareNested(f0.rss, f1.rss, k, ne);
+        Eigen::VectorXd coef = f1.beta.segment(col, k);
+        double crms =
+            (d.X_fit * c.S * coef).norm() / std::sqrt(std::max<double>(1, d.y_fit.size()));
+        bool fails = !(ev.p_value < alpha_b) || !(ev.delta_bic < -opt.min_bic_drop) ||
+                     crms < d.min_contribution_rms || (c.plausible && !c.plausible(coef));
+        if (fails && ev.lr < worst_lr) worst_lr = ev.lr, worst = static_cast<int>(a);
+      }
+      col += k;
+    }
+    if (worst < 0) break;
+    sel.log.push_back(cands[sel.accepted[worst]].name +
+                      ": removed, redundant given the other terms");
+    sel.accepted.erase(sel.accepted.begin() + worst);
+    sel.steps.erase(sel.steps.begin() + (worst - static_cast<int>(forced.size())));
   }
   Eigen::MatrixXd Df = acceptedDesign(d.X_fit, cands, sel.accepted);
   sel.fit = fitLinear(Df, d.y_fit, d.g_fit, d.lags);

@@ -93,8 +93,8 @@ struct SelectionStep {
 
 struct Selection {
   std::vector<int> accepted;
-  std::vector<SelectionStep> steps;  ///< one per accepted candidate
-  LinearFit fit;                     ///< final joint fit (columns: accepted in order)
+  std::vector<SelectionStep> steps;         ///< one per accepted candidate
+  LinearFit fit;                            ///< final joint fit (columns: accepted in order)
   std::vector<std::pair<int, int>> ranges;  ///< coefficient range of each accepted candidate
   std::vector<std::string> log;             ///< why candidates were rejected (last round)
 };

@@ -10,7 +10,9 @@
 
 namespace wheelchair::diagnosis {
 
-Groups singleGroup(int n) { return {{0, n}}; }
+Groups singleGroup(int n) {
+  return {{0, n}};
+}
 
 namespace {
 
@@ -73,8 +75,7 @@ LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Gr
     S += g.middleRows(a, b - a).transpose() * g.middleRows(a, b - a);
     for (int l = 1; l <= lags && l < b - a; ++l) {
       double w = 1.0 - double(l) / (lags + 1);
-      Eigen::MatrixXd G =
-          g.middleRows(a + l, b - a - l).transpose() * g.middleRows(a, b - a - l);
+      Eigen::MatrixXd G = g.middleRows(a + l, b - a - l).transpose() * g.middleRows(a, b - a - l);
       S += w * (G + G.transpose());
     }
   }
@@ -92,7 +93,8 @@ double effectiveSampleSize(const Eigen::VectorXd& r, const Groups& groups, int l
   double g0 = autocov(r, groups, 0, true);
   if (!(g0 > 0)) return n;
   double lrv = g0;
-  for (int k = 1; k <= lags; ++k) lrv += 2.0 * (1.0 - double(k) / (lags + 1)) * autocov(r, groups, k, true);
+  for (int k = 1; k <= lags; ++k)
+    lrv += 2.0 * (1.0 - double(k) / (lags + 1)) * autocov(r, groups, k, true);
   // The long-run variance of a sum cannot be below a small fraction of g0 for physical
   // residuals; a negative estimate (strong alternation) is treated as white.
   if (!(lrv > 0)) return n;
@@ -124,7 +126,9 @@ double chi2Sf(double x, double k) {
   return std::clamp(1.0 - c, 0.0, 1.0);
 }
 
-double normalTwoSidedP(double z) { return std::erfc(std::abs(z) / std::sqrt(2.0)); }
+double normalTwoSidedP(double z) {
+  return std::erfc(std::abs(z) / std::sqrt(2.0));
+}
 
 Evidence compareNested(double rss0, double rss1, int k, double n_eff) {
   Evidence e;

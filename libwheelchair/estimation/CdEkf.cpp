@@ -26,6 +26,11 @@ struct CdEkf::Cvode {
   SUNMatrix A = nullptr;
   SUNLinearSolver ls = nullptr;
   bool initialised = false;
+  /// CVODE holds a valid integration that ended at `t_live` with y (continuation possible).
+  bool live = false;
+  double t_live = 0;
+  long nst = 0, nfe = 0, netf = 0, nni = 0;  // CVODE counters at the end of the last call
+  std::vector<double> ycheck;                // packed (x, P) to compare with y
 
   ~Cvode() {
     if (mem) CVodeFree(&mem);
@@ -58,6 +63,200 @@ void check(int flag, const char* what) {
                              std::to_string(flag));
 }
 
+// ---------------------------------------------------------------------------------------------
+// Element-wise kernels for the serial N_Vector. The distribution's libsundials_cvode is built
+// without optimisation (every element access goes through the stack), which made these
+// kernels over half of the filter's time for a 54-element vector; these are the same
+// operations compiled with the project's flags. Installed in the ops table of the template
+// vector, so every clone CVODE and the nonlinear solver make inherits them. Aliasing of
+// inputs and outputs is allowed as in the reference implementation (element i is read
+// before it is written).
+namespace kern {
+
+inline sunrealtype* D(N_Vector v) {
+  return NV_DATA_S(v);
+}
+inline sunindextype L(N_Vector v) {
+  return NV_LENGTH_S(v);
+}
+
+void linearSum(sunrealtype a, N_Vector x, sunrealtype b, N_Vector y, N_Vector z) {
+  const sunindextype n = L(x);
+  const sunrealtype *xd = D(x), *yd = D(y);
+  sunrealtype* zd = D(z);
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) zd[i] = a * xd[i] + b * yd[i];
+}
+void constant(sunrealtype c, N_Vector z) {
+  const sunindextype n = L(z);
+  sunrealtype* zd = D(z);
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) zd[i] = c;
+}
+void prod(N_Vector x, N_Vector y, N_Vector z) {
+  const sunindextype n = L(x);
+  const sunrealtype *xd = D(x), *yd = D(y);
+  sunrealtype* zd = D(z);
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) zd[i] = xd[i] * yd[i];
+}
+void div(N_Vector x, N_Vector y, N_Vector z) {
+  const sunindextype n = L(x);
+  const sunrealtype *xd = D(x), *yd = D(y);
+  sunrealtype* zd = D(z);
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) zd[i] = xd[i] / yd[i];
+}
+void scale(sunrealtype c, N_Vector x, N_Vector z) {
+  const sunindextype n = L(x);
+  const sunrealtype* xd = D(x);
+  sunrealtype* zd = D(z);
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) zd[i] = c * xd[i];
+}
+void absv(N_Vector x, N_Vector z) {
+  const sunindextype n = L(x);
+  const sunrealtype* xd = D(x);
+  sunrealtype* zd = D(z);
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) zd[i] = std::fabs(xd[i]);
+}
+void inv(N_Vector x, N_Vector z) {
+  const sunindextype n = L(x);
+  const sunrealtype* xd = D(x);
+  sunrealtype* zd = D(z);
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) zd[i] = 1.0 / xd[i];
+}
+void addConst(N_Vector x, sunrealtype b, N_Vector z) {
+  const sunindextype n = L(x);
+  const sunrealtype* xd = D(x);
+  sunrealtype* zd = D(z);
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) zd[i] = xd[i] + b;
+}
+sunrealtype dotProd(N_Vector x, N_Vector y) {
+  const sunindextype n = L(x);
+  const sunrealtype *xd = D(x), *yd = D(y);
+  sunrealtype s = 0;
+  for (sunindextype i = 0; i < n; ++i) s += xd[i] * yd[i];
+  return s;
+}
+sunrealtype maxNorm(N_Vector x) {
+  const sunindextype n = L(x);
+  const sunrealtype* xd = D(x);
+  sunrealtype m = 0;
+  for (sunindextype i = 0; i < n; ++i) m = std::max(m, std::fabs(xd[i]));
+  return m;
+}
+sunrealtype wrmsNorm(N_Vector x, N_Vector w) {
+  const sunindextype n = L(x);
+  const sunrealtype *xd = D(x), *wd = D(w);
+  sunrealtype s0 = 0, s1 = 0;  // two partial sums (pairs of lanes)
+  sunindextype i = 0;
+  for (; i + 1 < n; i += 2) {
+    const sunrealtype p0 = xd[i] * wd[i], p1 = xd[i + 1] * wd[i + 1];
+    s0 += p0 * p0;
+    s1 += p1 * p1;
+  }
+  if (i < n) {
+    const sunrealtype p = xd[i] * wd[i];
+    s0 += p * p;
+  }
+  return std::sqrt((s0 + s1) / static_cast<sunrealtype>(n));
+}
+sunrealtype minv(N_Vector x) {
+  const sunindextype n = L(x);
+  const sunrealtype* xd = D(x);
+  sunrealtype m = xd[0];
+  for (sunindextype i = 1; i < n; ++i) m = std::min(m, xd[i]);
+  return m;
+}
+void compare(sunrealtype c, N_Vector x, N_Vector z) {
+  const sunindextype n = L(x);
+  const sunrealtype* xd = D(x);
+  sunrealtype* zd = D(z);
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) zd[i] = std::fabs(xd[i]) >= c ? 1.0 : 0.0;
+}
+int linearCombination(int nvec, sunrealtype* c, N_Vector* X, N_Vector z) {
+  const sunindextype n = L(z);
+  sunrealtype* zd = D(z);
+  if (nvec == 1) {
+    scale(c[0], X[0], z);
+    return 0;
+  }
+  if (nvec == 2) {
+    linearSum(c[0], X[0], c[1], X[1], z);
+    return 0;
+  }
+  sunrealtype* xs[64];
+  if (nvec > 64) return -1;
+  for (int k = 0; k < nvec; ++k) xs[k] = D(X[k]);
+  for (sunindextype i = 0; i < n; ++i) {
+    sunrealtype s = c[0] * xs[0][i];
+    for (int k = 1; k < nvec; ++k) s += c[k] * xs[k][i];
+    zd[i] = s;
+  }
+  return 0;
+}
+int scaleAddMulti(int nvec, sunrealtype* a, N_Vector x, N_Vector* Y, N_Vector* Z) {
+  const sunindextype n = L(x);
+  const sunrealtype* xd = D(x);
+  for (int k = 0; k < nvec; ++k) {
+    const sunrealtype* yd = D(Y[k]);
+    sunrealtype* zd = D(Z[k]);
+    const sunrealtype ak = a[k];
+#pragma GCC ivdep
+    for (sunindextype i = 0; i < n; ++i) zd[i] = ak * xd[i] + yd[i];
+  }
+  return 0;
+}
+int scaleVectorArray(int nvec, sunrealtype* c, N_Vector* X, N_Vector* Z) {
+  for (int k = 0; k < nvec; ++k) scale(c[k], X[k], Z[k]);
+  return 0;
+}
+int linearSumVectorArray(int nvec, sunrealtype a, N_Vector* X, sunrealtype b, N_Vector* Y,
+                         N_Vector* Z) {
+  for (int k = 0; k < nvec; ++k) linearSum(a, X[k], b, Y[k], Z[k]);
+  return 0;
+}
+int constVectorArray(int nvec, sunrealtype c, N_Vector* Z) {
+  for (int k = 0; k < nvec; ++k) constant(c, Z[k]);
+  return 0;
+}
+
+void install(N_Vector v) {
+  N_Vector_Ops o = v->ops;
+  o->nvlinearsum = linearSum;
+  o->nvconst = constant;
+  o->nvprod = prod;
+  o->nvdiv = div;
+  o->nvscale = scale;
+  o->nvabs = absv;
+  o->nvinv = inv;
+  o->nvaddconst = addConst;
+  o->nvdotprod = dotProd;
+  o->nvmaxnorm = maxNorm;
+  o->nvwrmsnorm = wrmsNorm;
+  o->nvmin = minv;
+  o->nvcompare = compare;
+  o->nvlinearcombination = linearCombination;
+  o->nvscaleaddmulti = scaleAddMulti;
+  o->nvscalevectorarray = scaleVectorArray;
+  o->nvlinearsumvectorarray = linearSumVectorArray;
+  o->nvconstvectorarray = constVectorArray;
+}
+
+}  // namespace kern
+
+/// Adapter of the std::function input (allocates per call; the legacy path).
+struct FunctionInput final : CdInput {
+  explicit FunctionInput(const InputFunction& f) : f_(f) {}
+  void eval(double t, Eigen::VectorXd& u) const override { u = f_(t); }
+  const InputFunction& f_;
+};
+
 }  // namespace
 
 CdEkf::CdEkf(const CdModel& model, const CvodeOptions& options)
@@ -71,13 +270,19 @@ CdEkf::CdEkf(const CdModel& model, const CvodeOptions& options)
   wF_.resize(n_, n_);
   wQ_.resize(n_, n_);
   wFP_.resize(n_, n_);
+  const int N = n_ + packedSize(n_);
+  ys_.resize(N);
+  yds_.resize(N);
 
   cv_ = std::make_unique<Cvode>();
-  const int N = n_ + packedSize(n_);
+  cv_->ycheck.resize(N);
   check(SUNContext_Create(nullptr, &cv_->ctx), "SUNContext_Create");
   cv_->y = N_VNew_Serial(N, cv_->ctx);
   cv_->abstol = N_VNew_Serial(N, cv_->ctx);
   if (!cv_->y || !cv_->abstol) throw std::runtime_error("CdEkf: N_VNew_Serial failed");
+  // Before CVodeInit and the solvers clone y: the clones copy the ops table.
+  kern::install(cv_->y);
+  kern::install(cv_->abstol);
   double* at = N_VGetArrayPointer(cv_->abstol);
   for (int i = 0; i < N; ++i) at[i] = (i < n_) ? opt_.abs_tol_state : opt_.abs_tol_cov;
   const bool bdf = opt_.method == CvodeOptions::Method::Bdf;
@@ -105,25 +310,68 @@ void CdEkf::unpack(const double* y) {
     }
 }
 
-void CdEkf::evalRhs(double t, const double* y, double* ydot) {
-  for (int i = 0; i < n_; ++i) wx_(i) = y[i];
-  int k = n_;
-  for (int c = 0; c < n_; ++c)
-    for (int r = c; r < n_; ++r) {
-      wP_(r, c) = y[k];
-      wP_(c, r) = y[k];
+namespace {
+
+// Packed Riccati right-hand side: out = lower triangle (column-major) of F P + P F' + Qs, with
+// P given as its packed lower triangle yP and Qs = (Q + Q') / 2 packed. F is used row-sparse:
+// a kinematic model has a handful of nonzeros per row, so F P costs nnz(F) n instead of n^3.
+// NC > 0: the dimension known at compile time (unrolled loops); NC = 0: n at run time. Work
+// arrays P and FP: n x n.
+template <int NC>
+void riccatiPacked(int n_rt, const double* __restrict yP, const double* __restrict F,
+                   const double* __restrict Qs, double* __restrict out, double* __restrict P,
+                   double* __restrict FP) {
+  const int n = NC > 0 ? NC : n_rt;
+  int k = 0;
+  for (int c = 0; c < n; ++c)
+    for (int r = c; r < n; ++r) {
+      P[r + c * n] = yP[k];
+      P[c + r * n] = yP[k];
       ++k;
     }
-  wu_ = (*u_)(t);
+  // FPt = (F P)' = P F' (P symmetric): column r of FPt accumulates F(r, j) P(:, j) over the
+  // nonzeros F(r, j), contiguous axpys of length n.
+  for (int i = 0; i < n * n; ++i) FP[i] = 0.0;
+  for (int r = 0; r < n; ++r) {
+    double* FPr = FP + r * n;
+    for (int j = 0; j < n; ++j) {
+      const double v = F[r + j * n];
+      if (v == 0.0) continue;
+      const double* Pj = P + j * n;
+#pragma GCC unroll 16
+      for (int i = 0; i < n; ++i) FPr[i] += v * Pj[i];
+    }
+  }
+  k = 0;
+  for (int c = 0; c < n; ++c)
+    for (int r = c; r < n; ++r, ++k) out[k] = FP[r + c * n] + FP[c + r * n] + Qs[k];
+}
+
+void packSymmetrised(const Eigen::MatrixXd& Q, double* out) {
+  const int n = static_cast<int>(Q.rows());
+  int k = 0;
+  for (int c = 0; c < n; ++c)
+    for (int r = c; r < n; ++r) out[k++] = 0.5 * (Q(r, c) + Q(c, r));
+}
+
+}  // namespace
+
+void CdEkf::evalRhs(double t, const double* y, double* ydot) {
+  const int n = n_;
+  for (int i = 0; i < n; ++i) wx_(i) = y[i];
+  u_->eval(t, wu_);
   model_.f(wx_, wu_, wxd_);
   model_.F(wx_, wu_, wF_);
-  model_.Q(wx_, wu_, wQ_);
-  wFP_.noalias() = wF_ * wP_;
-  for (int i = 0; i < n_; ++i) ydot[i] = wxd_(i);
-  k = n_;
-  for (int c = 0; c < n_; ++c)
-    for (int r = c; r < n_; ++r)
-      ydot[k++] = wFP_(r, c) + wFP_(c, r) + 0.5 * (wQ_(r, c) + wQ_(c, r));
+  if (qPacked_.empty() || !model_.constantQ()) {
+    model_.Q(wx_, wu_, wQ_);
+    qPacked_.resize(packedSize(n));
+    packSymmetrised(wQ_, qPacked_.data());
+  }
+  for (int i = 0; i < n; ++i) ydot[i] = wxd_(i);
+  if (n == 9)  // the wheelchair filter
+    riccatiPacked<9>(n, y + n, wF_.data(), qPacked_.data(), ydot + n, wP_.data(), wFP_.data());
+  else
+    riccatiPacked<0>(n, y + n, wF_.data(), qPacked_.data(), ydot + n, wP_.data(), wFP_.data());
 }
 
 void CdEkf::reset(double t0_s, const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0) {
@@ -132,69 +380,109 @@ void CdEkf::reset(double t0_s, const Eigen::VectorXd& x0, const Eigen::MatrixXd&
   t_ = t0_s;
   x_ = x0;
   setCovariance(P0);
+  cv_->live = false;
 }
 
 void CdEkf::setCovariance(const Eigen::MatrixXd& P) {
   P_ = 0.5 * (P + P.transpose());
 }
 
+void CdEkf::zeroCovarianceRowsCols(int i, int count) {
+  P_.middleRows(i, count).setZero();
+  P_.middleCols(i, count).setZero();
+}
+
 void CdEkf::propagate(double t1_s, const InputFunction& u) {
+  const FunctionInput in(u);
+  integrate(t1_s, in, false);
+}
+
+void CdEkf::propagate(double t1_s, const CdInput& u, bool continuous) {
+  integrate(t1_s, u, continuous);
+}
+
+void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   if (!(t1_s >= t_)) throw std::invalid_argument("CdEkf::propagate: time goes backwards");
   const double dt = t1_s - t_;
   if (dt == 0.0) return;
-  u_ = &u;
   const double scale = std::max(1.0, std::max(std::fabs(t_), std::fabs(t1_s)));
+  struct Clear {
+    const CdInput*& p;
+    ~Clear() { p = nullptr; }
+  } clear{u_};
+  u_ = &u;
   if (dt < 1e-9 * scale) {
     // Too short for CVODE's first step heuristics: one explicit Euler step (exact to O(dt^2)).
     const int N = n_ + packedSize(n_);
-    std::vector<double> y(N), yd(N);
-    pack(y.data());
-    evalRhs(t_, y.data(), yd.data());
-    for (int i = 0; i < N; ++i) y[i] += dt * yd[i];
-    unpack(y.data());
+    pack(ys_.data());
+    evalRhs(t_, ys_.data(), yds_.data());
+    for (int i = 0; i < N; ++i) ys_[i] += dt * yds_[i];
+    unpack(ys_.data());
     t_ = t1_s;
     ++stats_.short_intervals;
+    cv_->live = false;
     return;
   }
-  pack(N_VGetArrayPointer(cv_->y));
+  const int N = n_ + packedSize(n_);
+  double* y = N_VGetArrayPointer(cv_->y);
   void* mem = cv_->mem;
-  if (!cv_->initialised) {
-    check(CVodeInit(mem, &CdEkfAccess::rhs, t_, cv_->y), "CVodeInit");
-    check(CVodeSVtolerances(mem, opt_.rel_tol, cv_->abstol), "CVodeSVtolerances");
-    check(CVodeSetUserData(mem, this), "CVodeSetUserData");
-    if (opt_.method == CvodeOptions::Method::Adams) {
-      cv_->nls = SUNNonlinSol_FixedPoint(cv_->y, 0, cv_->ctx);
-      if (!cv_->nls) throw std::runtime_error("CdEkf: SUNNonlinSol_FixedPoint failed");
-      check(CVodeSetNonlinearSolver(mem, cv_->nls), "CVodeSetNonlinearSolver");
+  // Continue the running integration when nothing jumped since it stopped at t_.
+  bool resume = false;
+  if (continuous && cv_->live && cv_->t_live == t_) {
+    pack(cv_->ycheck.data());
+    resume = std::equal(cv_->ycheck.begin(), cv_->ycheck.end(), y);
+  }
+  cv_->live = false;
+  if (!resume) {
+    pack(y);
+    if (!cv_->initialised) {
+      check(CVodeInit(mem, &CdEkfAccess::rhs, t_, cv_->y), "CVodeInit");
+      check(CVodeSVtolerances(mem, opt_.rel_tol, cv_->abstol), "CVodeSVtolerances");
+      check(CVodeSetUserData(mem, this), "CVodeSetUserData");
+      if (opt_.method == CvodeOptions::Method::Adams) {
+        cv_->nls = SUNNonlinSol_FixedPoint(cv_->y, 0, cv_->ctx);
+        if (!cv_->nls) throw std::runtime_error("CdEkf: SUNNonlinSol_FixedPoint failed");
+        check(CVodeSetNonlinearSolver(mem, cv_->nls), "CVodeSetNonlinearSolver");
+      } else {
+        cv_->A = SUNDenseMatrix(N, N, cv_->ctx);
+        cv_->ls = SUNLinSol_Dense(cv_->y, cv_->A, cv_->ctx);
+        if (!cv_->A || !cv_->ls) throw std::runtime_error("CdEkf: dense linear solver failed");
+        check(CVodeSetLinearSolver(mem, cv_->ls, cv_->A), "CVodeSetLinearSolver");
+      }
+      check(CVodeSetMaxNumSteps(mem, opt_.max_num_steps), "CVodeSetMaxNumSteps");
+      if (opt_.max_step_s > 0) check(CVodeSetMaxStep(mem, opt_.max_step_s), "CVodeSetMaxStep");
+      if (opt_.max_order > 0) check(CVodeSetMaxOrd(mem, opt_.max_order), "CVodeSetMaxOrd");
+      cv_->initialised = true;
     } else {
-      const int N = n_ + packedSize(n_);
-      cv_->A = SUNDenseMatrix(N, N, cv_->ctx);
-      cv_->ls = SUNLinSol_Dense(cv_->y, cv_->A, cv_->ctx);
-      if (!cv_->A || !cv_->ls) throw std::runtime_error("CdEkf: dense linear solver failed");
-      check(CVodeSetLinearSolver(mem, cv_->ls, cv_->A), "CVodeSetLinearSolver");
+      check(CVodeReInit(mem, t_, cv_->y), "CVodeReInit");
     }
-    check(CVodeSetMaxNumSteps(mem, opt_.max_num_steps), "CVodeSetMaxNumSteps");
-    if (opt_.max_step_s > 0) check(CVodeSetMaxStep(mem, opt_.max_step_s), "CVodeSetMaxStep");
-    if (opt_.max_order > 0) check(CVodeSetMaxOrd(mem, opt_.max_order), "CVodeSetMaxOrd");
-    cv_->initialised = true;
-  } else {
-    check(CVodeReInit(mem, t_, cv_->y), "CVodeReInit");
+    cv_->nst = cv_->nfe = cv_->netf = cv_->nni = 0;  // (Re)Init resets CVODE's counters
+    ++stats_.restarts;
   }
   // Never step past t1: u(t) is only defined on [t0, t1].
   check(CVodeSetStopTime(mem, t1_s), "CVodeSetStopTime");
 
   double tret = t_;
   const int flag = CVode(mem, t1_s, cv_->y, &tret, CV_NORMAL);
-  u_ = nullptr;
   check(flag, "CVode");
-  long nst = 0, nfe = 0;
+  long nst = 0, nfe = 0, netf = 0, nni = 0;
   CVodeGetNumSteps(mem, &nst);
   CVodeGetNumRhsEvals(mem, &nfe);
-  stats_.steps += nst;
-  stats_.rhs_evals += nfe;
+  CVodeGetNumErrTestFails(mem, &netf);
+  CVodeGetNumNonlinSolvIters(mem, &nni);
+  stats_.steps += nst - cv_->nst;
+  stats_.rhs_evals += nfe - cv_->nfe;
+  stats_.error_test_fails += netf - cv_->netf;
+  stats_.nonlin_iters += nni - cv_->nni;
+  cv_->nst = nst;
+  cv_->nfe = nfe;
+  cv_->netf = netf;
+  cv_->nni = nni;
   ++stats_.intervals;
-  unpack(N_VGetArrayPointer(cv_->y));
+  unpack(y);
   t_ = t1_s;
+  cv_->live = true;
+  cv_->t_live = t_;
 }
 
 double CdEkf::nis(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,
@@ -205,12 +493,12 @@ double CdEkf::nis(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,
 
 UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
                           const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate) {
-  const int n = static_cast<int>(x.size());
   UpdateResult r;
   r.dof = static_cast<int>(y.size());
   r.innovation = y;
-  const Eigen::MatrixXd PHt = P * H.transpose();
-  r.S = H * PHt + R;
+  // Small matrices (n <= ~10, m <= 2): coefficient-based products, no GEMM blocking.
+  const Eigen::MatrixXd PHt = P.lazyProduct(H.transpose());
+  r.S = H.lazyProduct(PHt) + R;
   r.S = 0.5 * (r.S + r.S.transpose());
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(r.S);
   if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0))
@@ -222,8 +510,15 @@ UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::V
   }
   const Eigen::MatrixXd K = ldlt.solve(PHt.transpose()).transpose();  // P H' S^-1
   x += K * y;
-  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
-  const Eigen::MatrixXd Pn = IKH * P * IKH.transpose() + K * R * K.transpose();
+  // Joseph form (I - K H) P (I - K H)' + K R K', evaluated without n x n x n products:
+  // A = (I - K H) P = P - K (P H')'  (P symmetric), then A (I - K H)' = A - (A H') K'.
+  Eigen::MatrixXd A = P;
+  A.noalias() -= K.lazyProduct(PHt.transpose());
+  const Eigen::MatrixXd AHt = A.lazyProduct(H.transpose());
+  const Eigen::MatrixXd KR = K.lazyProduct(R);
+  Eigen::MatrixXd Pn = A;
+  Pn.noalias() -= AHt.lazyProduct(K.transpose());
+  Pn.noalias() += KR.lazyProduct(K.transpose());
   P = 0.5 * (Pn + Pn.transpose());
   r.accepted = true;
   return r;

@@ -7,12 +7,23 @@
 //
 // Q is the continuous-time process-noise spectral density (units of x^2 per second). The
 // state and the Riccati ODE are integrated TOGETHER by SUNDIALS CVODE 6.4 (the covariance as
-// its packed lower triangle, so it stays exactly symmetric); one CVODE memory is created
-// once and re-initialised (CVodeReInit) for every interval, because u(t) and the state jump
-// at measurement times. Default method Adams-Moulton with fixed-point (functional)
-// iteration: the system is not stiff (time constants of seconds, intervals of milliseconds),
-// so no Jacobian of the augmented (x, P) system is needed. BDF + dense Newton (finite-
-// difference Jacobian) is available for stiff models.
+// its packed lower triangle, so it stays exactly symmetric). One CVODE memory is created once.
+// Every propagate() integrates to t1 with CVodeSetStopTime(t1), so CVODE never steps past it
+// and u(t) is only evaluated on [time(), t1]. The integration is RE-INITIALISED (CVodeReInit:
+// back to order 1 and a new initial step) only when it has to be: when the state or the
+// covariance changed since the previous propagate() (a measurement update, setState, ...) or
+// when the caller says that u(t) is not continuous with the previous interval. Otherwise CVODE
+// simply continues (same step size, order and history), which is exact continuation of one
+// integration (docs/estimation.md, "CVODE settings").
+//
+// Default method Adams-Moulton with fixed-point (functional) iteration: the system is not
+// stiff (time constants of seconds, intervals of milliseconds), so no Jacobian of the
+// augmented (x, P) system is needed. BDF + dense Newton (finite-difference Jacobian) is
+// available for stiff models.
+//
+// Performance: the right-hand side is allocation-free (work space sized once, F used row-sparse
+// in F P), and the CVODE vectors use optimised element-wise kernels of this file instead of the
+// distribution's (unoptimised) serial N_Vector kernels (docs/benchmarks.md).
 //
 // The caller computes innovations (so that it can wrap angles) and decides what the gate
 // is; update() returns the NIS and whether the measurement passed the gate. A rejected
@@ -31,6 +42,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace wheelchair::estimation {
 
@@ -46,10 +58,20 @@ class CdModel {
   virtual void F(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& F) const = 0;
   /// Q: continuous-time process-noise spectral density (stateDim x stateDim, symmetric PSD).
   virtual void Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& Q) const = 0;
+  /// True when Q depends on neither x nor u: CdEkf then evaluates it once.
+  virtual bool constantQ() const { return false; }
 };
 
 /// u(t) over one propagation interval.
 using InputFunction = std::function<Eigen::VectorXd(double t_s)>;
+
+/// u(t) for the allocation-free propagation path (evaluated at every right-hand side call).
+class CdInput {
+ public:
+  virtual ~CdInput() = default;
+  /// Writes u(t_s) into u (assign a fixed-size vector: no allocation once u has its size).
+  virtual void eval(double t_s, Eigen::VectorXd& u) const = 0;
+};
 
 /// CVODE settings (the [estimator] keys cvode_*).
 struct CvodeOptions {
@@ -61,6 +83,9 @@ struct CvodeOptions {
   long max_num_steps = 50000;     ///< per interval
   double max_step_s = 0.0;        ///< 0: no limit
   int max_order = 0;              ///< 0: CVODE's default (12 Adams, 5 BDF)
+  /// Re-initialise CVODE at every sample of a linearly interpolated input (its kinks), as
+  /// before; false: integrate through the kinks under error control (docs/estimation.md).
+  bool restart_at_input_samples = false;
 };
 
 /// Result of one measurement update.
@@ -78,6 +103,9 @@ struct CvodeStats {
   long steps = 0;
   long rhs_evals = 0;
   long short_intervals = 0;  ///< intervals too short for CVODE, done by one Euler step
+  long restarts = 0;         ///< intervals that started with CVodeInit / CVodeReInit
+  long error_test_fails = 0;
+  long nonlin_iters = 0;
 };
 
 class CdEkf {
@@ -91,8 +119,14 @@ class CdEkf {
   void reset(double t0_s, const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0);
 
   /// Integrates state and covariance from time() to t1_s (t1_s >= time()) with input u(t).
+  /// The integration is always re-initialised at time() (u may jump there).
   /// Throws std::runtime_error when CVODE fails.
   void propagate(double t1_s, const InputFunction& u);
+  /// The same with an allocation-free input. `continuous`: u(t) is the continuation of the
+  /// input of the previous propagate() (same function, no jump at time()); then, if the state
+  /// and covariance were not changed in between, CVODE continues without re-initialisation.
+  /// `u` is only used during the call.
+  void propagate(double t1_s, const CdInput& u, bool continuous);
 
   /// Measurement update with innovation y = z - h(x), Jacobian H, noise R. The measurement
   /// is applied only if NIS <= gate (gate <= 0: no gating).
@@ -108,6 +142,8 @@ class CdEkf {
   const Eigen::MatrixXd& P() const { return P_; }
   /// Direct access (angle wrapping, resets of augmented states); P is re-symmetrised.
   void setState(const Eigen::VectorXd& x) { x_ = x; }
+  /// Zeroes rows and columns [i, i + count) of P (exactly symmetric, no reallocation).
+  void zeroCovarianceRowsCols(int i, int count);
   void setCovariance(const Eigen::MatrixXd& P);
   const CvodeStats& stats() const { return stats_; }
   const CvodeOptions& options() const { return opt_; }
@@ -118,6 +154,7 @@ class CdEkf {
   void evalRhs(double t, const double* y, double* ydot);
   void pack(double* y) const;
   void unpack(const double* y);
+  void integrate(double t1_s, const CdInput& u, bool continuous);
 
   const CdModel& model_;
   CvodeOptions opt_;
@@ -125,10 +162,12 @@ class CdEkf {
   double t_ = 0;
   Eigen::VectorXd x_;
   Eigen::MatrixXd P_;
-  const InputFunction* u_ = nullptr;
-  // Work space of the right-hand side.
+  const CdInput* u_ = nullptr;
+  // Work space of the right-hand side (sized once).
   Eigen::VectorXd wx_, wu_, wxd_;
   Eigen::MatrixXd wP_, wF_, wQ_, wFP_;
+  std::vector<double> ys_, yds_;  // packed scratch
+  std::vector<double> qPacked_;   // packed (Q + Q') / 2 when the model's Q is constant
   std::unique_ptr<Cvode> cv_;
   CvodeStats stats_;
 };

@@ -132,6 +132,7 @@ std::vector<Key> keys(EkfOptions& o) {
       intKey("cvode_max_num_steps", o.cvode.max_num_steps),
       dblKey("cvode_max_step_s", o.cvode.max_step_s),
       intKey("cvode_max_order", o.cvode.max_order),
+      boolKey("cvode_restart_at_input_samples", o.cvode.restart_at_input_samples),
       dblKey("q_v_m2_s3", o.q_v_m2_s3),
       dblKey("q_omega_rad2_s3", o.q_omega_rad2_s3),
       dblKey("q_xy_m2_s", o.q_xy_m2_s),

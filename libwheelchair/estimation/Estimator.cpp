@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <tuple>
 
@@ -93,6 +94,15 @@ std::vector<double> InputSignal::breakpoints(double t0, double t1) const {
   for (auto it = std::upper_bound(t_.begin(), t_.end(), t0); it != t_.end() && *it < t1; ++it)
     out.push_back(*it);
   return out;
+}
+
+double InputSignal::nextSampleAfter(double t) const {
+  const auto it = std::upper_bound(t_.begin(), t_.end(), t);
+  return it == t_.end() ? std::numeric_limits<double>::infinity() : *it;
+}
+
+bool InputSignal::isSampleTime(double t) const {
+  return std::binary_search(t_.begin(), t_.end(), t);
 }
 
 InputFunction InputSignal::segment(double t0, double t1) const {

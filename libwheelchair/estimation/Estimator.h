@@ -5,7 +5,8 @@
 // priority encoders < gyro < sonar < Pozyx, then by value), so the result does not depend on
 // the order in which samples were stored or arrived. Motor currents are not events: they are
 // the input signal u(t) of the physics filter (InputSignal), whose sample times become extra
-// integration breakpoints.
+// integration breakpoints in zero-order-hold mode (u jumps there); piecewise-linear u is
+// continuous and is integrated through (docs/estimation.md, "CVODE settings").
 //
 // Example:
 //   auto cfg = config::WheelchairConfig::load("config/wheelchair.ini");
@@ -47,6 +48,10 @@ class InputSignal {
   Eigen::Vector2d at(double t_s) const;
   /// Sample times strictly inside (t0, t1): where u(t) has a kink or a jump.
   std::vector<double> breakpoints(double t0_s, double t1_s) const;
+  /// First sample time strictly after t (+infinity when there is none).
+  double nextSampleAfter(double t_s) const;
+  /// Whether t is exactly a sample time (u has a kink or a jump there).
+  bool isSampleTime(double t_s) const;
   /// u(t) on [t0, t1] when no breakpoint lies inside: exact for both modes.
   InputFunction segment(double t0_s, double t1_s) const;
   bool empty() const { return t_.empty(); }

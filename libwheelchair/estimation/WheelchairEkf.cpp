@@ -117,6 +117,8 @@ WheelchairEkf::WheelchairEkf(const config::WheelchairConfig& cfg, const EkfOptio
       pm_(makeFilterModel(cfg, opt_), processNoiseDiag(opt_), opt_.current_noise_density_A2_s),
       ekf_(pm_, opt_.cvode) {
   if (!input_) input_ = &zero_input_;
+  u_in_.signal = input_;
+  xs_.resize(kPhysicsStateDim);
 }
 
 FilterState WheelchairEkf::head() const {
@@ -169,28 +171,42 @@ void WheelchairEkf::initObstacleFromSonar(double range) {
 void WheelchairEkf::predictTo(double t) {
   double ta = ekf_.time();
   if (t <= ta) return;
-  for (double tb : input_->breakpoints(ta, t)) {
-    ekf_.propagate(tb, input_->segment(ta, tb));
+  const bool linear = input_->mode() == InputInterpolation::Linear;
+  if (linear && !opt_.cvode.restart_at_input_samples) {
+    // Piecewise-linear u(t) is continuous: one integration to t; the samples are kinks of u
+    // that CVODE's error control steps through (docs/estimation.md, "CVODE settings").
+    u_in_.hold = false;
+    ekf_.propagate(t, u_in_, true);
+    return;
+  }
+  // Restart at every input sample strictly inside (ta, t): u jumps there (hold) or has a kink
+  // (linear, restart_at_input_samples). Between samples u is exact for both modes.
+  u_in_.hold = !linear;
+  for (;;) {
+    const double tb = std::min(input_->nextSampleAfter(ta), t);
+    if (!linear) u_in_.held = input_->at(ta);
+    ekf_.propagate(tb, u_in_, !input_->isSampleTime(ta));
+    if (tb >= t) break;
     ta = tb;
   }
-  ekf_.propagate(t, input_->segment(ta, t));
 }
 
 void WheelchairEkf::wrap() {
-  Eigen::VectorXd x = ekf_.x();
-  x.head<7>() = filterModel().wrapAngles(x.head<7>());
-  ekf_.setState(x);
+  const double phi = ekf_.x()(model::kIdxPhi);
+  const double o2 = ekf_.x()(model::kIdxO2);
+  const bool polar = filterModel().form() == ObstacleForm::Polar;
+  if (phi > -M_PI && phi <= M_PI && (!polar || (o2 > -M_PI && o2 <= M_PI))) return;  // no-op
+  xs_ = ekf_.x();
+  xs_.head<7>() = filterModel().wrapAngles(xs_.head<7>());
+  ekf_.setState(xs_);
 }
 
 void WheelchairEkf::resetAccumulators(double t) {
-  Eigen::VectorXd x = ekf_.x();
-  Eigen::MatrixXd P = ekf_.P();
-  x(kIdxSv) = 0;
-  x(kIdxSomega) = 0;
-  P.middleRows<2>(kIdxSv).setZero();
-  P.middleCols<2>(kIdxSv).setZero();
-  ekf_.setState(x);
-  ekf_.setCovariance(P);
+  xs_ = ekf_.x();
+  xs_(kIdxSv) = 0;
+  xs_(kIdxSomega) = 0;
+  ekf_.setState(xs_);
+  ekf_.zeroCovarianceRowsCols(kIdxSv, 2);
   acc_start_s_ = t;
   acc_valid_ = true;
 }

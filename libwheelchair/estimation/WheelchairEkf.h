@@ -39,6 +39,7 @@ class WheelchairProcessModel : public CdModel {
   void f(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::VectorXd& xdot) const override;
   void F(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& F) const override;
   void Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& Q) const override;
+  bool constantQ() const override { return true; }
   const model::FilterModel& filterModel() const { return fm_; }
 
  private:
@@ -79,8 +80,24 @@ class WheelchairEkf : public Estimator {
   /// configured form; cross-covariances with the rest of the state are zeroed.
   void setObstacle(const Eigen::Vector2d& p_m, const Eigen::Matrix2d& cov_m2);
 
+  /// u(t) from the InputSignal for CdEkf: the signal itself (linear interpolation, continuous)
+  /// or a value held over the interval (zero-order hold).
+  struct SignalInput final : CdInput {
+    const InputSignal* signal = nullptr;
+    bool hold = false;
+    Eigen::Vector2d held = Eigen::Vector2d::Zero();
+    void eval(double t_s, Eigen::VectorXd& u) const override {
+      if (hold)
+        u = held;
+      else
+        u = signal->at(t_s);
+    }
+  };
+
   const InputSignal* input_;
   InputSignal zero_input_;
+  SignalInput u_in_;
+  Eigen::VectorXd xs_;  // scratch state
   WheelchairProcessModel pm_;
   CdEkf ekf_;
   bool obstacle_initialised_ = false;

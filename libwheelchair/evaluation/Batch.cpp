@@ -1,4 +1,5 @@
 #include "libwheelchair/evaluation/Batch.h"
+#include "libwheelchair/estimation/ModelExtensions.h"
 
 #include "libwheelchair/estimation/EkfOptions.h"
 #include "libwheelchair/estimation/Estimator.h"
@@ -71,9 +72,12 @@ estimation::EkfOptions ekfOptions(const config::WheelchairConfig& cfg,
 
 const char* toString(GroundTruthSource s) {
   switch (s) {
-    case GroundTruthSource::Pozyx: return "pozyx";
-    case GroundTruthSource::GroundTruthStream: return "ground_truth";
-    default: return "none";
+    case GroundTruthSource::Pozyx:
+      return "pozyx";
+    case GroundTruthSource::GroundTruthStream:
+      return "ground_truth";
+    default:
+      return "none";
   }
 }
 
@@ -87,8 +91,9 @@ GroundTruth groundTruthOf(const io::Recording& rec, const config::WheelchairConf
     g.lever_arm_m = {cfg.pozyx.lever_x_m, cfg.pozyx.lever_y_m};
     for (const auto& s : rec.pozyx) g.samples.push_back({s.t_s, s.x_m, s.y_m});
   }
-  std::stable_sort(g.samples.begin(), g.samples.end(),
-                   [](const Position2DStamped& a, const Position2DStamped& b) { return a.t_s < b.t_s; });
+  std::stable_sort(
+      g.samples.begin(), g.samples.end(),
+      [](const Position2DStamped& a, const Position2DStamped& b) { return a.t_s < b.t_s; });
   keepLastOfEqualTimes(g.samples, [](const Position2DStamped& s) { return s.t_s; });
   return g;
 }
@@ -126,8 +131,13 @@ Trajectory RecordingEstimates::trajectory(const std::string& variant) const {
   throw std::invalid_argument("unknown trajectory variant '" + variant + "'");
 }
 
-RecordingEstimates estimateVariants(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                                    bool with_baseline) {
+RecordingEstimates estimateVariants(const io::Recording& raw_rec,
+                                    const config::WheelchairConfig& raw_cfg, bool with_baseline) {
+  // A corrected configuration ([model_extensions] from `wheelchair diagnose`) calibrates the
+  // sensors and the drive train for every variant.
+  const auto ext = estimation::ModelExtensions::fromConfig(raw_cfg.ini());
+  const config::WheelchairConfig cfg = ext.adjustConfig(raw_cfg);
+  const io::Recording rec = ext.empty() ? raw_rec : ext.apply(raw_rec, cfg);
   RecordingEstimates r;
   r.has_baseline = with_baseline;
   auto attempt = [&](const std::string& name, const std::function<void()>& f) {
@@ -144,7 +154,8 @@ RecordingEstimates estimateVariants(const io::Recording& rec, const config::Whee
     if (r.ekf.estimates.empty()) throw std::runtime_error("the EKF produced no estimate");
   });
   attempt("encoders", [&] {
-    r.encoders = estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom);
+    r.encoders =
+        estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom);
     if (r.encoders.empty()) throw std::runtime_error("no encoder samples");
   });
   attempt("encoders_gyro", [&] {
@@ -156,7 +167,8 @@ RecordingEstimates estimateVariants(const io::Recording& rec, const config::Whee
     attempt("baseline", [&] {
       r.baseline =
           estimation::runEstimator(rec, cfg, ekfOptions(cfg, estimation::FilterKind::Baseline));
-      if (r.baseline.estimates.empty()) throw std::runtime_error("the baseline produced no estimate");
+      if (r.baseline.estimates.empty())
+        throw std::runtime_error("the baseline produced no estimate");
     });
   return r;
 }
@@ -190,10 +202,14 @@ void parseAlignment(const std::string& text, MetricOptions& o) {
 
 std::string alignmentText(Alignment a, double first_s) {
   switch (a) {
-    case Alignment::None: return "none";
-    case Alignment::Origin: return "origin";
-    case Alignment::SE2: return "se2";
-    case Alignment::SE2FirstSeconds: return "se2-first:" + num(first_s);
+    case Alignment::None:
+      return "none";
+    case Alignment::Origin:
+      return "origin";
+    case Alignment::SE2:
+      return "se2";
+    case Alignment::SE2FirstSeconds:
+      return "se2-first:" + num(first_s);
   }
   return "?";
 }
@@ -318,16 +334,17 @@ const std::vector<Column>& metricColumns() {
   return c;
 }
 
-double degrees(double rad) { return rad * 180.0 / kPi; }
+double degrees(double rad) {
+  return rad * 180.0 / kPi;
+}
 
 }  // namespace
 
 std::string batchCsv(const BatchResult& r) {
   std::string s = "recording,variant,ground_truth";
   for (const auto& c : metricColumns()) s += std::string(",") + c.name;
-  s +=
-      ",heading_drift_method,n_matched,n_gt,n_outliers,n_estimates,alignment,align_x_m,align_y_m,"
-      "align_theta_deg,error\n";
+  s += ",heading_drift_method,n_matched,n_gt,n_outliers,n_estimates,alignment,align_x_m,align_y_m,"
+       "align_theta_deg,error\n";
   const std::string al = alignmentText(r.alignment, r.align_first_s);
   for (const auto& row : r.rows) {
     const Metrics& m = row.metrics;
@@ -343,10 +360,10 @@ std::string batchCsv(const BatchResult& r) {
 void writeBatchCsv(const std::string& path, const BatchResult& r,
                    const config::WheelchairConfig& cfg) {
   writeAtomically(path, batchCsv(r));
-  writeAtomically(path + ".config.ini",
-                  "# Configuration used for " + path + " (wheelchair evaluate)\n# origin: " +
-                      cfg.origin() + "\n# alignment: " +
-                      alignmentText(r.alignment, r.align_first_s) + "\n" + cfg.text());
+  writeAtomically(
+      path + ".config.ini",
+      "# Configuration used for " + path + " (wheelchair evaluate)\n# origin: " + cfg.origin() +
+          "\n# alignment: " + alignmentText(r.alignment, r.align_first_s) + "\n" + cfg.text());
 }
 
 std::string batchJson(const BatchResult& r, const config::WheelchairConfig& cfg) {
@@ -391,12 +408,12 @@ std::string batchMarkdown(const BatchResult& r, const config::WheelchairConfig& 
   auto f = [](double v, int prec) {
     return std::isfinite(v) ? fmt::format("{:.{}f}", v, prec) : std::string("–");
   };
-  std::string s = fmt::format("Alignment: `{}`. Ground truth per row (`pozyx` = UWB tag, lever arm "
-                              "from [pozyx]; `ground_truth` = motion-capture poses).\n\n",
-                              alignmentText(r.alignment, r.align_first_s));
-  s +=
-      "| recording | variant | GT | d_path (m) | terminal err (m) | loop err (m) | ATE RMSE (m) | "
-      "ATE max (m) | RPE 1 m (m) | heading drift (deg) | matched | error |\n";
+  std::string s = fmt::format(
+      "Alignment: `{}`. Ground truth per row (`pozyx` = UWB tag, lever arm "
+      "from [pozyx]; `ground_truth` = motion-capture poses).\n\n",
+      alignmentText(r.alignment, r.align_first_s));
+  s += "| recording | variant | GT | d_path (m) | terminal err (m) | loop err (m) | ATE RMSE (m) | "
+       "ATE max (m) | RPE 1 m (m) | heading drift (deg) | matched | error |\n";
   s += "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   for (const auto& row : r.rows) {
     const Metrics& m = row.metrics;

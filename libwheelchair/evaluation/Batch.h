@@ -48,7 +48,7 @@ const char* toString(GroundTruthSource s);  ///< "none", "pozyx", "ground_truth"
 
 struct GroundTruth {
   GroundTruthSource source = GroundTruthSource::None;
-  std::vector<Position2DStamped> samples;  ///< strictly increasing time
+  std::vector<Position2DStamped> samples;                 ///< strictly increasing time
   Eigen::Vector2d lever_arm_m = Eigen::Vector2d::Zero();  ///< tracked point in the body frame
 };
 

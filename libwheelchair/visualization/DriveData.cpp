@@ -50,8 +50,8 @@ std::optional<TruthInfo> readTruthJson(const std::string& path) {
     if (t.x_m.size() != n || t.y_m.size() != n || t.phi_rad.size() != n)
       throw std::runtime_error("trajectory columns of unequal length");
     for (const auto& o : j.value("obstacles", nlohmann::json::array()))
-      t.obstacles.push_back({o.at("x_m").get<double>(), o.at("y_m").get<double>(),
-                             o.value("radius_m", 0.05)});
+      t.obstacles.push_back(
+          {o.at("x_m").get<double>(), o.at("y_m").get<double>(), o.value("radius_m", 0.05)});
     if (j.contains("pozyx_anchor")) {
       const auto& a = j.at("pozyx_anchor");
       t.anchor_x_m = a.value("x_m", 0.0);
@@ -70,15 +70,16 @@ std::optional<TruthInfo> readTruthJson(const std::string& path) {
 const estimation::EstimateSample* DriveData::ekfAt(double t) const {
   const auto& v = est.ekf.estimates;
   if (v.empty()) return nullptr;
-  auto it = std::upper_bound(v.begin(), v.end(), t, [](double tt, const estimation::EstimateSample& s) {
-    return tt < s.t_s;
-  });
+  auto it =
+      std::upper_bound(v.begin(), v.end(), t,
+                       [](double tt, const estimation::EstimateSample& s) { return tt < s.t_s; });
   if (it == v.begin()) return &v.front();
   return &*(it - 1);
 }
 
 DriveData loadDrive(const std::string& path, const config::WheelchairConfig& cfg,
-                    const evaluation::MetricOptions& metric_options, const std::string& truth_path) {
+                    const evaluation::MetricOptions& metric_options,
+                    const std::string& truth_path) {
   DriveData d;
   d.path = path;
   d.cfg = cfg;
@@ -146,21 +147,36 @@ DriveData loadDrive(const std::string& path, const config::WheelchairConfig& cfg
     if (have)
       for (const auto& s : d.gt.samples) {
         const Eigen::Vector2d p = T_inv.apply({s.x_m, s.y_m});
-        d.gt_start.push_back({s.t_s, p.x(), p.y(), s.hasHeading() ? T_inv.applyHeading(s.phi_rad) : s.phi_rad});
+        d.gt_start.push_back(
+            {s.t_s, p.x(), p.y(), s.hasHeading() ? T_inv.applyHeading(s.phi_rad) : s.phi_rad});
       }
   }
   return d;
 }
 
 double defaultObstacleTime(const DriveData& d) {
+  // Middle of the first run of valid (non-zero) sonar readings: the chair approaches the
+  // obstacle and the estimate is in front of it (runs separated by > 2 s of dropouts).
   double a = NAN, b = NAN;
+  for (const auto& s : d.rec.sonar) {
+    if (!(s.range_m > 0)) continue;
+    if (std::isnan(a)) {
+      a = b = s.t_s;
+    } else if (s.t_s - b > 2.0) {
+      break;
+    } else {
+      b = s.t_s;
+    }
+  }
+  if (!std::isnan(a)) return a + 0.5 * (b - a);
+  double e0 = NAN, e1 = NAN;
   for (const auto& e : d.est.ekf.estimates)
     if (e.obstacle_initialised) {
-      if (std::isnan(a)) a = e.t_s;
-      b = e.t_s;
+      if (std::isnan(e0)) e0 = e.t_s;
+      e1 = e.t_s;
     }
-  if (std::isnan(a)) return d.t0_s;
-  return a + 0.4 * (b - a);
+  if (std::isnan(e0)) return d.t0_s;
+  return e0 + 0.4 * (e1 - e0);
 }
 
 bool predictedSonarRange(const DriveData& d, const estimation::EstimateSample& e, double& r,

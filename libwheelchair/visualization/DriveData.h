@@ -64,8 +64,8 @@ DriveData loadDrive(const std::string& path, const config::WheelchairConfig& cfg
                     const evaluation::MetricOptions& metric_options,
                     const std::string& truth_path = "");
 
-/// A default instant for Fig. 7 / the viewer: within the span where the EKF has an obstacle
-/// estimate, 40 % of the way (start of the span when none).
+/// A default instant for Fig. 7 / the viewer: the middle of the first run of valid (non-zero)
+/// sonar readings; without any, 40 % into the span where the EKF has an obstacle estimate.
 double defaultObstacleTime(const DriveData& d);
 
 /// Sonar range predicted by an estimate (distance from the sonar to the obstacle estimate) and

@@ -180,13 +180,19 @@ void Raster::polyline(const Pts& pts, Color c, double width, LineStyle style, do
   for (std::size_t i = 1; i < pts.size(); ++i) {
     const auto [x0, y0] = pts[i - 1];
     const auto [x1, y1] = pts[i];
-    if (!(std::isfinite(x0) && std::isfinite(y0) && std::isfinite(x1) && std::isfinite(y1))) continue;
+    if (!(std::isfinite(x0) && std::isfinite(y0) && std::isfinite(x1) && std::isfinite(y1)))
+      continue;
     const double L = std::hypot(x1 - x0, y1 - y0);
     double s = 0;
     while (s < L) {
       const bool drawing = phase < on;
       const double left = drawing ? on - phase : on + off - phase;
+      if (left < 1e-9) {  // at a switch point (rounding): go to the next state
+        phase = drawing ? on : 0.0;
+        continue;
+      }
       const double e = std::min(L, s + left);
+      if (!(e > s)) break;  // no progress possible (rounding at the segment's end)
       if (drawing) {
         const double a = s / L, b = e / L;
         if (style == LineStyle::Dotted)
@@ -195,10 +201,9 @@ void Raster::polyline(const Pts& pts, Color c, double width, LineStyle style, do
           line(x0 + a * (x1 - x0), y0 + a * (y1 - y0), x0 + b * (x1 - x0), y0 + b * (y1 - y0), c,
                width, alpha);
       }
-      phase += e - s;
-      if (phase >= on + off - 1e-12) phase = 0;
+      phase = (e == s + left) ? (drawing ? on : 0.0) : phase + (e - s);
+      if (phase >= on + off) phase = 0;
       s = e;
-      if (L == 0) break;
     }
   }
 }
@@ -214,7 +219,8 @@ void Raster::rect(double x0, double y0, double x1, double y1, Color c, double wi
 void Raster::marker(double x, double y, Marker m, double size, Color c) {
   const double h = size / 2;
   switch (m) {
-    case Marker::None: break;
+    case Marker::None:
+      break;
     case Marker::Square:
       fillRect(x - h, y - h, x + h, y + h, c);
       rect(x - h, y - h, x + h, y + h, colors::black, 1.0);
@@ -223,7 +229,9 @@ void Raster::marker(double x, double y, Marker m, double size, Color c) {
       disc(x, y, h + 0.8, colors::black);
       disc(x, y, h, c);
       break;
-    case Marker::Dot: disc(x, y, h, c); break;
+    case Marker::Dot:
+      disc(x, y, h, c);
+      break;
     case Marker::Cross:
       line(x - h, y - h, x + h, y + h, c, 2.0);
       line(x - h, y + h, x + h, y - h, c, 2.0);
@@ -239,7 +247,9 @@ void Raster::marker(double x, double y, Marker m, double size, Color c) {
   }
 }
 
-double Raster::textWidth(const std::string& s, double size) { return 10.0 * s.size() * size; }
+double Raster::textWidth(const std::string& s, double size) {
+  return 10.0 * s.size() * size;
+}
 
 void Raster::text(double x, double y, const std::string& s, Color c, double size, int halign,
                   int valign, bool vertical) {
@@ -434,7 +444,8 @@ Raster Plot::render(int width, int height) const {
     r.polyline(p, s.color, s.width_px, s.line);
     if (s.marker != Marker::None)
       for (const auto& [x, y] : p)
-        if (std::isfinite(x) && std::isfinite(y)) r.marker(x, y, s.marker, s.marker_size_px, s.color);
+        if (std::isfinite(x) && std::isfinite(y))
+          r.marker(x, y, s.marker, s.marker_size_px, s.color);
   }
   for (const auto& a : annotations) r.text(X(a.x) + 6, Y(a.y) - 4, a.text, a.color, a.size, -1, 1);
   r.clearClip();
@@ -471,11 +482,21 @@ Raster Plot::render(int width, int height) const {
     const double lh = 22, lw = legend_w, lhgt = es.size() * lh + 12;
     double lx, ly;
     switch (legend) {
-      case LegendPosition::TopLeft: lx = x0 + 10, ly = y0 + 10; break;
-      case LegendPosition::BottomLeft: lx = x0 + 10, ly = y1 - 10 - lhgt; break;
-      case LegendPosition::BottomRight: lx = x1 - 10 - lw, ly = y1 - 10 - lhgt; break;
-      case LegendPosition::Outside: lx = x1 + 16, ly = y0; break;
-      default: lx = x1 - 10 - lw, ly = y0 + 10; break;
+      case LegendPosition::TopLeft:
+        lx = x0 + 10, ly = y0 + 10;
+        break;
+      case LegendPosition::BottomLeft:
+        lx = x0 + 10, ly = y1 - 10 - lhgt;
+        break;
+      case LegendPosition::BottomRight:
+        lx = x1 - 10 - lw, ly = y1 - 10 - lhgt;
+        break;
+      case LegendPosition::Outside:
+        lx = x1 + 16, ly = y0;
+        break;
+      default:
+        lx = x1 - 10 - lw, ly = y0 + 10;
+        break;
     }
     r.fillRect(lx, ly, lx + lw, ly + lhgt, colors::white, 0.92);
     r.rect(lx, ly, lx + lw, ly + lhgt, Color{150, 150, 150}, 1.0);
@@ -485,7 +506,8 @@ Raster Plot::render(int width, int height) const {
       if (e.kind == 0) {
         const Series& s = series[e.idx];
         r.polyline({{sx0, cy}, {sx1, cy}}, s.color, s.width_px, s.line);
-        if (s.marker != Marker::None) r.marker((sx0 + sx1) / 2, cy, s.marker, s.marker_size_px, s.color);
+        if (s.marker != Marker::None)
+          r.marker((sx0 + sx1) / 2, cy, s.marker, s.marker_size_px, s.color);
       } else if (e.kind == 1) {
         r.fillRect(sx0, cy - 6, sx1, cy + 6, bands[e.idx].color, 1.0);
       } else {

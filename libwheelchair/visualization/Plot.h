@@ -79,7 +79,7 @@ class Raster {
  private:
   void blend(int X, int Y, Color c, double a);
   int w_, h_, s_;
-  std::vector<uint8_t> px_;  // supersampled, RGB
+  std::vector<uint8_t> px_;    // supersampled, RGB
   int cx0_, cy0_, cx1_, cy1_;  // clip, supersampled pixels (inclusive-exclusive)
 };
 

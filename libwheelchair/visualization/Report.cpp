@@ -71,7 +71,9 @@ Pts rectPts(double x0, double y0, double x1, double y1) {
   return {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}, {x0, y0}};
 }
 
-std::string fmtNum(double v, int p) { return std::isfinite(v) ? fmt::format("{:.{}f}", v, p) : "–"; }
+std::string fmtNum(double v, int p) {
+  return std::isfinite(v) ? fmt::format("{:.{}f}", v, p) : "–";
+}
 
 }  // namespace
 
@@ -95,7 +97,7 @@ void figureTrajectories(const DriveData& d, const std::string& png, int w, int h
   if (!d.gt_start.empty()) {
     Series s;
     s.label = d.gt.source == evaluation::GroundTruthSource::Pozyx ? "Pozyx tag (ground truth)"
-                                                                   : "ground truth";
+                                                                  : "ground truth";
     s.color = variantColor("gt");
     s.line = LineStyle::None;
     s.marker = Marker::Dot;
@@ -137,8 +139,7 @@ void figureTrajectories(const DriveData& d, const std::string& png, int w, int h
   }
   p.series.push_back(start);
   p.series.push_back(endLegend);
-  if (!d.gt_frame_note.empty())
-    p.xlabel += "      (ground truth " + d.gt_frame_note + ")";
+  if (!d.gt_frame_note.empty()) p.xlabel += "      (ground truth " + d.gt_frame_note + ")";
   p.save(png, w + 260, h + 60);
 }
 
@@ -152,7 +153,8 @@ void figureVelocity(const DriveData& d, const std::string& png, int w, int h) {
   p.legend = LegendPosition::BottomLeft;
   if (d.truth && !d.truth->v_m_s.empty()) {
     Series s{"true v (simulation)", {}, {}, variantColor("truth"), LineStyle::Dashed, 1.6};
-    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 2) s.x.push_back(d.truth->t_s[i] - t0), s.y.push_back(d.truth->v_m_s[i]);
+    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 2)
+      s.x.push_back(d.truth->t_s[i] - t0), s.y.push_back(d.truth->v_m_s[i]);
     p.series.push_back(s);
   }
   Series enc{"v from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 1.6};
@@ -183,7 +185,8 @@ void figureAngularVelocity(const DriveData& d, const std::string& png, int w, in
   p.series.push_back(ekf);
   if (d.truth && !d.truth->omega_rad_s.empty()) {
     Series s{"true omega (simulation)", {}, {}, variantColor("truth"), LineStyle::Dotted, 1.6};
-    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 2) s.x.push_back(d.truth->t_s[i] - t0), s.y.push_back(d.truth->omega_rad_s[i]);
+    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 2)
+      s.x.push_back(d.truth->t_s[i] - t0), s.y.push_back(d.truth->omega_rad_s[i]);
     p.series.push_back(s);
   }
   p.save(png, w, h);
@@ -205,13 +208,15 @@ void figureCurrents(const DriveData& d, const std::string& png, int w, int h) {
   }
   p.series.push_back(r);
   p.series.push_back(l);
-  if (d.rec.motors.empty()) p.annotations.push_back({0, 0, "no motor currents in this recording", colors::red, 0.9});
+  if (d.rec.motors.empty())
+    p.annotations.push_back({0, 0, "no motor currents in this recording", colors::red, 0.9});
   p.save(png, w, h);
 }
 
 void figureObstacle(const DriveData& d, double t, const std::string& png, int w, int h) {
   Plot p;
-  p.title = fmt::format("Fig. 7 - obstacle in the base frame at t = {:.1f} s (view from above)", t - d.t0_s);
+  p.title = fmt::format("Fig. 7 - obstacle in the base frame at t = {:.1f} s (view from above)",
+                        t - d.t0_s);
   p.xlabel = "x_M (m), forward";
   p.ylabel = "y_M (m), left";
   p.equal_aspect = true;
@@ -221,8 +226,9 @@ void figureObstacle(const DriveData& d, double t, const std::string& png, int w,
   p.shapes.push_back({"chair footprint", rectPts(-0.30, -0.33, 0.60, 0.33), Color{120, 90, 40}, 1.8,
                       LineStyle::Solid, 0.18});
   for (double side : {-1.0, 1.0})
-    p.shapes.push_back({"", rectPts(-g.wheel_radius_m, side * g.track_width_m / 2 - 0.035,
-                                    g.wheel_radius_m, side * g.track_width_m / 2 + 0.035),
+    p.shapes.push_back({"",
+                        rectPts(-g.wheel_radius_m, side * g.track_width_m / 2 - 0.035,
+                                g.wheel_radius_m, side * g.track_width_m / 2 + 0.035),
                         Color{40, 40, 40}, 1.0, LineStyle::Solid, 0.9});
   // Sonar cone at the maximum range and the current reading.
   const auto& so = d.cfg.sonar;
@@ -236,13 +242,14 @@ void figureObstacle(const DriveData& d, double t, const std::string& png, int w,
     f.emplace_back(so.x_m, so.y_m);
     return f;
   };
-  p.shapes.push_back({"sonar cone (max range)", fan(so.max_range_m), colors::gray, 1.0, LineStyle::Dotted, 0.0});
+  p.shapes.push_back(
+      {"sonar cone (max range)", fan(so.max_range_m), colors::gray, 1.0, LineStyle::Dotted, 0.0});
   double reading = -1;
   for (const auto& s : d.rec.sonar)
     if (s.t_s <= t) reading = s.range_m;
   if (reading > 0)
-    p.shapes.push_back({fmt::format("sonar reading {:.2f} m", reading), fan(reading), colors::orange, 1.5,
-                        LineStyle::Solid, 0.22});
+    p.shapes.push_back({fmt::format("sonar reading {:.2f} m", reading), fan(reading),
+                        colors::orange, 1.5, LineStyle::Solid, 0.22});
   else if (reading == 0)
     p.annotations.push_back({so.x_m, -0.5, "sonar reading 0 (no echo)", colors::orange, 0.8});
 
@@ -251,17 +258,19 @@ void figureObstacle(const DriveData& d, double t, const std::string& png, int w,
   if (e && e->obstacle_initialised) {
     const double px = e->x(5), py = e->x(6);
     const Eigen::Matrix2d P = e->P.block<2, 2>(5, 5);
-    p.shapes.push_back({"1-sigma covariance ellipse", covarianceEllipse(px, py, P(0, 0), P(0, 1), P(1, 1), 1.0),
-                        colors::cyan, 2.4, LineStyle::Solid, 0.15});
-    p.shapes.push_back({"2-sigma", covarianceEllipse(px, py, P(0, 0), P(0, 1), P(1, 1), 2.0), colors::cyan,
-                        1.4, LineStyle::Dashed, 0.0});
-    p.series.push_back({"estimated obstacle", {px}, {py}, colors::green, LineStyle::None, 2, Marker::Circle, 12});
-    p.annotations.push_back({px, py,
-                             fmt::format("d = {:.2f} +- {:.2f} m, theta = {:.0f} +- {:.0f} deg",
-                                         e->obstacle_distance_m, e->obstacle_distance_sd_m,
-                                         e->obstacle_bearing_rad * 180 / M_PI,
-                                         e->obstacle_bearing_sd_rad * 180 / M_PI),
-                             Color{0, 110, 0}, 0.75});
+    p.shapes.push_back({"1-sigma covariance ellipse",
+                        covarianceEllipse(px, py, P(0, 0), P(0, 1), P(1, 1), 1.0), colors::cyan,
+                        2.4, LineStyle::Solid, 0.15});
+    p.shapes.push_back({"2-sigma", covarianceEllipse(px, py, P(0, 0), P(0, 1), P(1, 1), 2.0),
+                        colors::cyan, 1.4, LineStyle::Dashed, 0.0});
+    p.series.push_back(
+        {"estimated obstacle", {px}, {py}, colors::green, LineStyle::None, 2, Marker::Circle, 12});
+    p.annotations.push_back(
+        {px, py,
+         fmt::format("d = {:.2f} +- {:.3f} m, theta = {:.1f} +- {:.1f} deg", e->obstacle_distance_m,
+                     e->obstacle_distance_sd_m, e->obstacle_bearing_rad * 180 / M_PI,
+                     e->obstacle_bearing_sd_rad * 180 / M_PI),
+         Color{0, 110, 0}, 0.75});
     xmax = std::max(xmax, px + 2 * std::sqrt(P(0, 0)) + 0.3);
     ymax = std::max(ymax, std::fabs(py) + 2 * std::sqrt(P(1, 1)) + 0.3);
   } else {
@@ -275,14 +284,25 @@ void figureObstacle(const DriveData& d, double t, const std::string& png, int w,
     Series tru{"true obstacle", {}, {}, colors::red, LineStyle::None, 2, Marker::Circle, 10};
     for (const auto& o : d.truth->obstacles) {
       const double dx = o.x_m - tx, dy = o.y_m - ty;
-      const double bx = std::cos(tphi) * dx + std::sin(tphi) * dy, by = -std::sin(tphi) * dx + std::cos(tphi) * dy;
+      const double bx = std::cos(tphi) * dx + std::sin(tphi) * dy,
+                   by = -std::sin(tphi) * dx + std::cos(tphi) * dy;
       if (bx > -1.0 && bx < xmax && std::fabs(by) < ymax) tru.x.push_back(bx), tru.y.push_back(by);
     }
     if (!tru.x.empty()) p.series.push_back(tru);
   }
-  Series axle{"axle midpoint (base frame origin)", {0.0}, {0.0}, colors::black, LineStyle::None, 2, Marker::Cross, 10};
+  Series axle{"axle midpoint (base frame origin)",
+              {0.0},
+              {0.0},
+              colors::black,
+              LineStyle::None,
+              2,
+              Marker::Cross,
+              10};
   p.series.push_back(axle);
-  p.x_range = std::make_pair(-1.0, xmax);
+  double xmin = -1.0;
+  if (e && e->obstacle_initialised)
+    xmin = std::max(-8.0, std::min(xmin, e->x(5) - 2 * std::sqrt(e->P(5, 5)) - 0.3));
+  p.x_range = std::make_pair(xmin, xmax);
   p.y_range = std::make_pair(-ymax, ymax);
   p.save(png, w + 260, h + 60);
 }
@@ -294,7 +314,14 @@ void figureDistance(const DriveData& d, const std::string& png, int w, int h) {
   p.xlabel = "time since start (s)";
   p.ylabel = "range from the sonar (m)";
   p.legend = LegendPosition::TopRight;
-  Series raw{"raw sonar (0 = failed reading)", {}, {}, colors::blue, LineStyle::Solid, 1.1, Marker::Dot, 4};
+  Series raw{"raw sonar (0 = failed reading)",
+             {},
+             {},
+             colors::blue,
+             LineStyle::Solid,
+             1.1,
+             Marker::Dot,
+             4};
   for (const auto& s : d.rec.sonar) raw.x.push_back(s.t_s - t0), raw.y.push_back(s.range_m);
   Series est{"estimate", {}, {}, colors::red, LineStyle::Solid, 2.2};
   Series lo{"estimate +- sigma", {}, {}, colors::red, LineStyle::Dotted, 1.6};
@@ -324,9 +351,17 @@ void figureDistance(const DriveData& d, const std::string& png, int w, int h) {
   p.series.push_back(lo);
   p.series.push_back(hi);
   p.series.push_back(est);
-  double ymax = d.cfg.sonar.max_range_m * 1.1;
-  for (const auto& s : d.rec.sonar) ymax = std::max(ymax, s.range_m * 1.05);
-  p.y_range = std::make_pair(-0.15, ymax);
+  // Like the paper's Fig. 8: the time window in which the sonar saw something (+ margins).
+  double a = NAN, b = NAN, ymax = 0.5;
+  for (const auto& s : d.rec.sonar)
+    if (s.range_m > 0) {
+      if (std::isnan(a)) a = s.t_s;
+      b = s.t_s;
+      ymax = std::max(ymax, s.range_m * 1.15);
+    }
+  if (!std::isnan(a))
+    p.x_range = std::make_pair(std::max(0.0, a - t0 - 2.0), std::min(d.t1_s - t0, b - t0 + 4.0));
+  p.y_range = std::make_pair(-0.15, std::min(ymax, d.cfg.sonar.max_range_m * 1.15));
   std::size_t zeros = 0;
   for (const auto& s : d.rec.sonar) zeros += s.range_m == 0;
   p.xlabel += fmt::format("      ({} of {} sonar readings are 0)", zeros, d.rec.sonar.size());
@@ -356,26 +391,32 @@ ReportResult writeReport(const DriveData& d, const ReportOptions& o) {
   };
   figureTrajectories(d, path("fig5_trajectories.png"), o.width, o.height);
   add("fig5_trajectories.png",
-      "Fig. 5: trajectories of the variants (encoders only, encoder v + gyro omega, baseline, EKF) in "
+      "Fig. 5: trajectories of the variants (encoders only, encoder v + gyro omega, baseline, EKF) "
+      "in "
       "the start frame, with the ground truth" +
           (d.gt_frame_note.empty() ? std::string() : " (" + d.gt_frame_note + ")") +
           "; red square = start, circles = end points.");
   figureVelocity(d, path("fig6a_velocity.png"), o.width, o.height);
-  add("fig6a_velocity.png", "Fig. 6a: linear velocity from the encoders vs the EKF's estimate; shaded: phases of the drive.");
+  add("fig6a_velocity.png",
+      "Fig. 6a: linear velocity from the encoders vs the EKF's estimate; shaded: phases of the "
+      "drive.");
   figureAngularVelocity(d, path("fig6b_angular_velocity.png"), o.width, o.height);
-  add("fig6b_angular_velocity.png", "Fig. 6b: angular velocity from the gyro vs the encoders (and the EKF).");
+  add("fig6b_angular_velocity.png",
+      "Fig. 6b: angular velocity from the gyro vs the encoders (and the EKF).");
   figureCurrents(d, path("fig6c_motor_currents.png"), o.width, o.height);
   add("fig6c_motor_currents.png", "Fig. 6c: motor currents, right (index 0, paper's 1) and left.");
   figureObstacle(d, t_at, path("fig7_obstacle.png"), o.width, o.height);
   add("fig7_obstacle.png",
-      fmt::format("Fig. 7: obstacle estimate (green) with its 1- and 2-sigma covariance ellipses (cyan) in "
-                  "the base frame at t = {:.2f} s (recording clock {:.3f} s); red: true obstacles when "
-                  "simulated.",
-                  t_at - d.t0_s, t_at));
+      fmt::format(
+          "Fig. 7: obstacle estimate (green) with its 1- and 2-sigma covariance ellipses (cyan) in "
+          "the base frame at t = {:.2f} s (recording clock {:.3f} s); red: true obstacles when "
+          "simulated.",
+          t_at - d.t0_s, t_at));
   figureDistance(d, path("fig8_distance.png"), o.width, o.height);
   add("fig8_distance.png",
-      "Fig. 8: EKF range from the sonar to the obstacle estimate (red) +- 1 sigma (dotted, shaded) over the "
-      "raw sonar (blue; zeros are failed readings).");
+      "Fig. 8: EKF range from the sonar to the obstacle estimate (red) +- 1 sigma (dotted, shaded) "
+      "over the "
+      "raw sonar (blue; zeros are failed readings); time window: where the sonar saw an obstacle.");
   if (o.scene3d) {
     DriveScene scene(d);
     scene.setTime(t_at);
@@ -391,23 +432,27 @@ ReportResult writeReport(const DriveData& d, const ReportOptions& o) {
   md += "* recording: `" + d.path + "`\n";
   md += fmt::format("* duration of the estimates: {:.2f} s (recording clock {:.3f} .. {:.3f} s)\n",
                     d.t1_s - d.t0_s, d.t0_s, d.t1_s);
-  md += fmt::format("* samples: encoders {}, imu {}, motors {}, sonar {}, pozyx {}, ground truth {}\n",
-                    d.rec.encoders.size(), d.rec.imu.size(), d.rec.motors.size(), d.rec.sonar.size(),
-                    d.rec.pozyx.size(), d.rec.ground_truth.size());
+  md += fmt::format(
+      "* samples: encoders {}, imu {}, motors {}, sonar {}, pozyx {}, ground truth {}\n",
+      d.rec.encoders.size(), d.rec.imu.size(), d.rec.motors.size(), d.rec.sonar.size(),
+      d.rec.pozyx.size(), d.rec.ground_truth.size());
   md += "* ground truth: " + std::string(evaluation::toString(d.gt.source)) +
         (d.gt_frame_note.empty() ? "" : " (figures: " + d.gt_frame_note + ")") + "\n";
   if (d.truth)
-    md += "* simulated: scenario `" + d.truth->scenario + "`, effects: " +
-          (d.truth->effects.empty() ? "none" : d.truth->effects) + "\n";
+    md += "* simulated: scenario `" + d.truth->scenario +
+          "`, effects: " + (d.truth->effects.empty() ? "none" : d.truth->effects) + "\n";
   md += "* configuration: `" + d.cfg.origin() + "` (full text below)\n\n";
   md += "## Metrics\n\n" + evaluation::batchMarkdown(d.metrics, d.cfg, false) + "\n";
   const auto& ekf = d.est.ekf;
   if (!ekf.estimates.empty()) {
-    md += "## EKF sensor statistics\n\n| sensor | used | rejected | dropouts | mean NIS |\n|---|---:|---:|---:|---:|\n";
+    md +=
+        "## EKF sensor statistics\n\n| sensor | used | rejected | dropouts | mean NIS "
+        "|\n|---|---:|---:|---:|---:|\n";
     for (int s = 0; s < estimation::kNumSensors; ++s) {
       const auto& st = ekf.sensors[s];
-      md += fmt::format("| {} | {} | {} | {} | {} |\n", estimation::sensorName(static_cast<estimation::Sensor>(s)),
-                        st.used, st.rejected, st.dropouts, st.nis_count ? fmtNum(st.meanNis(), 2) : "–");
+      md += fmt::format("| {} | {} | {} | {} | {} |\n",
+                        estimation::sensorName(static_cast<estimation::Sensor>(s)), st.used,
+                        st.rejected, st.dropouts, st.nis_count ? fmtNum(st.meanNis(), 2) : "–");
     }
     for (const auto& w : ekf.warnings) md += "\n* warning: " + w;
     md += "\n";

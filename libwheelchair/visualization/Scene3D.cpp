@@ -19,6 +19,10 @@
 #include <cmath>
 
 namespace wheelchair::visualization {
+
+void fillRibbon(mrpt::opengl::CSetOfTriangles& t, const std::vector<std::pair<double, double>>& pts,
+                double width, double z, bool closed);
+
 namespace {
 
 using namespace mrpt::opengl;
@@ -40,7 +44,40 @@ CSetOfLines::Ptr polyline(const std::vector<std::pair<double, double>>& pts, Col
   return l;
 }
 
+// A flat ribbon of `width` metres along a polyline (OpenGL core profiles draw lines 1 px wide
+// whatever the requested width, so thick curves are made of triangles). Unlit: exact colour.
+CSetOfTriangles::Ptr ribbon(const std::vector<std::pair<double, double>>& pts, Color c,
+                            double width, double z, bool closed = false) {
+  auto t = CSetOfTriangles::Create();
+  fillRibbon(*t, pts, width, z, closed);
+  t->setColor_u8(mrpt::img::TColor(c.r, c.g, c.b));
+  t->enableLight(false);
+  return t;
+}
+
 }  // namespace
+
+void fillRibbon(CSetOfTriangles& t, const std::vector<std::pair<double, double>>& pts, double width,
+                double z, bool closed) {
+  t.clearTriangles();
+  const double h = width / 2;
+  const float zf = static_cast<float>(z);
+  for (std::size_t i = 1; i < pts.size(); ++i) {
+    const double x0 = pts[i - 1].first, y0 = pts[i - 1].second, x1 = pts[i].first,
+                 y1 = pts[i].second;
+    const double L = std::hypot(x1 - x0, y1 - y0);
+    if (L < 1e-9) continue;
+    const double nx = -(y1 - y0) / L * h, ny = (x1 - x0) / L * h;
+    // Extend each piece by half the width so consecutive pieces overlap at the joints.
+    const double ex = (x1 - x0) / L * h, ey = (y1 - y0) / L * h;
+    const mrpt::math::TPoint3Df a(x0 - ex + nx, y0 - ey + ny, zf),
+        b(x0 - ex - nx, y0 - ey - ny, zf), cc(x1 + ex - nx, y1 + ey - ny, zf),
+        d(x1 + ex + nx, y1 + ey + ny, zf);
+    t.insertTriangle(TTriangle(b, cc, d));  // counter-clockwise seen from above
+    t.insertTriangle(TTriangle(b, d, a));
+  }
+  (void)closed;
+}
 
 Color variantColor(const std::string& v) {
   if (v == "encoders") return Color{0, 60, 255};
@@ -78,17 +115,21 @@ DriveScene::DriveScene(const DriveData& d) : d_(d) {
   double z = 0.01;
   if (d.truth && !d.truth->t_s.empty()) {
     std::vector<std::pair<double, double>> p;
-    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 5) p.emplace_back(d.truth->x_m[i], d.truth->y_m[i]);
-    scene_->insert(polyline(p, variantColor("truth"), 2.0f, z));
+    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 5)
+      p.emplace_back(d.truth->x_m[i], d.truth->y_m[i]);
+    scene_->insert(ribbon(p, variantColor("truth"), 0.03, z));
     legend_.emplace_back(variantLabel("truth"), variantColor("truth"));
   }
   for (const std::string v : {"encoders", "encoders_gyro", "baseline", "ekf"}) {
     auto it = d.trajectories.find(v);
     if (it == d.trajectories.end()) continue;
     std::vector<std::pair<double, double>> p;
-    for (const auto& s : it->second) p.emplace_back(s.x_m, s.y_m);
+    const std::size_t step = std::max<std::size_t>(1, it->second.size() / 1500);
+    for (std::size_t i = 0; i < it->second.size(); i += step)
+      p.emplace_back(it->second[i].x_m, it->second[i].y_m);
+    p.emplace_back(it->second.back().x_m, it->second.back().y_m);
     z += 0.005;
-    scene_->insert(polyline(p, variantColor(v), v == "ekf" ? 4.0f : 3.0f, z));
+    scene_->insert(ribbon(p, variantColor(v), v == "ekf" ? 0.05 : 0.04, z));
     legend_.emplace_back(variantLabel(v), variantColor(v));
   }
   if (!d.gt_start.empty()) {
@@ -98,14 +139,16 @@ DriveScene::DriveScene(const DriveData& d) : d_(d) {
     pc->setColor_u8(c.r, c.g, c.b);
     pc->setPointSize(4.0f);
     scene_->insert(pc);
-    legend_.emplace_back(d.gt.source == evaluation::GroundTruthSource::Pozyx ? "Pozyx (ground truth)"
-                                                                              : "ground truth",
+    legend_.emplace_back(d.gt.source == evaluation::GroundTruthSource::Pozyx
+                             ? "Pozyx (ground truth)"
+                             : "ground truth",
                          c);
   }
   // True obstacles.
   if (d.truth)
     for (const auto& o : d.truth->obstacles) {
-      auto cyl = CCylinder::Create(o.radius_m, o.radius_m, 0.5f, 16);
+      const float rr = static_cast<float>(std::max(0.08, o.radius_m));
+      auto cyl = CCylinder::Create(rr, rr, 0.5f, 16);
       cyl->setColor_u8(220, 30, 30);
       cyl->setLocation(o.x_m, o.y_m, 0);
       scene_->insert(cyl);
@@ -117,8 +160,11 @@ DriveScene::DriveScene(const DriveData& d) : d_(d) {
                            mrpt::math::TPoint3D(kFront, kHalfWidth, 0.10));
   body->setColor_u8(255, 190, 60, 150);
   chair_->insert(body);
-  chair_->insert(polyline({{-kRear, -kHalfWidth}, {kFront, -kHalfWidth}, {kFront, kHalfWidth},
-                           {-kRear, kHalfWidth}, {-kRear, -kHalfWidth}},
+  chair_->insert(polyline({{-kRear, -kHalfWidth},
+                           {kFront, -kHalfWidth},
+                           {kFront, kHalfWidth},
+                           {-kRear, kHalfWidth},
+                           {-kRear, -kHalfWidth}},
                           Color{90, 60, 0}, 2.0f, 0.11));
   const double r = d.cfg.vehicle.geom.wheel_radius_m, hw = d.cfg.vehicle.geom.track_width_m / 2;
   for (double side : {-1.0, 1.0}) {
@@ -141,9 +187,10 @@ DriveScene::DriveScene(const DriveData& d) : d_(d) {
       const double a = -half_cone + 2 * half_cone * i / n;
       arc.emplace_back(std::cos(a), std::sin(a));
       if (i > 0 && filled)
-        tris->insertTriangle(TTriangle(mrpt::math::TPoint3Df(0, 0, 0.05f),
-                                       mrpt::math::TPoint3Df(arc[i].first, arc[i].second, 0.05f),
-                                       mrpt::math::TPoint3Df(arc[i + 1].first, arc[i + 1].second, 0.05f)));
+        tris->insertTriangle(
+            TTriangle(mrpt::math::TPoint3Df(0, 0, 0.05f),
+                      mrpt::math::TPoint3Df(arc[i].first, arc[i].second, 0.05f),
+                      mrpt::math::TPoint3Df(arc[i + 1].first, arc[i + 1].second, 0.05f)));
     }
     arc.emplace_back(0, 0);
     if (filled) {
@@ -173,10 +220,15 @@ DriveScene::DriveScene(const DriveData& d) : d_(d) {
   ell->setLineWidth(3.0f);
   ellipse_ = ell;
   chair_->insert(ellipse_);
+  ellipse_ribbon_ = CSetOfTriangles::Create();
+  ellipse_ribbon_->setColor_u8(mrpt::img::TColor(0, 200, 220));
+  ellipse_ribbon_->enableLight(false);
+  chair_->insert(ellipse_ribbon_);
   scene_->insert(chair_);
 
   legend_.emplace_back("obstacle estimate, 1-sigma ellipse", Color{0, 170, 190});
-  if (d.truth && !d.truth->obstacles.empty()) legend_.emplace_back("true obstacles", Color{220, 30, 30});
+  if (d.truth && !d.truth->obstacles.empty())
+    legend_.emplace_back("true obstacles", Color{220, 30, 30});
   legend_.emplace_back("sonar cone (current reading)", Color{230, 110, 0});
   setTime(d.t0_s);
 }
@@ -184,7 +236,13 @@ DriveScene::DriveScene(const DriveData& d) : d_(d) {
 void DriveScene::view(double& cx, double& cy, double& zoom) const {
   double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
   for (const auto& [v, t] : d_.trajectories)
-    for (const auto& s : t) x0 = std::min(x0, s.x_m), x1 = std::max(x1, s.x_m), y0 = std::min(y0, s.y_m), y1 = std::max(y1, s.y_m);
+    for (const auto& s : t)
+      x0 = std::min(x0, s.x_m), x1 = std::max(x1, s.x_m), y0 = std::min(y0, s.y_m),
+      y1 = std::max(y1, s.y_m);
+  if (d_.truth)
+    for (const auto& o : d_.truth->obstacles)
+      x0 = std::min(x0, o.x_m), x1 = std::max(x1, o.x_m), y0 = std::min(y0, o.y_m),
+      y1 = std::max(y1, o.y_m);
   if (x0 > x1) x0 = y0 = -1, x1 = y1 = 1;
   cx = (x0 + x1) / 2, cy = (y0 + y1) / 2;
   zoom = std::max(4.0, 1.3 * std::max(x1 - x0, y1 - y0) + 2.0);
@@ -212,7 +270,8 @@ void DriveScene::setTime(double t) {
   double reading = 0;
   bool have = false;
   for (const auto& s : d_.rec.sonar)
-    if (s.t_s <= t_ && s.t_s >= t_ - 1.5 / std::max(1.0, d_.cfg.sonar.rate_hz)) reading = s.range_m, have = true;
+    if (s.t_s <= t_ && s.t_s >= t_ - 1.5 / std::max(1.0, d_.cfg.sonar.rate_hz))
+      reading = s.range_m, have = true;
   const bool valid = have && reading > 0;
   cone_->setVisibility(valid);
   cone_empty_->setVisibility(!valid);
@@ -227,7 +286,11 @@ void DriveScene::setTime(double t) {
     auto ell = std::dynamic_pointer_cast<CEllipsoid2D>(ellipse_);
     ell->setCovMatrix(C);
     ell->setLocation(e->x(5), e->x(6), 0.07);
+    fillRibbon(*ellipse_ribbon_,
+               covarianceEllipse(e->x(5), e->x(6), C(0, 0), C(0, 1), C(1, 1), 1.0, 72), 0.03, 0.08,
+               true);
   }
+  ellipse_ribbon_->setVisibility(obs);
   updateText();
 }
 
@@ -250,7 +313,8 @@ void DriveScene::updateText() {
   if (e) {
     line += fmt::format("   v = {:.2f} m/s   omega = {:.2f} rad/s", e->x(0), e->x(1));
     if (e->obstacle_initialised)
-      line += fmt::format("   d_o = {:.2f} +- {:.2f} m", e->obstacle_distance_m, e->obstacle_distance_sd_m);
+      line += fmt::format("   d_o = {:.2f} +- {:.2f} m", e->obstacle_distance_m,
+                          e->obstacle_distance_sd_m);
   }
   vp->addTextMessage(0.01, 0.02, line, id++, fp);
   if (!status_.empty()) vp->addTextMessage(0.01, 0.06, status_, id++, fp);

@@ -19,6 +19,7 @@
 
 #include <mrpt/opengl/COpenGLScene.h>
 #include <mrpt/opengl/CSetOfObjects.h>
+#include <mrpt/opengl/CSetOfTriangles.h>
 
 #include <string>
 
@@ -56,6 +57,7 @@ class DriveScene {
   mrpt::opengl::COpenGLScene::Ptr scene_;
   mrpt::opengl::CSetOfObjects::Ptr chair_, cone_, cone_empty_, obstacle_;
   mrpt::opengl::CRenderizable::Ptr ellipse_, reading_;
+  mrpt::opengl::CSetOfTriangles::Ptr ellipse_ribbon_;
   double t_ = 0;
   std::string status_;
   std::vector<std::pair<std::string, Color>> legend_;

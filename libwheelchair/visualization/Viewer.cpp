@@ -49,7 +49,8 @@ ViewerResult runViewer(const DriveData& d, const ViewerOptions& o) {
   ViewerResult res;
   DriveScene scene(d);
   const bool shot = !o.screenshot.empty();
-  const double t_start = std::isfinite(o.at_s) ? d.t0_s + o.at_s : (shot ? defaultObstacleTime(d) : d.t0_s);
+  const double t_start =
+      std::isfinite(o.at_s) ? d.t0_s + o.at_s : (shot ? defaultObstacleTime(d) : d.t0_s);
   scene.setTime(t_start);
 
   if (shot) {
@@ -114,9 +115,10 @@ ViewerResult runViewer(const DriveData& d, const ViewerOptions& o) {
   double speed = o.speed, t = t_start;
   auto last = steady_clock::now();
   auto status = [&] {
-    return fmt::format("[{}] speed x{:g}   space: play/pause  <- ->: step  up/down: +-10 s  +/-: speed  "
-                       "Home/End  q: quit",
-                       playing ? "playing" : "paused", speed);
+    return fmt::format(
+        "[{}] speed x{:g}   space: play/pause  <- ->: step  up/down: +-10 s  +/-: speed  "
+        "Home/End  q: quit",
+        playing ? "playing" : "paused", speed);
   };
   {
     win.get3DSceneAndLock();
@@ -131,23 +133,45 @@ ViewerResult runViewer(const DriveData& d, const ViewerOptions& o) {
       const int k = win.getPushedKey(&mod);
       const double step = playing ? 2.0 : 0.5;
       switch (k) {
-        case ' ': playing = !playing; break;
-        case mrpt::gui::MRPTK_RIGHT: t += step; break;
-        case mrpt::gui::MRPTK_LEFT: t -= step; break;
-        case mrpt::gui::MRPTK_UP: t += 10; break;
-        case mrpt::gui::MRPTK_DOWN: t -= 10; break;
+        case ' ':
+          playing = !playing;
+          break;
+        case mrpt::gui::MRPTK_RIGHT:
+          t += step;
+          break;
+        case mrpt::gui::MRPTK_LEFT:
+          t -= step;
+          break;
+        case mrpt::gui::MRPTK_UP:
+          t += 10;
+          break;
+        case mrpt::gui::MRPTK_DOWN:
+          t -= 10;
+          break;
         case '+':
         case mrpt::gui::MRPTK_ADD:
-        case mrpt::gui::MRPTK_NUMPAD_ADD: speed = std::min(64.0, speed * 2); break;
+        case mrpt::gui::MRPTK_NUMPAD_ADD:
+          speed = std::min(64.0, speed * 2);
+          break;
         case '-':
         case mrpt::gui::MRPTK_SUBTRACT:
-        case mrpt::gui::MRPTK_NUMPAD_SUBTRACT: speed = std::max(1.0 / 16, speed / 2); break;
-        case mrpt::gui::MRPTK_HOME: t = d.t0_s; break;
-        case mrpt::gui::MRPTK_END: t = d.t1_s; break;
+        case mrpt::gui::MRPTK_NUMPAD_SUBTRACT:
+          speed = std::max(1.0 / 16, speed / 2);
+          break;
+        case mrpt::gui::MRPTK_HOME:
+          t = d.t0_s;
+          break;
+        case mrpt::gui::MRPTK_END:
+          t = d.t1_s;
+          break;
         case 'q':
         case 'Q':
-        case mrpt::gui::MRPTK_ESCAPE: win.setWindowTitle("closing"); res.ok = true; return res;
-        default: break;
+        case mrpt::gui::MRPTK_ESCAPE:
+          win.setWindowTitle("closing");
+          res.ok = true;
+          return res;
+        default:
+          break;
       }
       changed = true;
     }

@@ -19,7 +19,9 @@ TEST(DiagnoseCampaign, SmallSeededCampaign) {
   o.verbose = true;
   diagnosis::DiagnosisOptions d;
   auto res = diagnosis::runCampaign(cfg, o, d);
-  std::cout << res["single"].dump() << "\n" << res["pairs"].dump() << "\n" << res["clean"].dump() << "\n";
+  std::cout << res["single"].dump() << "\n"
+            << res["pairs"].dump() << "\n"
+            << res["clean"].dump() << "\n";
   EXPECT_GE(res["single_rate"].get<double>(), 0.75);
   EXPECT_EQ(res["clean"]["false_alarms"].get<int>(), 0);
 }

@@ -42,7 +42,8 @@ TEST(DiagnosisStatistics, HacFitRecoversCoefficientAndHonestError) {
   LinearFit f = fitLinear(X, y, singleGroup(n), 100);
   ASSERT_TRUE(f.ok);
   EXPECT_NEAR(f.beta(0), 0.3, 5 * std::sqrt(f.cov(0, 0)));
-  Evidence ev = compareNested(y.squaredNorm(), f.rss, 1, effectiveSampleSize(f.residual, singleGroup(n), 100));
+  Evidence ev = compareNested(y.squaredNorm(), f.rss, 1,
+                              effectiveSampleSize(f.residual, singleGroup(n), 100));
   EXPECT_LT(ev.p_value, 1e-6);
   EXPECT_LT(ev.delta_bic, -10);
 }

@@ -5,6 +5,7 @@
 
 #include "libwheelchair/evaluation/Batch.h"
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -25,14 +26,16 @@ class BatchTest : public ::testing::Test {
     dir_ = std::make_unique<test::TempDir>();
     for (int seed : {1, 2}) {
       const std::string f = *dir_ / ("drive" + std::to_string(seed) + ".rawlog");
-      const auto r = cli(fmt::format("simulate --scenario three_task --seed {} --duration 8 -o {}", seed, f));
+      const auto r =
+          cli(fmt::format("simulate --scenario three_task --seed {} --duration 8 -o {}", seed, f));
       ASSERT_EQ(r.exit_code, 0) << r.out;
       files_.push_back(f);
     }
     // A corrupt recording: the first one's bytes, truncated and scrambled.
     std::string bytes = readFile(files_[0]);
     bytes = bytes.substr(0, bytes.size() / 3);
-    for (std::size_t i = 40; i < bytes.size(); i += 7) bytes[i] = static_cast<char>(bytes[i] ^ 0x5a);
+    for (std::size_t i = 40; i < bytes.size(); i += 7)
+      bytes[i] = static_cast<char>(bytes[i] ^ 0x5a);
     corrupt_ = *dir_ / "corrupt.rawlog";
     test::writeFile(corrupt_, bytes);
     missing_ = *dir_ / "missing.rawlog";
@@ -77,9 +80,10 @@ TEST_F(BatchTest, ParallelEqualsSerialByteForByte) {
   std::vector<std::string> lines;
   while (std::getline(ss, line)) lines.push_back(line);
   ASSERT_EQ(lines.size(), 13u);
-  EXPECT_EQ(lines[0].rfind("recording,variant,ground_truth,d_path_m,d_path_gt_m,terminal_error_m,loop_error_m,"
-                           "ate_rmse_m,ate_mean_m,ate_median_m,ate_max_m,",
-                           0),
+  EXPECT_EQ(lines[0].rfind(
+                "recording,variant,ground_truth,d_path_m,d_path_gt_m,terminal_error_m,loop_error_m,"
+                "ate_rmse_m,ate_mean_m,ate_median_m,ate_max_m,",
+                0),
             0u)
       << lines[0];
   for (const auto& col : {"rpe_1m_m", "heading_drift_deg", "n_matched", "error"})

@@ -5,8 +5,8 @@
 
 #include <mrpt/img/CImage.h>
 
-#include <gtest/gtest.h>
 #include <fmt/core.h>
+#include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <memory>
@@ -54,7 +54,8 @@ inline long countColour(const mrpt::img::CImage& im, Rgb c, int tol, double fx0 
 /// region... passed explicitly) inside the rectangle.
 inline long countNonBackground(const mrpt::img::CImage& im, Rgb bg, double fx0, double fy0,
                                double fx1, double fy1) {
-  const long all = static_cast<long>((fx1 - fx0) * im.getWidth()) * static_cast<long>((fy1 - fy0) * im.getHeight());
+  const long all = static_cast<long>((fx1 - fx0) * im.getWidth()) *
+                   static_cast<long>((fy1 - fy0) * im.getHeight());
   return all - countColour(im, bg, 3, fx0, fy0, fx1, fy1);
 }
 

@@ -24,7 +24,8 @@ TEST(CovarianceEllipse, AxesAreTheSigmas) {
   // sigma_x = 0.1, sigma_y = 0.4, no correlation: extreme points at +-0.1 / +-0.4.
   const auto e = covarianceEllipse(1, 2, 0.01, 0, 0.16, 1.0, 360);
   double xmax = 0, ymax = 0;
-  for (const auto& [x, y] : e) xmax = std::max(xmax, std::fabs(x - 1)), ymax = std::max(ymax, std::fabs(y - 2));
+  for (const auto& [x, y] : e)
+    xmax = std::max(xmax, std::fabs(x - 1)), ymax = std::max(ymax, std::fabs(y - 2));
   EXPECT_NEAR(xmax, 0.1, 1e-3);
   EXPECT_NEAR(ymax, 0.4, 1e-3);
 }
@@ -38,7 +39,14 @@ TEST(Plot, DrawsSeriesLegendAndText) {
   Series s{"sine", {}, {}, Color{0, 0, 255}, LineStyle::Solid, 3.0};
   for (int i = 0; i <= 200; ++i) s.x.push_back(i * 0.05), s.y.push_back(std::sin(i * 0.05));
   p.series.push_back(s);
-  p.series.push_back({"points", {1, 2, 3}, {0.5, -0.5, 0}, Color{255, 0, 0}, LineStyle::None, 2, Marker::Square, 10});
+  p.series.push_back({"points",
+                      {1, 2, 3},
+                      {0.5, -0.5, 0},
+                      Color{255, 0, 0},
+                      LineStyle::None,
+                      2,
+                      Marker::Square,
+                      10});
   const std::string f = dir / "p.png";
   p.save(f, 600, 400);
   const auto im = testutil::loadPng(f);

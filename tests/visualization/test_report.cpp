@@ -18,8 +18,9 @@ TEST(Report, WritesEveryFigureWithContentAndTheIndex) {
   const std::string out = dir / "report";
   const auto r = test::cli("report " + rawlog + " -o " + out + " --at 6");
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  for (const std::string f : {"fig5_trajectories.png", "fig6a_velocity.png", "fig6b_angular_velocity.png",
-                              "fig6c_motor_currents.png", "fig7_obstacle.png", "fig8_distance.png"}) {
+  for (const std::string f :
+       {"fig5_trajectories.png", "fig6a_velocity.png", "fig6b_angular_velocity.png",
+        "fig6c_motor_currents.png", "fig7_obstacle.png", "fig8_distance.png"}) {
     const std::string p = out + "/" + f;
     ASSERT_TRUE(std::filesystem::exists(p)) << p;
     EXPECT_GT(std::filesystem::file_size(p), 5000u) << p;
@@ -29,8 +30,13 @@ TEST(Report, WritesEveryFigureWithContentAndTheIndex) {
     const long drawn = countNonBackground(im, {255, 255, 255}, 0.15, 0.15, 0.7, 0.85);
     EXPECT_GT(drawn, 2000) << p;
     long coloured = 0;  // saturated pixels: data, not the grey grid or the black axes
-    for (const auto& c : std::vector<testutil::Rgb>{{0, 60, 255}, {0, 170, 0}, {220, 20, 30}, {30, 80, 220},
-                                                    {230, 0, 0}, {0, 190, 210}, {20, 160, 40}})
+    for (const auto& c : std::vector<testutil::Rgb>{{0, 60, 255},
+                                                    {0, 170, 0},
+                                                    {220, 20, 30},
+                                                    {30, 80, 220},
+                                                    {230, 0, 0},
+                                                    {0, 190, 210},
+                                                    {20, 160, 40}})
       coloured += countColour(im, c, 50, 0.1, 0.08, 0.95, 0.9);
     EXPECT_GT(coloured, 300) << p;
   }

@@ -15,9 +15,12 @@ void expectTrajectoryColours(const std::string& png) {
   ASSERT_GT(im.getWidth(), 0u);
   auto rgb = [](Color c) { return testutil::Rgb{c.r, c.g, c.b}; };
   // Below the legend text (top 40 %) so the legend's coloured labels do not count.
-  EXPECT_GT(countColour(im, rgb(variantColor("encoders")), 40, 0, 0.4, 1, 1), 50) << "encoders (blue)";
-  EXPECT_GT(countColour(im, rgb(variantColor("encoders_gyro")), 40, 0, 0.4, 1, 1), 50) << "encoders+gyro (green)";
-  EXPECT_GT(countColour(im, rgb(variantColor("baseline")), 40, 0, 0.4, 1, 1), 20) << "baseline (purple)";
+  EXPECT_GT(countColour(im, rgb(variantColor("encoders")), 40, 0, 0.4, 1, 1), 50)
+      << "encoders (blue)";
+  EXPECT_GT(countColour(im, rgb(variantColor("encoders_gyro")), 40, 0, 0.4, 1, 1), 50)
+      << "encoders+gyro (green)";
+  EXPECT_GT(countColour(im, rgb(variantColor("baseline")), 40, 0, 0.4, 1, 1), 20)
+      << "baseline (purple)";
   EXPECT_GT(countColour(im, rgb(variantColor("ekf")), 30, 0, 0.4, 1, 1), 50) << "EKF (black)";
   EXPECT_GT(countColour(im, rgb(variantColor("gt")), 40, 0, 0.4, 1, 1), 20) << "ground truth (red)";
 }
@@ -27,8 +30,9 @@ TEST(View, ScreenshotUnderXvfb) {
   const std::string rawlog = testutil::SimulatedDrive::rawlog();
   test::TempDir dir;
   const std::string png = dir / "view.png";
-  const auto r = test::run("timeout 120 xvfb-run -a -s '-screen 0 1600x1200x24' " + std::string(WHEELCHAIR_CLI) +
-                           " view " + rawlog + " --screenshot " + png + " --at 8");
+  const auto r = test::run("timeout 120 xvfb-run -a -s '-screen 0 1600x1200x24' " +
+                           std::string(WHEELCHAIR_CLI) + " view " + rawlog + " --screenshot " +
+                           png + " --at 8");
   if (r.exit_code != 0 && r.out.find("GLX") != std::string::npos)
     GTEST_SKIP() << "no GLX under Xvfb here: " << r.out;
   ASSERT_EQ(r.exit_code, 0) << r.out;
