@@ -1,5 +1,7 @@
 #include "libwheelchair/estimation/CdEkf.h"
 
+#include <limits>
+
 #include <cvode/cvode.h>
 #include <nvector/nvector_serial.h>
 #include <sunlinsol/sunlinsol_dense.h>
@@ -502,7 +504,14 @@ UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::V
   r.S = 0.5 * (r.S + r.S.transpose());
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(r.S);
   if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0))
-    throw std::runtime_error("josephUpdate: innovation covariance is not positive definite");
+  {
+    // A degenerate measurement (zero or non-finite innovation covariance, e.g. from a
+    // zero-length encoder interval) is rejected and counted like a gated one: one bad sample
+    // must not end a whole replay.
+    r.nis = std::numeric_limits<double>::infinity();
+    r.accepted = false;
+    return r;
+  }
   r.nis = y.dot(ldlt.solve(y));
   if (gate > 0 && !(r.nis <= gate)) {
     r.accepted = false;

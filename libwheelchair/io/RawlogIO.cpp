@@ -217,8 +217,14 @@ bool RawlogReader::next(mrpt::serialization::CSerializable::Ptr& obj) {
     auto ar = mrpt::serialization::archiveFrom(in_);
     obj = ar.ReadObject();
   } catch (const mrpt::serialization::CExceptionEOF&) {
-    // A clean end of file only if nothing of a record was read.
-    if (in_.getPosition() == pos) return false;
+    // A clean end of file only if nothing of a record was read, and only after at least one
+    // record: a non-empty file that yields nothing (e.g. a damaged gzip stream, which zlib
+    // ends early) is not a rawlog we can read.
+    if (in_.getPosition() == pos && (index_ > 0 || file_size_ == 0)) return false;
+    if (in_.getPosition() == pos) {
+      error_ = RawlogBreak{index_, pos, "no readable record (not a rawlog, or damaged from the start)"};
+      return false;
+    }
     error_ = RawlogBreak{index_, pos, "truncated record (unexpected end of file)"};
     return false;
   } catch (const std::exception& e) {

@@ -157,12 +157,14 @@ void figureVelocity(const DriveData& d, const std::string& png, int w, int h) {
       s.x.push_back(d.truth->t_s[i] - t0), s.y.push_back(d.truth->v_m_s[i]);
     p.series.push_back(s);
   }
-  Series enc{"v from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 1.6};
+  // The measurement is drawn wide underneath and the estimate thin on top, so both stay
+  // visible where they agree (which is most of a good drive).
+  Series enc{"v from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 3.4};
   for (const auto& s : d.est.encoders) enc.x.push_back(s.t_s - t0), enc.y.push_back(s.v_m_s);
-  p.series.push_back(enc);
-  Series ekf{"v estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Solid, 2.2};
+  p.series.insert(p.series.begin(), enc);
+  Series ekf{"v estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Solid, 1.3};
   for (const auto& e : d.est.ekf.estimates) ekf.x.push_back(e.t_s - t0), ekf.y.push_back(e.x(0));
-  p.series.push_back(ekf);
+  p.series.insert(p.series.begin() + 1, ekf);
   p.save(png, w, h);
 }
 

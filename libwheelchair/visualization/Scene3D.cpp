@@ -129,7 +129,10 @@ DriveScene::DriveScene(const DriveData& d) : d_(d) {
       p.emplace_back(it->second[i].x_m, it->second[i].y_m);
     p.emplace_back(it->second.back().x_m, it->second.back().y_m);
     z += 0.005;
-    scene_->insert(ribbon(p, variantColor(v), v == "ekf" ? 0.05 : 0.04, z));
+    // Nested widths (widest first): where the trajectories coincide each still shows as a
+    // coloured edge around the next one instead of being hidden under it.
+    const double width_m = v == "encoders" ? 0.16 : v == "encoders_gyro" ? 0.12 : v == "baseline" ? 0.08 : 0.04;
+    scene_->insert(ribbon(p, variantColor(v), width_m, z));
     legend_.emplace_back(variantLabel(v), variantColor(v));
   }
   if (!d.gt_start.empty()) {
