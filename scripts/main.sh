@@ -44,6 +44,6 @@ echo "corrected model:"; sed -n '/^| recording/,/^$/p' "$OUT/metrics_validation_
 
 step "7. report: figures like the paper's Fig. 5-8 and the metrics"
 "$BIN" report "$OUT/three_task_faulty.rawlog" --config "$CFG" -o "$OUT/report" \
-  --truth datasets/three_task_faulty.truth.json --no-3d
+  --truth datasets/three_task_faulty.truth.json
 echo
 echo "done: results in $OUT/ (report: $OUT/report/index.md)"

@@ -3,16 +3,23 @@
 // Finds the physics the nominal model leaves out (docs/discovery.md): compares the model with
 // the recording channel by channel, locates and names the mismatch from the effect catalogue
 // (docs/effects.md), fits its parameters and shows the fit improve on held-out data.
+// Command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor currents, e.g. MRCLAM imports)
+// go to the command-response analyser (diagnosis/CommandResponse.h): actuator_lag etc., with
+// the held-out open-loop drift in fit_before / fit_after and [mrclam_response] written.
 #include "Command.h"
 #include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/diagnosis/CommandResponse.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/visualization/DiagnosisFigures.h"
 
 #include <fmt/core.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <tuple>
 
 namespace wheelchair::cli {
 namespace {
@@ -41,7 +48,35 @@ int runDiagnose(const DiagnoseOptions& o) {
   std::vector<io::Recording> fit, val;
   for (const auto& p : o.inputs) fit.push_back(io::readRawlog(p));
   for (const auto& p : o.validate) val.push_back(io::readRawlog(p));
-  auto rep = diagnosis::diagnose(fit, val, cfg, opt);
+  // Command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor currents: e.g. MRCLAM
+  // imports): the command-response analyser; encoders, if any, still go through the
+  // wheelchair stages.
+  bool command_driven = !fit.empty(), any_motors = false, any_encoders = false;
+  for (const auto& r : fit) {
+    command_driven &= diagnosis::hasCommandResponseData(r);
+    any_motors |= !r.motors.empty();
+    any_encoders |= !r.encoders.empty();
+  }
+  for (const auto& r : val) command_driven &= diagnosis::hasCommandResponseData(r);
+  command_driven &= !any_motors;
+  diagnosis::DiagnosisReport rep;
+  if (!command_driven || any_encoders) rep = diagnosis::diagnose(fit, val, cfg, opt);
+  if (command_driven) {
+    diagnosis::CommandResponseOptions co;
+    co.alpha = opt.alpha;
+    co.min_delta_bic = opt.min_bic_drop;
+    std::vector<io::Recording> cf = fit, cv = val;
+    std::string how = fmt::format("{} --validate recording(s)", val.size());
+    if (cv.empty()) {
+      std::tie(cf, cv) = diagnosis::splitRecordingsInTime(fit, opt.fit_fraction);
+      how = fmt::format("held-out last {:.0f}% of each recording", 100 * (1 - opt.fit_fraction));
+    }
+    const auto cr = diagnosis::diagnoseCommandResponse(cf, cv, co);
+    diagnosis::addCommandResponseFindings(cr, rep);
+    rep.info["analyser"] = "command_response";
+    rep.info["command_response_validation"] = how;
+    if (!any_encoders) rep.info["validation"] = how;
+  }
   if (!o.write_config.empty()) {
     diagnosis::correctedConfig(cfg, rep).save(o.write_config);
     rep.config_written = o.write_config;
@@ -54,9 +89,36 @@ int runDiagnose(const DiagnoseOptions& o) {
   std::string text;
   text += fmt::format("mismatch: {}\n", rep.mismatch ? "yes" : "no");
   for (const auto& f : rep.findings) {
-    text += fmt::format("- {}: {}\n", f.effect, f.description);
-    if (!f.effectText().empty()) text += fmt::format("    as effect: {}\n", f.effectText());
+    text +=
+        fmt::format("- {}{}: {}\n", f.effect, f.is_fault ? " (sensor fault)" : "", f.description);
+    if (f.command_response && f.fit_before.contains("drift_10s_m"))
+      text += fmt::format(
+          "    held-out drift without -> with it: 10 s {:.3f} -> {:.3f} m, heading {:.2f} -> "
+          "{:.2f} deg\n",
+          f.fit_before["drift_10s_m"].get<double>(), f.fit_after["drift_10s_m"].get<double>(),
+          f.fit_before["heading_drift_10s_deg"].get<double>(),
+          f.fit_after["heading_drift_10s_deg"].get<double>());
+    else if (!f.effectText().empty() && !f.is_fault)
+      text += fmt::format("    as effect: {}\n", f.effectText());
   }
+  if (rep.fit_before.contains("drift_10s_m")) {
+    auto d = [](const nlohmann::json& j, const char* k) {
+      return j.contains(k) && j[k].is_number() ? j[k].get<double>() : std::nan("");
+    };
+    text += "  open-loop drift on the validation recordings (median), before -> after:\n";
+    text += fmt::format(
+        "    10 s: {:.3f} m -> {:.3f} m, heading {:.2f} deg -> {:.2f} deg\n"
+        "    60 s: {:.3f} m -> {:.3f} m, heading {:.2f} deg -> {:.2f} deg\n",
+        d(rep.fit_before, "drift_10s_m"), d(rep.fit_after, "drift_10s_m"),
+        d(rep.fit_before, "heading_drift_10s_deg"), d(rep.fit_after, "heading_drift_10s_deg"),
+        d(rep.fit_before, "drift_60s_m"), d(rep.fit_after, "drift_60s_m"),
+        d(rep.fit_before, "heading_drift_60s_deg"), d(rep.fit_after, "heading_drift_60s_deg"));
+  }
+  for (const char* ch : {"v", "omega"})
+    if (rep.channels.contains(ch) && rep.channels[ch]["before"].contains("rms"))
+      text += fmt::format("  {} window residual rms (validation): before {:.4g}, after {:.4g}\n",
+                          ch, rep.channels[ch]["before"]["rms"].get<double>(),
+                          rep.channels[ch]["after"]["rms"].get<double>());
   for (const char* ch : {"gyro_vs_encoders", "current_right", "current_left"})
     if (rep.channels.contains(ch) && rep.channels[ch]["before"].contains("rms"))
       text += fmt::format("  {} validation rms: before {:.4g}, after {:.4g}\n", ch,
@@ -77,9 +139,20 @@ int runDiagnose(const DiagnoseOptions& o) {
   text += fmt::format("wrote {}\n", o.json_path);
   std::cout << text;
   if (!o.report_dir.empty()) {
-    std::filesystem::create_directories(o.report_dir);
-    writeAtomic(o.report_dir + "/summary.txt", text);
-    writeAtomic(o.report_dir + "/diagnosis.json", j.dump(2) + "\n");
+    // Figures, index.md, summary.txt and diagnosis.json (visualization/DiagnosisFigures.h).
+    visualization::DiagnosisFigureOptions fo;
+    fo.out_dir = o.report_dir;
+    fo.summary_text = text;
+    fo.window_s = opt.window_s;
+    fo.cutoff_hz = opt.cutoff_hz;
+    fo.grid_rate_hz = opt.grid_rate_hz;
+    fo.max_gap_s = opt.max_gap_s;
+    fo.edge_trim_s = opt.edge_trim_s;
+    fo.fit_fraction = opt.fit_fraction;
+    const auto fr = visualization::writeDiagnosisFigures(
+        j, cfg, diagnosis::correctedConfig(cfg, rep), o.inputs, o.validate, fo);
+    for (const auto& n : fr.notes) std::cout << "report: " << n << "\n";
+    std::cout << fmt::format("wrote {} ({} figures)\n", fr.index_path, fr.figures.size());
   }
   return kExitOk;
 }
@@ -98,9 +171,11 @@ const RegisterCommand reg{Command{
                      "of each input)");
       sub.add_option("--json", o->json_path, "Write the findings as JSON here")->required();
       sub.add_option("--write-config", o->write_config,
-                     "Write the configuration with a [model_extensions] section here");
+                     "Write the corrected configuration here ([model_extensions]; "
+                     "command-driven recordings: [mrclam_response])");
       sub.add_option("--report", o->report_dir,
-                     "Write a summary and the full JSON into this directory");
+                     "Write figures (residuals and trajectories before/after), index.md, the "
+                     "summary and the full JSON into this directory");
       return [o] { return runDiagnose(*o); };
     }}};
 

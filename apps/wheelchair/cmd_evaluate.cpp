@@ -2,8 +2,12 @@
 //                     [--markdown OUT.md] [--alignment none|origin|se2|se2-first:SECONDS]
 //                     [--no-baseline]
 // Trajectory metrics of every recording and variant (ekf, encoders, encoders_gyro, baseline)
-// against the recording's ground truth (libwheelchair/evaluation/Batch.h). Without an output
-// option the CSV goes to stdout. Exit 1 when any recording (or variant) failed.
+// against the recording's ground truth (libwheelchair/evaluation/Batch.h). Recordings with
+// landmark sightings / a landmark map (MRCLAM imports) get the variants ekf (command-driven
+// EKF) and commands (open-loop dead reckoning of the commands) instead, against the Vicon
+// GROUND_TRUTH stream; their options come from the configuration's [mrclam_filter] /
+// [mrclam_response] sections (`--config config/mrclam.ini`). Without an output option the CSV
+// goes to stdout. Exit 1 when any recording (or variant) failed.
 #include "Command.h"
 
 #include "libwheelchair/config/WheelchairConfig.h"
@@ -69,7 +73,8 @@ const RegisterCommand reg{Command{
     [](CLI::App& sub) -> std::function<int()> {
       auto o = std::make_shared<EvaluateOptions>();
       sub.add_option("files", o->files, "Rawlog recordings")->required();
-      sub.add_option("--config", o->config_path, "Configuration INI (default: nominal vehicle)");
+      sub.add_option("--config", o->config_path,
+                     "Configuration INI (default: nominal vehicle; MRCLAM: config/mrclam.ini)");
       sub.add_option("-j,--jobs", o->jobs, "Parallel jobs (default: all cores)")
           ->check(CLI::NonNegativeNumber);
       sub.add_option("--csv", o->csv, "CSV output (+ OUT.csv.config.ini with the configuration)");

@@ -2,31 +2,129 @@
 // continuous-discrete EKF integrated by CVODE, or the kinematic baseline) and writes the
 // estimated trajectory, the per-time estimates with their standard deviations, and the
 // Fig. 5 raw variants. Prints per-sensor usage, rejections and NIS statistics.
+//
+// Recordings with landmark sightings / a landmark map (`wheelchair import --format mrclam`)
+// go through the command-driven EKF instead (estimation/CommandDrivenEkf.h): commands
+// (JOYSTICK) + range-bearing sightings (LANDMARKS), map known; its estimates are in the MAP
+// frame (MRCLAM: the Vicon frame), `--frame start` re-expresses them in the frame of the first
+// estimated pose. `--filter command` forces that path. A recording lacking what the chosen
+// filter needs exits 1 naming what is missing.
+//
+// Progress on stderr only when stderr is a terminal (and not --no-progress): a bar over the
+// measurements processed (wheelchair filters) or the recording time (command-driven EKF).
 #include "Command.h"
 
 #include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/estimation/ChiSquare.h"
+#include "libwheelchair/estimation/CommandDrivenEkf.h"
 #include "libwheelchair/estimation/DeadReckoning.h"
 #include "libwheelchair/estimation/EkfOptions.h"
 #include "libwheelchair/estimation/Estimator.h"
 #include "libwheelchair/estimation/ModelExtensions.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Trajectory.h"
+#include "libwheelchair/io/MrclamImport.h"
 #include "libwheelchair/io/RawlogIO.h"
+
+#include <mrpt/config/CConfigFile.h>
 
 #include <fmt/core.h>
 #include <fmt/os.h>
 
+#include <atomic>
 #include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <mutex>
+#include <thread>
+
+#include <unistd.h>
 
 namespace wheelchair::cli {
 namespace {
 
 struct FilterCliOptions {
-  std::string input, config_path, trajectory, estimates, filter, obstacle_form;
-  bool variants = false, pozyx = false;
+  std::string input, config_path, trajectory, estimates, filter, obstacle_form, frame = "map";
+  bool variants = false, pozyx = false, no_progress = false;
 };
+
+// Progress on stderr, drawn only when enabled (stderr is a terminal). A bar when the fraction
+// is known (update()), else the stage and the elapsed time, refreshed by a ticker thread
+// (tick()) while a long call runs.
+class Progress {
+ public:
+  explicit Progress(bool enabled) : enabled_(enabled) {}
+  ~Progress() { stop(); }
+  bool enabled() const { return enabled_; }
+
+  void update(double fraction, const std::string& stage) {
+    if (!enabled_) return;
+    const int pct = static_cast<int>(std::floor(100 * std::clamp(fraction, 0.0, 1.0)));
+    if (pct == last_pct_ && stage == last_stage_) return;
+    last_pct_ = pct;
+    last_stage_ = stage;
+    const int width = 30, filled = pct * width / 100;
+    std::lock_guard<std::mutex> lock(mu_);
+    fmt::print(stderr, "\r{:<12.12} [{}{}] {:3d}%", stage, std::string(filled, '#'),
+               std::string(width - filled, '.'), pct);
+    std::fflush(stderr);
+    drawn_ = true;
+  }
+  /// Shows `stage` with the elapsed time until stop() (or the next tick()/update()).
+  void tick(const std::string& stage) {
+    if (!enabled_) return;
+    stop();
+    running_ = true;
+    const auto t0 = std::chrono::steady_clock::now();
+    ticker_ = std::thread([this, stage, t0] {
+      std::unique_lock<std::mutex> lock(mu_);
+      while (running_) {
+        const double s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        fmt::print(stderr, "\r{:<12.12} ... {:6.1f} s", stage, s);
+        std::fflush(stderr);
+        drawn_ = true;
+        cv_.wait_for(lock, std::chrono::milliseconds(200), [this] { return !running_; });
+      }
+    });
+  }
+  /// Ends the ticker and clears the line.
+  void stop() {
+    if (ticker_.joinable()) {
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        running_ = false;
+      }
+      cv_.notify_all();
+      ticker_.join();
+    }
+    if (enabled_ && drawn_) {
+      fmt::print(stderr, "\r{:<60}\r", "");
+      std::fflush(stderr);
+      drawn_ = false;
+      last_pct_ = -1;
+    }
+  }
+
+ private:
+  bool enabled_;
+  bool drawn_ = false, running_ = false;
+  int last_pct_ = -1;
+  std::string last_stage_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::thread ticker_;
+};
+
+std::string nisVerdict(double mean, std::pair<double, double> band, long n) {
+  if (n == 0) return "-";
+  if (mean < band.first) return "low";
+  if (mean > band.second) return "HIGH";
+  return "yes";
+}
 
 std::string withSuffix(const std::string& path, const std::string& suffix) {
   const std::filesystem::path p(path);
@@ -52,7 +150,212 @@ void writeEstimatesCsv(const std::string& path, const estimation::EstimationResu
   std::filesystem::rename(tmp, path);
 }
 
+/// Why the wheelchair filters cannot run on `rec` ("" = they can).
+std::string missingForWheelchairFilter(const io::Recording& rec,
+                                       const estimation::EkfOptions& opt) {
+  const bool enc = opt.use_encoders && rec.encoders.size() >= 2;
+  const bool gyro = opt.use_gyro && !rec.imu.empty();
+  const bool sonar = opt.use_sonar && !rec.sonar.empty();
+  const bool pozyx = opt.use_pozyx && !rec.pozyx.empty();
+  if (enc || gyro || sonar || pozyx) return "";
+  std::string s =
+      "the wheelchair filter needs encoder (ENCODERS), gyro (IMU), sonar (SONAR) or Pozyx "
+      "(POZYX, with --pozyx) measurements; the recording has none that is enabled";
+  const auto missing_cd = estimation::missingForCommandDrivenEkf(rec);
+  if (estimation::isCommandDrivenRecording(rec) || !rec.joystick.empty()) {
+    if (missing_cd.empty()) {
+      s += " (it has what the command-driven EKF needs: use --filter command or omit --filter)";
+    } else {
+      s += "; the command-driven EKF would need ";
+      for (std::size_t i = 0; i < missing_cd.size(); ++i) s += (i ? "; " : "") + missing_cd[i];
+    }
+  }
+  return s;
+}
+
+// TUM with '#' comment lines naming the frame (readTum skips them).
+void writeTumWithHeader(const std::string& path, const evaluation::Trajectory& traj,
+                        const std::vector<std::string>& comments) {
+  const std::string tmp = path + ".tmp";
+  {
+    auto out = fmt::output_file(tmp);
+    for (const auto& c : comments) out.print("# {}\n", c);
+    out.print("# t x y z qx qy qz qw\n");
+    for (const auto& p : traj)
+      out.print("{:.6f} {:.9g} {:.9g} 0 0 0 {:.9g} {:.9g}\n", p.t_s, p.x_m, p.y_m,
+                std::sin(p.phi_rad / 2), std::cos(p.phi_rad / 2));
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+// Poses re-expressed in the frame of `origin` (T_origin^-1 * T).
+evaluation::Trajectory relativeTo(const evaluation::Trajectory& traj,
+                                  const evaluation::Pose2DStamped& origin) {
+  evaluation::Trajectory out;
+  out.reserve(traj.size());
+  const double c = std::cos(origin.phi_rad), s = std::sin(origin.phi_rad);
+  for (const auto& p : traj) {
+    const double dx = p.x_m - origin.x_m, dy = p.y_m - origin.y_m;
+    out.push_back({p.t_s, c * dx + s * dy, -s * dx + c * dy,
+                   std::remainder(p.phi_rad - origin.phi_rad, 2 * M_PI)});
+  }
+  return out;
+}
+
+void writeCommandDrivenCsv(const std::string& path,
+                           const std::vector<estimation::CommandDrivenEstimate>& est) {
+  const std::string tmp = path + ".tmp";
+  {
+    auto out = fmt::output_file(tmp);
+    out.print(
+        "t_s,x_m,y_m,phi_rad,v_m_s,omega_rad_s,sd_x_m,sd_y_m,sd_phi_rad,sd_v_m_s,sd_omega_rad_s,"
+        "cov_xy_m2\n");
+    auto sd = [](double var) { return std::sqrt(std::max(var, 0.0)); };
+    for (const auto& e : est)
+      out.print("{:.6f},{},{},{},{},{},{},{},{},{},{},{}\n", e.t_s, e.x_m, e.y_m, e.phi_rad,
+                e.v_m_s, e.omega_rad_s, sd(e.var_x), sd(e.var_y), sd(e.var_phi), sd(e.var_v),
+                sd(e.var_omega), e.cov_xy);
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progress& progress) {
+  const auto fail = [&](const std::string& why) {
+    std::cerr << "wheelchair filter: " << o.input << ": " << why << "\n";
+    return kExitBadInput;
+  };
+  estimation::CommandDrivenEkfOptions opt;
+  std::string config_note = "built-in defaults (nominal response: velocities = commands)";
+  if (!o.config_path.empty()) {
+    if (!std::filesystem::exists(o.config_path))
+      return fail("configuration " + o.config_path + ": no such file");
+    const mrpt::config::CConfigFile ini(o.config_path);
+    opt = estimation::loadCommandDrivenEkfOptions(ini);
+    config_note = o.config_path;
+    if (!estimation::hasCommandDrivenSections(ini))
+      config_note +=
+          " (no [mrclam_filter] / [mrclam_response] section: defaults, nominal response)";
+  }
+  if (o.pozyx || !o.obstacle_form.empty())
+    fmt::print("note: --pozyx / --obstacle-form apply to the wheelchair filters only: ignored\n");
+  const auto missing = estimation::missingForCommandDrivenEkf(rec);
+  if (!missing.empty()) {
+    std::string why =
+        "the command-driven EKF (commands + landmark range-bearing, map known) needs ";
+    for (std::size_t i = 0; i < missing.size(); ++i) why += (i ? "; " : "") + missing[i];
+    why += "; the recording lacks it";
+    if (rec.encoders.empty() && rec.imu.empty() && rec.sonar.empty())
+      why += " (and it has no encoder/gyro/sonar measurements for the wheelchair filter)";
+    return fail(why);
+  }
+  const auto map = io::landmarkMap(rec);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto res = estimation::runCommandDrivenEkf(
+      rec, map, opt, [&](double f) { progress.update(f, "filtering"); });
+  progress.stop();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!res.initialised)
+    return fail(fmt::format(
+        "the command-driven EKF could not initialise: no two sightings of mapped landmarks at "
+        "least {} m apart within {} s ({} sightings of mapped landmarks, {} of unmapped "
+        "subjects)",
+        opt.init_min_separation_m, opt.init_window_s, rec.landmarks.size() - res.unmapped,
+        res.unmapped));
+
+  const double duration_s = rec.endTime() - rec.startTime();
+  const double filtered_s = res.trajectory.back().t_s - res.t_start_s;
+  fmt::print(
+      "{}: {:.1f} s of recording, command-driven EKF (commands + landmark range-bearing, {} "
+      "mapped landmarks), {:.1f} s filtered in {:.3f} s ({:.0f}x real time)\n",
+      o.input, duration_s, map.size(), filtered_s, wall_s, wall_s > 0 ? filtered_s / wall_s : 0.0);
+  fmt::print("configuration: {}\n", config_note);
+  fmt::print(
+      "frame: map (landmark map = Vicon frame for MRCLAM); started at t = {:.3f} s "
+      "({:.1f} s into the recording) from two landmark sightings\n",
+      res.t_start_s, res.t_start_s - rec.startTime());
+  const std::size_t attempts = res.accepted + res.rejected;
+  const auto band = res.meanNisBand95();
+  fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10} {:>14} {:>8} {:>9}\n", "sensor", "used",
+             "rejected", "unmapped", "pre-init", "mean NIS", "95% band", "mean ok", "in band");
+  fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10.3f} {:>6.2f}..{:<6.2f} {:>8} {:>8.1f}%\n",
+             "landmarks", res.accepted, res.rejected, res.unmapped, res.before_start, res.mean_nis,
+             band.first, band.second,
+             nisVerdict(res.mean_nis, band, static_cast<long>(res.accepted)),
+             100 * res.fractionInside95());
+  fmt::print("{:<9} {:>7} (input: {} (0,0) blips dropped{})\n", "commands", res.commands,
+             res.dropped_zero_runs, opt.ignore_zero_runs ? "" : "; ignore_zero_runs off");
+  fmt::print(
+      "(NIS: range-bearing, 2 dof; mean over the accepted updates, {:.3f} over all {} attempts "
+      "incl. gated out; gate chi2(2) at p = {}; 'pre-init': mapped sightings up to the "
+      "initialisation; 'unmapped': sightings of other robots, skipped)\n",
+      res.mean_nis_all, attempts, opt.gate_probability);
+  if (!rec.ground_truth.empty())
+    fmt::print(
+        "ground truth ({} GROUND_TRUTH poses) not used: compare with `wheelchair evaluate`\n",
+        rec.ground_truth.size());
+  const auto& f = res.trajectory.back();
+  fmt::print(
+      "final pose x = {:.3f} +- {:.3f} m, y = {:.3f} +- {:.3f} m, phi = {:.1f} deg (map frame)\n",
+      f.x_m, std::sqrt(f.var_x), f.y_m, std::sqrt(f.var_y), f.phi_rad * 180 / M_PI);
+
+  const bool start_frame = o.frame == "start";
+  const auto traj = evaluation::toTrajectory(res.trajectory);
+  const std::string frame_text =
+      start_frame ? "frame: start (the first estimated pose, from the landmark initialisation)"
+                  : "frame: map (landmark map; the Vicon frame for MRCLAM)";
+  if (!o.trajectory.empty()) {
+    writeTumWithHeader(o.trajectory, start_frame ? relativeTo(traj, traj.front()) : traj,
+                       {"wheelchair filter " + o.input + ": command-driven EKF", frame_text});
+    fmt::print("trajectory (TUM, {}): {}\n", start_frame ? "start frame" : "map frame",
+               o.trajectory);
+  }
+  if (!o.estimates.empty()) {
+    writeCommandDrivenCsv(o.estimates, res.trajectory);
+    fmt::print("estimates (CSV, map frame): {}\n", o.estimates);
+  }
+  if (!o.trajectory.empty() || !o.estimates.empty()) {
+    const std::string cfg_path =
+        (o.trajectory.empty() ? o.estimates : o.trajectory) + ".config.ini";
+    const std::string tmp = cfg_path + ".tmp";
+    {
+      auto out = fmt::output_file(tmp);
+      out.print("# command-driven EKF options used by wheelchair filter {} (from {})\n{}", o.input,
+                config_note, estimation::toIni(opt));
+    }
+    std::filesystem::rename(tmp, cfg_path);
+    fmt::print("configuration used: {}\n", cfg_path);
+  }
+  if (o.variants) {
+    const std::string base = o.trajectory.empty() ? "filter.tum" : o.trajectory;
+    const auto dr = estimation::deadReckoningCommands(
+        rec, opt, res.t_start_s, {res.start_pose_xy(0), res.start_pose_xy(1), res.start_phi_rad},
+        res.start_velocity);
+    const auto dr_traj = evaluation::toTrajectory(dr);
+    const std::string path = withSuffix(base, "_commands");
+    writeTumWithHeader(
+        path, start_frame ? relativeTo(dr_traj, dr_traj.front()) : dr_traj,
+        {"wheelchair filter " + o.input +
+             ": open-loop dead reckoning of the commands from the EKF's initial pose",
+         frame_text});
+    fmt::print("open-loop commands variant: {} (d_path {:.2f} m)\n", path,
+               evaluation::pathLength(dr_traj));
+  }
+  return kExitOk;
+}
+
 int runFilter(const FilterCliOptions& o) {
+  Progress progress(!o.no_progress && isatty(STDERR_FILENO));
+  progress.tick("reading");
+  io::RawlogReadReport rep;
+  io::Recording rec = io::readRawlog(o.input, &rep);
+  progress.stop();
+  const bool has_wheelchair_streams =
+      !rec.encoders.empty() || !rec.imu.empty() || !rec.sonar.empty() || !rec.pozyx.empty();
+  if (o.filter == "command" ||
+      (o.filter.empty() && estimation::isCommandDrivenRecording(rec) && !has_wheelchair_streams))
+    return runCommandDriven(o, rec, progress);
+
   auto cfg = o.config_path.empty() ? config::WheelchairConfig()
                                    : config::WheelchairConfig::load(o.config_path);
   if (!o.filter.empty()) cfg.set("estimator", "filter", o.filter);
@@ -62,8 +365,10 @@ int runFilter(const FilterCliOptions& o) {
   opt.loadFromConfig(cfg.ini());
   opt.resolveSensorDefaults(cfg);
 
-  io::RawlogReadReport rep;
-  io::Recording rec = io::readRawlog(o.input, &rep);
+  if (const std::string why = missingForWheelchairFilter(rec, opt); !why.empty()) {
+    std::cerr << "wheelchair filter: " << o.input << ": " << why << "\n";
+    return kExitBadInput;
+  }
   // A corrected configuration (`wheelchair diagnose --write-config`) calibrates the sensors
   // and the drive train before filtering (estimation/ModelExtensions.h).
   const auto ext = estimation::ModelExtensions::fromConfig(cfg.ini());
@@ -73,7 +378,9 @@ int runFilter(const FilterCliOptions& o) {
     fmt::print("model extensions applied: {}\n", ext.summary());
   }
   const auto t0 = std::chrono::steady_clock::now();
-  const estimation::EstimationResult res = estimation::runEstimator(rec, cfg, opt);
+  const estimation::EstimationResult res =
+      estimation::runEstimator(rec, cfg, opt, [&](double f) { progress.update(f, "filtering"); });
+  progress.stop();
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
@@ -81,18 +388,21 @@ int runFilter(const FilterCliOptions& o) {
   long measurements = 0;
   fmt::print("{}: {:.1f} s of recording, {} filter, processed in {:.3f} s ({:.0f}x real time)\n",
              o.input, duration_s, res.filter, wall_s, wall_s > 0 ? duration_s / wall_s : 0.0);
-  fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10} {:>14} {:>9}\n", "sensor", "used", "rejected",
-             "dropouts", "skipped", "mean NIS", "95% band", "in band");
+  fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10} {:>14} {:>8} {:>9}\n", "sensor", "used",
+             "rejected", "dropouts", "skipped", "mean NIS", "95% band", "mean ok", "in band");
   for (int s = 0; s < estimation::kNumSensors; ++s) {
     const auto& st = res.sensors[s];
     measurements += st.used + st.rejected + st.dropouts;
     if (!st.used && !st.rejected && !st.dropouts && !st.skipped) continue;
     const auto band = st.meanNisBand95();
-    fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10.3f} {:>6.2f}..{:<6.2f} {:>8.1f}%\n",
+    fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10.3f} {:>6.2f}..{:<6.2f} {:>8} {:>8.1f}%\n",
                estimation::sensorName(static_cast<estimation::Sensor>(s)), st.used, st.rejected,
                st.dropouts, st.skipped, st.meanNis(), band.first, band.second,
-               100 * st.fractionInside95());
+               nisVerdict(st.meanNis(), band, st.nis_count), 100 * st.fractionInside95());
   }
+  fmt::print(
+      "(mean NIS over the accepted updates; 95% band of that mean for a consistent filter; "
+      "'in band': share of single NIS values inside chi2(dof)'s two-sided 95% interval)\n");
   for (const auto& w : res.warnings) fmt::print("warning: {}\n", w);
   if (!res.estimates.empty()) {
     const auto& f = res.final();
@@ -102,7 +412,7 @@ int runFilter(const FilterCliOptions& o) {
 
   if (!o.trajectory.empty()) {
     evaluation::writeTum(o.trajectory, evaluation::toTrajectory(res));
-    fmt::print("trajectory (TUM, start frame): {}\n", o.trajectory);
+    fmt::print("trajectory (TUM, start frame: the body at the first sample): {}\n", o.trajectory);
   }
   if (!o.estimates.empty()) {
     writeEstimatesCsv(o.estimates, res);
@@ -116,8 +426,8 @@ int runFilter(const FilterCliOptions& o) {
   }
   if (o.variants) {
     const std::string base = o.trajectory.empty() ? "filter.tum" : o.trajectory;
-    const auto enc = estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params,
-                                                       cfg.vehicle.geom);
+    const auto enc =
+        estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom);
     const auto encg = estimation::deadReckoningEncoderGyro(rec.encoders, rec.imu,
                                                            cfg.encoders.params, cfg.vehicle.geom);
     evaluation::writeTum(withSuffix(base, "_encoders"), evaluation::toTrajectory(enc));
@@ -130,7 +440,9 @@ int runFilter(const FilterCliOptions& o) {
 }
 
 const RegisterCommand reg{Command{
-    "filter", "Replay a rawlog through the estimator (CVODE-integrated EKF or baseline)",
+    "filter",
+    "Replay a rawlog through the estimator (CVODE-integrated EKF or baseline; command-driven "
+    "EKF for landmark recordings such as MRCLAM)",
     [](CLI::App& sub) -> std::function<int()> {
       auto o = std::make_shared<FilterCliOptions>();
       sub.add_option("input", o->input, "Input rawlog")->required();
@@ -141,8 +453,16 @@ const RegisterCommand reg{Command{
                      "Write v, omega, x, y, phi, obstacle x, y, distance and their sigmas (CSV)");
       sub.add_flag("--variants", o->variants,
                    "Also write the Fig. 5 raw variants: encoders only, encoder v + gyro omega");
-      sub.add_option("--filter", o->filter, "physics (default) or baseline")
-          ->check(CLI::IsMember({"physics", "baseline"}));
+      sub.add_option("--filter", o->filter,
+                     "physics (default), baseline, or command (the command-driven EKF; default "
+                     "for recordings with landmark sightings / a landmark map, e.g. MRCLAM)")
+          ->check(CLI::IsMember({"physics", "baseline", "command"}));
+      sub.add_option("--frame", o->frame,
+                     "Command-driven EKF output frame: map (default; MRCLAM: Vicon frame) or "
+                     "start (the first estimated pose)")
+          ->check(CLI::IsMember({"map", "start"}));
+      sub.add_flag("--no-progress", o->no_progress,
+                   "No progress display on stderr (it is shown only when stderr is a terminal)");
       sub.add_option("--obstacle-form", o->obstacle_form, "cartesian (7) or polar (8)")
           ->check(CLI::IsMember({"cartesian", "polar"}));
       sub.add_flag("--pozyx", o->pozyx, "Also fuse Pozyx positions (off: they are ground truth)");

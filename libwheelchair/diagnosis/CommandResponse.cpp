@@ -4,8 +4,11 @@
 
 #include <Eigen/Dense>
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <stdexcept>
@@ -32,7 +35,25 @@ struct Prep {
   const io::Recording* rec = nullptr;
   std::vector<Window> win;
   double g0 = 0, g1 = 0;  // simulation grid range
+  /// Measurement-noise floor of each window's mean velocity, per channel (0 v, 1 omega):
+  /// differenced motion-capture noise plus the time resolution of the model's window means.
+  std::vector<double> floor[2];
+  double pose_noise_m = 0, heading_noise_rad = 0;
 };
+
+// Robust (MAD) white-noise scale of a sampled signal from its second differences
+// (var = 6 sigma^2); the motion itself contributes a dt^2, negligible at motion-capture rates.
+double secondDifferenceNoise(const std::vector<double>& t, const std::vector<double>& x) {
+  std::vector<double> d;
+  for (std::size_t k = 1; k + 1 < x.size(); ++k) {
+    const double h0 = t[k] - t[k - 1], h1 = t[k + 1] - t[k];
+    if (!(h0 > 0) || !(h1 > 0) || std::abs(h1 - h0) > 0.25 * std::max(h0, h1)) continue;
+    d.push_back(std::abs(x[k + 1] - 2 * x[k] + x[k - 1]));
+  }
+  if (d.size() < 10) return 0;
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return 1.4826 * d[d.size() / 2] / std::sqrt(6.0);
+}
 
 // Mean velocities over windows of Vicon poses (exact: differences of poses).
 std::vector<Window> velocityWindows(const std::vector<io::GroundTruthPoseSample>& gt, double c0,
@@ -66,6 +87,36 @@ Prep prepare(const io::Recording& rec, const CommandResponseOptions& o) {
   p.win = velocityWindows(rec.ground_truth, p.raw.startTime(), p.raw.endTime(), o.window_s);
   p.g0 = p.raw.startTime();
   p.g1 = p.win.empty() ? p.g0 : std::max(p.win.back().t1, p.g0);
+  // Measurement model of a window mean: Var = 2 sigma_pose^2 / T^2 (two differenced poses)
+  // + sum over command switches in the window of dc^2 dt^2 / 12 / T^2 (the model resolves a
+  // switch time to its grid step dt: uniform timing error).
+  {
+    const auto& gt = rec.ground_truth;
+    std::vector<double> t, x, y, ph;
+    double unw = 0;
+    for (std::size_t k = 0; k < gt.size(); ++k) {
+      if (k > 0) unw += wrap(gt[k].phi_rad - gt[k - 1].phi_rad);
+      t.push_back(gt[k].t_s), x.push_back(gt[k].x_m), y.push_back(gt[k].y_m), ph.push_back(unw);
+    }
+    p.pose_noise_m =
+        std::hypot(secondDifferenceNoise(t, x), secondDifferenceNoise(t, y)) / std::sqrt(2.0);
+    p.heading_noise_rad = secondDifferenceNoise(t, ph);
+  }
+  const auto& cs = p.raw.samples();
+  std::size_t ci = 0;
+  for (const auto& w : p.win) {
+    const double T = w.t1 - w.t0;
+    double sw[2] = {0, 0};
+    while (ci < cs.size() && cs[ci].t_s <= w.t0) ++ci;
+    for (std::size_t k = ci; k < cs.size() && cs[k].t_s < w.t1; ++k) {
+      if (k == 0) continue;
+      sw[0] += std::pow(cs[k].v_m_s - cs[k - 1].v_m_s, 2);
+      sw[1] += std::pow(cs[k].omega_rad_s - cs[k - 1].omega_rad_s, 2);
+    }
+    const double q = o.grid_dt_s * o.grid_dt_s / 12.0;
+    p.floor[0].push_back((2 * p.pose_noise_m * p.pose_noise_m + sw[0] * q) / (T * T));
+    p.floor[1].push_back((2 * p.heading_noise_rad * p.heading_noise_rad + sw[1] * q) / (T * T));
+  }
   return p;
 }
 
@@ -341,6 +392,11 @@ nlohmann::json driftJson(const DriftMetrics& d) {
           {"n_windows_60s", d.n_60s}};
 }
 
+Eigen::Matrix<double, 5, 1> featuresAt(const Eigen::Vector2d& c) {
+  return (Eigen::Matrix<double, 5, 1>() << 1, c(0), c(1), std::abs(c(1)), c(0) * std::abs(c(1)))
+      .finished();
+}
+
 // Window means of command features for the unmodeled-term library.
 Eigen::MatrixXd libraryFeatures(const Prep& p, bool clean) {
   const CommandSignal& s = clean ? p.clean : p.raw;
@@ -351,16 +407,132 @@ Eigen::MatrixXd libraryFeatures(const Prep& p, bool clean) {
     for (int q = 0; q < K; ++q) {
       const double t = p.win[i].t0 + (q + 0.5) / K * (p.win[i].t1 - p.win[i].t0);
       const Eigen::Vector2d c = s.at(t);
-      acc += (Eigen::Matrix<double, 5, 1>() << 1, c(0), c(1), std::abs(c(1)), c(0) * std::abs(c(1)))
-                 .finished();
+      acc += featuresAt(c);
     }
     F.row(i) = acc.transpose() / K;
   }
   return F;
 }
-const char* kLibraryNames[5] = {"1", "v_cmd", "omega_cmd", "|omega_cmd|", "v_cmd*|omega_cmd|"};
+const char* const* kLibraryNames = commandLibraryNames().data();
+
+// Window residuals of a channel with fixed parameters (no refit).
+Eigen::VectorXd fixedResid(const std::vector<Prep>& preps, int ch, const FullModel& M,
+                           const CommandResponseOptions& o) {
+  ChannelModel m = M.ch[ch];
+  return fitChannel(preps, ch, m, M.zero, o, /*fit_gains=*/false).resid;
+}
+
+// Windows where |contribution| > 2 sigma, merged over gaps < 1 s; at most 20 (longest).
+std::vector<std::pair<double, double>> contributionSegments(const std::vector<Prep>& preps,
+                                                            const Eigen::VectorXd& contrib,
+                                                            double sigma) {
+  std::vector<std::pair<double, double>> segs;
+  std::size_t r = 0;
+  for (const auto& p : preps)
+    for (const auto& w : p.win) {
+      if (r < static_cast<std::size_t>(contrib.size()) && std::abs(contrib(r)) > 2 * sigma) {
+        if (!segs.empty() && w.t0 - segs.back().second < 1.0 && w.t0 >= segs.back().first)
+          segs.back().second = w.t1;
+        else
+          segs.push_back({w.t0, w.t1});
+      }
+      ++r;
+    }
+  if (segs.size() > 20) {
+    std::sort(segs.begin(), segs.end(),
+              [](auto& a, auto& b) { return a.second - a.first > b.second - b.first; });
+    segs.resize(20);
+    std::sort(segs.begin(), segs.end());
+  }
+  return segs;
+}
+
+// Parameter covariance from the numerical Hessian of the fit RSS (Gauss-Newton: cov =
+// 2 s^2 H^-1, s^2 = rss/n + floor), inflated by n / n_eff. `get`/`set` address the parameters.
+Eigen::MatrixXd rssCovariance(const std::vector<Prep>& preps, int ch, const FullModel& M,
+                              const CommandResponseOptions& o,
+                              const std::vector<std::function<double&(ChannelModel&)>>& par,
+                              const std::vector<double>& h, double floor_var, double n_eff) {
+  const int k = static_cast<int>(par.size());
+  ChannelModel base = M.ch[ch];
+  // Keep the evaluation point inside the smooth region (a lag with tau = 0 switches off).
+  for (int i = 0; i < k; ++i) par[i](base) = std::max(par[i](base), h[i]);
+  auto f = [&](const std::vector<double>& d) {
+    ChannelModel m = base;
+    for (int i = 0; i < k; ++i) par[i](m) += d[i];
+    return fitChannel(preps, ch, m, M.zero, o, false).rss;
+  };
+  std::vector<double> z(k, 0.0);
+  const double f0 = f(z);
+  Eigen::MatrixXd H(k, k);
+  for (int i = 0; i < k; ++i) {
+    auto p = z, m = z;
+    p[i] = h[i], m[i] = -h[i];
+    H(i, i) = (f(p) - 2 * f0 + f(m)) / (h[i] * h[i]);
+    for (int j = 0; j < i; ++j) {
+      auto pp = z, pm = z, mp = z, mm = z;
+      pp[i] = h[i], pp[j] = h[j];
+      pm[i] = h[i], pm[j] = -h[j];
+      mp[i] = -h[i], mp[j] = h[j];
+      mm[i] = -h[i], mm[j] = -h[j];
+      H(i, j) = H(j, i) = (f(pp) - f(pm) - f(mp) + f(mm)) / (4 * h[i] * h[j]);
+    }
+  }
+  std::size_t n = 0;
+  for (const auto& p : preps) n += p.win.size();
+  const double s2 = f0 / std::max<double>(1, n) + floor_var;
+  const double infl = static_cast<double>(n) / std::max(1.0, n_eff);
+  Eigen::FullPivLU<Eigen::MatrixXd> lu(H);
+  if (!lu.isInvertible()) return Eigen::MatrixXd::Constant(k, k, std::nan(""));
+  return 2 * s2 * infl * lu.inverse();
+}
 
 }  // namespace
+
+const std::array<const char*, 5>& commandLibraryNames() {
+  static const std::array<const char*, 5> n = {"1", "v_cmd", "omega_cmd", "|omega_cmd|",
+                                               "v_cmd*|omega_cmd|"};
+  return n;
+}
+
+bool UnmodeledTerms::empty() const {
+  for (const auto& c : coef)
+    for (double x : c)
+      if (x != 0) return false;
+  return true;
+}
+
+std::pair<std::vector<io::Recording>, std::vector<io::Recording>> splitRecordingsInTime(
+    const std::vector<io::Recording>& recs, double fraction) {
+  std::vector<io::Recording> a, b;
+  for (const auto& r : recs) {
+    double t0 = r.startTime(), t1 = r.endTime();
+    if (!r.joystick.empty()) t0 = r.joystick.front().t_s, t1 = r.joystick.back().t_s;
+    const double tc = t0 + fraction * (t1 - t0);
+    io::Recording x, y;
+    x.meta = y.meta = r.meta;
+    auto cut = [tc](const auto& v, auto& lo, auto& hi) {
+      for (const auto& e : v) (e.t_s < tc ? lo : hi).push_back(e);
+    };
+    cut(r.encoders, x.encoders, y.encoders);
+    cut(r.imu, x.imu, y.imu);
+    cut(r.motors, x.motors, y.motors);
+    cut(r.sonar, x.sonar, y.sonar);
+    cut(r.pozyx, x.pozyx, y.pozyx);
+    cut(r.joystick, x.joystick, y.joystick);
+    cut(r.ground_truth, x.ground_truth, y.ground_truth);
+    cut(r.landmarks, x.landmarks, y.landmarks);
+    // The command in effect at the cut continues into the second part.
+    if (!x.joystick.empty() && (y.joystick.empty() || y.joystick.front().t_s > tc)) {
+      io::JoystickSample j = x.joystick.back();
+      j.t_s = tc;
+      y.joystick.insert(y.joystick.begin(), j);
+    }
+    a.push_back(std::move(x));
+    b.push_back(std::move(y));
+  }
+  return {a, b};
+}
 
 bool hasCommandResponseData(const io::Recording& rec) {
   return rec.joystick.size() >= 2 && rec.ground_truth.size() >= 2;
@@ -379,7 +551,7 @@ model::CommandSignal commandSignal(const io::Recording& rec, bool ignore_zero_ru
 
 DriftMetrics openLoopDrift(const std::vector<io::Recording>& recs,
                            const CommandResponseParams& params, bool ignore_zero_runs,
-                           const CommandResponseOptions& o) {
+                           const CommandResponseOptions& o, const UnmodeledTerms* extra) {
   const model::CommandDrivenModel mdl(params);
   std::vector<double> e10, e60, h10, h60;
   const double dt = o.grid_dt_s;
@@ -392,7 +564,8 @@ DriftMetrics openLoopDrift(const std::vector<io::Recording>& recs,
     if (g1 <= g0) continue;
     const std::size_t N = static_cast<std::size_t>((g1 - g0) / dt);
     std::vector<double> ds(N), dphi(N);
-    Cursor cv(sig), cw(sig);
+    Cursor cv(sig), cw(sig), cx(sig);
+    const bool use_extra = extra && !extra->empty();
     double yv = 0, yw = 0;
     const double tv = params.v.time_constant_s, tw = params.omega.time_constant_s;
     for (std::size_t k = 0; k < N; ++k) {
@@ -402,6 +575,13 @@ DriftMetrics openLoopDrift(const std::vector<io::Recording>& recs,
       const auto sv = model::lagStep(yv, u(0), dt, tv), sw = model::lagStep(yw, u(1), dt, tw);
       yv = sv.y_next, yw = sw.y_next;
       ds[k] = sv.integral, dphi[k] = sw.integral;
+      if (use_extra) {
+        const Eigen::Matrix<double, 5, 1> fe = featuresAt(cx.at(tm));
+        for (int j = 0; j < 5; ++j) {
+          ds[k] += extra->coef[0][j] * fe(j) * dt;
+          dphi[k] += extra->coef[1][j] * fe(j) * dt;
+        }
+      }
     }
     for (double W : {10.0, 60.0}) {
       for (double t0 = std::max(g0, gt.front().t_s); t0 + W <= g1; t0 += o.drift_start_every_s) {
@@ -465,6 +645,19 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
                                 {"deadband", 1, -1, 1},
                                 {"ignored_zero_commands", -1, -1, 1}};
 
+  // Mean measurement-noise floor of the fit windows per channel (see prepare()).
+  double floorF[2] = {0, 0};
+  for (const auto& p : F)
+    for (int ch = 0; ch < 2; ++ch)
+      for (double f : p.floor[ch]) floorF[ch] += f;
+  const double nF = static_cast<double>(res.fit_windows);
+  for (double& f : floorF) f /= nF;
+  res.noise_floor_v_m_s = std::sqrt(floorF[0]);
+  res.noise_floor_omega_rad_s = std::sqrt(floorF[1]);
+  auto compare = [&](int ch, double rss0, double rss1, int k, double ne) {
+    return compareNestedWithFloor(rss0, rss1, nF, k, ne, floorF[ch]);
+  };
+
   FullModel M;
   ChannelFit cur[2];
   for (int ch = 0; ch < 2; ++ch) cur[ch] = fitChannel(F, ch, M.ch[ch], M.zero, o);
@@ -499,10 +692,10 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
       }
       ++tried;
       if (c.ch >= 0) {
-        tr.ev = compareNested(cur[c.ch].rss, tr.fit[c.ch].rss, c.k, neff[c.ch]);
+        tr.ev = compare(c.ch, cur[c.ch].rss, tr.fit[c.ch].rss, c.k, neff[c.ch]);
       } else {
-        const Evidence a = compareNested(cur[0].rss, tr.fit[0].rss, c.k, neff[0]);
-        const Evidence b = compareNested(cur[1].rss, tr.fit[1].rss, c.k, neff[1]);
+        const Evidence a = compare(0, cur[0].rss, tr.fit[0].rss, c.k, neff[0]);
+        const Evidence b = compare(1, cur[1].rss, tr.fit[1].rss, c.k, neff[1]);
         tr.ev.lr = a.lr + b.lr;
         tr.ev.k = c.k;
         tr.ev.n_eff = std::min(neff[0], neff[1]);
@@ -522,6 +715,7 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
     if (!best) break;
     const double alpha_b = o.alpha / std::max<std::size_t>(1, tried);
     if (!(best->ev.delta_bic < -o.min_delta_bic && best->ev.p_value < alpha_b)) break;
+    const double accepted_level = alpha_b;
     M = best->M;
     cur[0] = best->fit[0];
     cur[1] = best->fit[1];
@@ -535,6 +729,7 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
     fd.p_value = best->ev.p_value;
     fd.n_eff = best->ev.n_eff;
     fd.k = best->c.k;
+    fd.bonferroni_level = accepted_level;
     acc_findings.push_back(fd);
   }
 
@@ -572,6 +767,57 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
     res.findings.push_back(fd);
   }
 
+  // Uncertainty, segments and held-out drift of each catalogue term.
+  const CommandResponseParams final_params = toParams(Final);
+  const DriftMetrics drift_final = openLoopDrift(validate, final_params, Final.zero, o);
+  std::size_t nV = 0;
+  for (const auto& p : V) nV += p.win.size();
+  for (std::size_t i = 0; i < accepted.size(); ++i) {
+    const Candidate& c = accepted[i];
+    CommandResponseFinding& fd = res.findings[i];
+    const double nv = std::max<double>(1, nV) * (c.ch >= 0 ? 1 : 2);
+    fd.validation_rms_with = std::sqrt(fd.validation_rss_with / nv);
+    fd.validation_rms_without = std::sqrt(fd.validation_rss_without / nv);
+    if (fd.validated) {
+      FullModel W = Final;
+      setActive(W, c, false);
+      fd.drift_without = openLoopDrift(validate, toParams(W), W.zero, o);
+      fd.drift_with = drift_final;
+    } else {
+      FullModel W = Final;
+      setActive(W, c, true);
+      if (c.ch >= 0) W.ch[c.ch] = M.ch[c.ch];
+      fd.drift_without = drift_final;
+      fd.drift_with = openLoopDrift(validate, toParams(W), W.zero, o);
+    }
+    // Segments: where the term changes the fit windows by more than 2 sigma.
+    FullModel Wo = M;
+    setActive(Wo, c, false);
+    for (int ch = 0; ch < 2; ++ch) {
+      if (c.ch >= 0 && c.ch != ch) continue;
+      const Eigen::VectorXd contrib = fixedResid(F, ch, Wo, o) - cur[ch].resid;
+      const double sig = std::sqrt(cur[ch].rss / nF + floorF[ch]);
+      auto seg = contributionSegments(F, contrib, sig);
+      fd.segments.insert(fd.segments.end(), seg.begin(), seg.end());
+    }
+    std::sort(fd.segments.begin(), fd.segments.end());
+    // Uncertainty from the curvature of the fit RSS.
+    if (c.effect == "actuator_lag") {
+      const Eigen::MatrixXd C = rssCovariance(F, c.ch, M, o,
+                                              {[](ChannelModel& m) -> double& { return m.delay; },
+                                               [](ChannelModel& m) -> double& { return m.tau; }},
+                                              {0.005, 0.005}, floorF[c.ch], fd.n_eff);
+      fd.uncertainty["delay_s"] = std::sqrt(std::max(0.0, C(0, 0)));
+      fd.uncertainty["time_constant_s"] = std::sqrt(std::max(0.0, C(1, 1)));
+    } else if (c.effect == "command_gain") {
+      const int kind = c.kind;
+      const Eigen::MatrixXd C = rssCovariance(
+          F, c.ch, M, o, {[kind](ChannelModel& m) -> double& { return m.gain[kind]; }}, {0.01},
+          floorF[c.ch], fd.n_eff);
+      fd.uncertainty["scale"] = std::sqrt(std::max(0.0, C(0, 0)));
+    }
+  }
+
   // Unmodeled: residual structure explained by command features, per channel.
   for (int ch = 0; ch < 2; ++ch) {
     std::size_t n = cur[ch].resid.size();
@@ -600,10 +846,11 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
         for (std::size_t q = 0; q < cols.size(); ++q) A.col(q) = L.col(cols[q]);
         const Eigen::VectorXd b = A.colPivHouseholderQr().solve(cur[ch].resid);
         const Eigen::VectorXd e = cur[ch].resid - A * b;
-        const Evidence ev = compareNested(rss, e.squaredNorm(), 1, ne);
+        const Evidence ev = compare(ch, rss, e.squaredNorm(), 1, ne);
         if (bj < 0 || ev.delta_bic < bev.delta_bic) bj = j, bev = ev, bbeta = b, bres = e;
       }
-      if (bj < 0 || !(bev.delta_bic < -o.min_delta_bic && bev.p_value < o.alpha / 5)) break;
+      // Bonferroni over the library terms of both channels.
+      if (bj < 0 || !(bev.delta_bic < -o.min_delta_bic && bev.p_value < o.alpha / 10)) break;
       chosen.push_back(bj);
       resid = bres;
       rss = resid.squaredNorm();
@@ -636,15 +883,49 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
       Eigen::VectorXd pred = Eigen::VectorXd::Zero(vres.size());
       for (std::size_t c = 0; c < chosen.size(); ++c) pred += beta(c) * LV.col(chosen[c]);
       const double without = vres.squaredNorm(), with = (vres - pred).squaredNorm();
+      // HAC uncertainty of the joint coefficients, and where the terms act.
+      Eigen::MatrixXd A(n, chosen.size());
+      for (std::size_t q2 = 0; q2 < chosen.size(); ++q2) A.col(q2) = L.col(chosen[q2]);
+      const LinearFit lf = fitLinear(A, cur[ch].resid, gF, o.hac_lags);
+      const Eigen::VectorXd contrib = A * beta;
+      const auto seg = contributionSegments(F, contrib, std::sqrt(rss / nF + floorF[ch]));
+      const bool ok = with < without;
       std::size_t c = 0;
       for (auto& fd : res.findings) {
         if (fd.effect != "unmodeled" || fd.channel != channelName(ch)) continue;
+        if (ok) res.unmodeled.coef[ch][chosen[c]] = beta(c);
+        fd.uncertainty["coefficient"] =
+            lf.ok ? std::sqrt(std::max(0.0, lf.cov(c, c))) : std::nan("");
         fd.parameters["coefficient"] = beta(c++);
         fd.validation_rss_with = with;
         fd.validation_rss_without = without;
-        fd.validated = with < without;
+        fd.validation_rms_with = std::sqrt(with / std::max<double>(1, vres.size()));
+        fd.validation_rms_without = std::sqrt(without / std::max<double>(1, vres.size()));
+        fd.validated = ok;
+        fd.segments = seg;
       }
     }
+  }
+  // Held-out drift of each channel's unmodeled terms (added to the selected model).
+  for (int ch = 0; ch < 2; ++ch) {
+    UnmodeledTerms one;
+    one.coef[ch] = res.unmodeled.coef[ch];
+    bool any = false;
+    for (auto& fd : res.findings) any |= fd.effect == "unmodeled" && fd.channel == channelName(ch);
+    if (!any) continue;
+    if (one.empty()) {  // not validated: show what it would do
+      std::size_t c = 0;
+      for (auto& fd : res.findings)
+        if (fd.effect == "unmodeled" && fd.channel == channelName(ch)) {
+          for (int j = 0; j < 5; ++j)
+            if (fd.kind == kLibraryNames[j]) one.coef[ch][j] = fd.parameters["coefficient"];
+          ++c;
+        }
+    }
+    const DriftMetrics d = openLoopDrift(validate, final_params, Final.zero, o, &one);
+    for (auto& fd : res.findings)
+      if (fd.effect == "unmodeled" && fd.channel == channelName(ch))
+        fd.drift_without = drift_final, fd.drift_with = d;
   }
 
   res.params = toParams(Final);
@@ -658,7 +939,9 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
   }
   const CommandResponseParams nominal;
   res.fit_before = openLoopDrift(validate, nominal, false, o);
-  res.fit_after = openLoopDrift(validate, res.params, res.ignore_zero_runs, o);
+  res.fit_after = drift_final;
+  res.fit_after_unmodeled = openLoopDrift(validate, res.params, res.ignore_zero_runs, o,
+                                          res.unmodeled.empty() ? nullptr : &res.unmodeled);
   res.fit_before_on_fit = openLoopDrift(fit, nominal, false, o);
   res.fit_after_on_fit = openLoopDrift(fit, res.params, res.ignore_zero_runs, o);
   return res;
@@ -678,10 +961,19 @@ nlohmann::json CommandResponseResult::toJson() const {
                            {"p_value", f.p_value},
                            {"n_eff", f.n_eff},
                            {"k", f.k}}},
+                         {"uncertainty", f.uncertainty},
                          {"validation",
                           {{"rss_without", f.validation_rss_without},
                            {"rss_with", f.validation_rss_with},
+                           {"rms_without", f.validation_rms_without},
+                           {"rms_with", f.validation_rms_with},
+                           {"drift_without", driftJson(f.drift_without)},
+                           {"drift_with", driftJson(f.drift_with)},
                            {"validated", f.validated}}}};
+    fj["evidence"]["bonferroni_level"] = f.bonferroni_level;
+    nlohmann::json seg = nlohmann::json::array();
+    for (const auto& sg : f.segments) seg.push_back({sg.first, sg.second});
+    fj["segments"] = seg;
     if (!f.kind.empty()) fj[f.effect == "unmodeled" ? "term" : "kind"] = f.kind;
     j["findings"].push_back(fj);
   }
@@ -702,6 +994,8 @@ nlohmann::json CommandResponseResult::toJson() const {
   j["model"] = m;
   j["fit_before"] = driftJson(fit_before);
   j["fit_after"] = driftJson(fit_after);
+  j["fit_after_with_unmodeled"] = driftJson(fit_after_unmodeled);
+  j["noise_floor"] = {{"v_m_s", noise_floor_v_m_s}, {"omega_rad_s", noise_floor_omega_rad_s}};
   j["on_fit_recordings"] = {{"before", driftJson(fit_before_on_fit)},
                             {"after", driftJson(fit_after_on_fit)}};
   j["validation_residual_rms"] = {
@@ -711,6 +1005,192 @@ nlohmann::json CommandResponseResult::toJson() const {
       {"windows", validation_windows}};
   j["fit_windows"] = fit_windows;
   return j;
+}
+
+namespace {
+
+nlohmann::json driftFit(const DriftMetrics& d, const std::string& channel, double rms,
+                        const char* rms_key) {
+  nlohmann::json j = driftJson(d);
+  if (!channel.empty()) {
+    j["channel"] = channel;
+    j[rms_key] = rms;
+  }
+  return j;
+}
+
+const char* channelWords(const std::string& ch) {
+  return ch == "v" ? "forward speed" : ch == "omega" ? "turn rate" : "velocities";
+}
+
+}  // namespace
+
+void addCommandResponseFindings(const CommandResponseResult& r, DiagnosisReport& rep) {
+  nlohmann::json rejected = nlohmann::json::array();
+  for (const auto& f : r.findings) {
+    if (f.effect == "unmodeled") continue;
+    if (!f.validated) {
+      rejected.push_back({{"effect", f.effect},
+                          {"channel", f.channel},
+                          {"kind", f.kind},
+                          {"reason", "does not reduce the residual on the validation recordings"}});
+      continue;
+    }
+    Finding x;
+    x.command_response = true;
+    x.effect = f.effect;
+    x.channels = f.channel == "v+omega" ? std::vector<std::string>{"v", "omega"}
+                                        : std::vector<std::string>{f.channel};
+    x.segments = f.segments;
+    for (const auto& [k, v] : f.parameters) x.parameters[k] = v;
+    for (const auto& [k, v] : f.uncertainty) x.uncertainty[k] = v;
+    if (f.effect != "actuator_lag" && f.effect != "ignored_zero_commands")
+      x.parameters["channel"] = f.channel;
+    if (!f.kind.empty()) x.parameters["kind"] = f.kind;
+    const std::string what = channelWords(f.channel);
+    auto pm = [&](const char* k) {
+      auto it = f.uncertainty.find(k);
+      return it == f.uncertainty.end() ? std::string() : fmt::format(" (+- {:.3f})", it->second);
+    };
+    if (f.effect == "actuator_lag") {
+      x.description = fmt::format(
+          "the robot's {} follows the command {:.2f} s late{} with a {:.2f} s time constant{}: "
+          "the drive responds with a pure delay and a first-order lag, not instantly",
+          what, f.parameters.at("delay_s"), pm("delay_s"), f.parameters.at("time_constant_s"),
+          pm("time_constant_s"));
+    } else if (f.effect == "command_gain") {
+      const double g = f.parameters.at("scale");
+      const std::string kind = f.kind == "turn_in_place" ? "turning in place"
+                               : f.kind == "arc"         ? "in arcs"
+                                                         : "driving " + f.kind;
+      x.description = fmt::format(
+          "{}, the robot's {} is {:.2f} x the commanded value{} ({:.0f}% {}): the response "
+          "depends on the kind of command",
+          kind, what, g, pm("scale"), std::abs(g - 1) * 100, g < 1 ? "less" : "more");
+    } else if (f.effect == "deadband") {
+      const double th = f.parameters.begin()->second;
+      x.description = fmt::format(
+          "commanded {} of magnitude <= {:.3g} {} do not move the robot: "
+          "a deadband",
+          what, th, f.channel == "v" ? "m/s" : "rad/s");
+    } else {
+      x.description = fmt::format(
+          "the robot ignores (0,0) command lines lasting less than {:.2f} s between moving "
+          "commands (logging blips)",
+          f.parameters.at("max_run_s"));
+    }
+    x.evidence = {{"likelihood_ratio", f.lr},
+                  {"p_value", f.p_value},
+                  {"bonferroni_level", f.bonferroni_level},
+                  {"delta_bic", f.delta_bic},
+                  {"n_eff", f.n_eff},
+                  {"added_parameters", f.k},
+                  {"validation_rss_without", f.validation_rss_without},
+                  {"validation_rss_with", f.validation_rss_with},
+                  {"validated", f.validated}};
+    const char* unit = f.channel == "v" ? "validation_rms_m_s" : "validation_rms_rad_s";
+    if (f.channel == "v+omega") unit = "validation_rms";
+    x.fit_before = driftFit(f.drift_without, f.channel, f.validation_rms_without, unit);
+    x.fit_after = driftFit(f.drift_with, f.channel, f.validation_rms_with, unit);
+    rep.addFinding(x);
+  }
+  // Unmodeled terms: one finding per channel.
+  for (const std::string ch : {"v", "omega"}) {
+    std::vector<const CommandResponseFinding*> terms;
+    for (const auto& f : r.findings)
+      if (f.effect == "unmodeled" && f.channel == ch) terms.push_back(&f);
+    if (terms.empty()) continue;
+    if (!terms.front()->validated) {
+      for (auto* t : terms)
+        rejected.push_back(
+            {{"effect", "unmodeled"},
+             {"channel", ch},
+             {"term", t->kind},
+             {"reason", "does not reduce the residual on the validation recordings"}});
+      continue;
+    }
+    Finding x;
+    x.command_response = true;
+    x.effect = "unmodeled";
+    x.channels = {ch};
+    x.segments = terms.front()->segments;
+    std::string eq = ch + " - model =";
+    nlohmann::json per = nlohmann::json::array();
+    for (auto* t : terms) {
+      const double c = t->parameters.at("coefficient");
+      x.parameters[t->kind] = c;
+      if (t->uncertainty.count("coefficient"))
+        x.uncertainty[t->kind] = t->uncertainty.at("coefficient");
+      eq += fmt::format(" {:+.4g}*{}", c, t->kind);
+      per.push_back({{"term", t->kind},
+                     {"likelihood_ratio", t->lr},
+                     {"p_value", t->p_value},
+                     {"delta_bic", t->delta_bic},
+                     {"n_eff", t->n_eff}});
+    }
+    x.parameters["channel"] = ch;
+    x.description = fmt::format(
+        "a term outside the catalogue acts on the robot's {}: {} ({}; commands in m/s, rad/s)",
+        channelWords(ch), eq, ch == "v" ? "m/s" : "rad/s");
+    x.evidence = {{"terms", per},
+                  {"added_parameters", terms.size()},
+                  {"validation_rss_without", terms.front()->validation_rss_without},
+                  {"validation_rss_with", terms.front()->validation_rss_with},
+                  {"validated", true}};
+    const char* unit = ch == "v" ? "validation_rms_m_s" : "validation_rms_rad_s";
+    x.fit_before =
+        driftFit(terms.front()->drift_without, ch, terms.front()->validation_rms_without, unit);
+    x.fit_after = driftFit(terms.front()->drift_with, ch, terms.front()->validation_rms_with, unit);
+    rep.addFinding(x);
+  }
+  rep.fit_before = driftJson(r.fit_before);
+  // The corrected model: the selected catalogue terms plus the validated unmodeled terms
+  // (validation["command_response"]["fit_after"] is the catalogue terms alone).
+  rep.fit_after = driftJson(r.unmodeled.empty() ? r.fit_after : r.fit_after_unmodeled);
+  rep.fit_after["includes_unmodeled_terms"] = !r.unmodeled.empty();
+  rep.validation["command_response"] = r.toJson();
+  rep.channels["v"] = {{"unit", "m/s (mean over ground-truth windows)"},
+                       {"before", {{"rms", r.validation_v.rms_before}}},
+                       {"after", {{"rms", r.validation_v.rms_after}}},
+                       {"noise_floor_rms", r.noise_floor_v_m_s}};
+  rep.channels["omega"] = {{"unit", "rad/s (mean over ground-truth windows)"},
+                           {"before", {{"rms", r.validation_omega.rms_before}}},
+                           {"after", {{"rms", r.validation_omega.rms_after}}},
+                           {"noise_floor_rms", r.noise_floor_omega_rad_s}};
+  if (!rejected.empty()) rep.info["command_response_rejected"] = rejected;
+  rep.config_updates["mrclam_response"] = commandResponseConfigKeys(r);
+}
+
+std::map<std::string, std::string> commandResponseConfigKeys(const CommandResponseResult& r) {
+  std::map<std::string, std::string> k;
+  const auto& p = r.params;
+  auto num = [](double v) { return fmt::format("{:.6g}", v); };
+  using K = model::CommandKind;
+  k["v_delay_s"] = num(p.v.delay_s);
+  k["v_time_constant_s"] = num(p.v.time_constant_s);
+  k["v_deadband_m_s"] = num(p.v.deadband);
+  k["omega_delay_s"] = num(p.omega.delay_s);
+  k["omega_time_constant_s"] = num(p.omega.time_constant_s);
+  k["omega_deadband_rad_s"] = num(p.omega.deadband);
+  k["v_gain_straight"] = num(p.v_gain[static_cast<int>(K::Straight)]);
+  k["v_gain_arc"] = num(p.v_gain[static_cast<int>(K::Arc)]);
+  k["v_gain_backward"] = num(p.v_gain_backward);
+  k["omega_gain_turn_in_place"] = num(p.omega_gain[static_cast<int>(K::TurnInPlace)]);
+  k["omega_gain_arc"] = num(p.omega_gain[static_cast<int>(K::Arc)]);
+  k["ignore_zero_runs"] = r.ignore_zero_runs ? "true" : "false";
+  k["max_zero_run_s"] = num(r.max_zero_run_s);
+  for (int ch = 0; ch < 2; ++ch) {
+    nlohmann::json u = nlohmann::json::object();
+    for (int j = 0; j < 5; ++j)
+      if (r.unmodeled.coef[ch][j] != 0) u[commandLibraryNames()[j]] = r.unmodeled.coef[ch][j];
+    if (!u.empty()) k[ch == 0 ? "unmodeled_v" : "unmodeled_omega"] = u.dump();
+  }
+  return k;
+}
+
+void writeCommandResponseConfig(const CommandResponseResult& r, config::WheelchairConfig& cfg) {
+  for (const auto& [key, value] : commandResponseConfigKeys(r))
+    cfg.set("mrclam_response", key, value);
 }
 
 }  // namespace wheelchair::diagnosis

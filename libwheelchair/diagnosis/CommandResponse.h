@@ -32,11 +32,14 @@
 //   std::cout << res.toJson().dump(2);
 #pragma once
 
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/diagnosis/Finding.h"
 #include "libwheelchair/io/Recording.h"
 #include "libwheelchair/model/CommandDriven.h"
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <map>
 #include <string>
 #include <vector>
@@ -57,6 +60,22 @@ struct CommandResponseOptions {
   double max_gt_gap_s = 0.5;            ///< ground-truth gap that invalidates a window end
 };
 
+struct DriftMetrics {
+  double drift_10s_m = 0, drift_60s_m = 0;
+  double heading_drift_10s_deg = 0, heading_drift_60s_deg = 0;
+  std::size_t n_10s = 0, n_60s = 0;
+};
+
+/// Library terms added to the model's velocities (after the lag): per channel (0 v, 1 omega)
+/// the coefficients of the command features 1, v_cmd, omega_cmd, |omega_cmd|,
+/// v_cmd*|omega_cmd| (kLibraryNames order), evaluated on the current (undelayed) command.
+struct UnmodeledTerms {
+  std::array<std::array<double, 5>, 2> coef{};
+  bool empty() const;
+};
+/// Names of the library features ("1", "v_cmd", "omega_cmd", "|omega_cmd|", "v_cmd*|omega_cmd|").
+const std::array<const char*, 5>& commandLibraryNames();
+
 struct CommandResponseFinding {
   std::string effect;   ///< actuator_lag, command_gain, deadband, ignored_zero_commands, unmodeled
   std::string channel;  ///< v, omega, v+omega
@@ -67,12 +86,17 @@ struct CommandResponseFinding {
   /// Validation residual sum of squares without / with the term (other terms as fitted).
   double validation_rss_without = 0, validation_rss_with = 0;
   bool validated = false;
-};
-
-struct DriftMetrics {
-  double drift_10s_m = 0, drift_60s_m = 0;
-  double heading_drift_10s_deg = 0, heading_drift_60s_deg = 0;
-  std::size_t n_10s = 0, n_60s = 0;
+  double bonferroni_level = 0;  ///< the level its p-value was compared with
+  /// Fit-recording times where the term changes the window mean by more than 2 sigma of the
+  /// residual (merged over gaps < 1 s, at most 20).
+  std::vector<std::pair<double, double>> segments;
+  /// 1-sigma of the parameters: Gauss-Newton curvature of the residual sum of squares
+  /// (numerical Hessian), variance inflated by n / n_eff (autocorrelation); unmodeled: HAC.
+  std::map<std::string, double> uncertainty;
+  /// Validation (held-out) open-loop drift and window residual RMS without / with the term
+  /// (the other selected terms as fitted).
+  DriftMetrics drift_without, drift_with;
+  double validation_rms_without = 0, validation_rms_with = 0;
 };
 
 struct ChannelResidualStats {
@@ -88,7 +112,11 @@ struct CommandResponseResult {
   DriftMetrics fit_before, fit_after;                ///< on the VALIDATION recordings
   DriftMetrics fit_before_on_fit, fit_after_on_fit;  ///< on the fit recordings (reference)
   ChannelResidualStats validation_v, validation_omega;
+  UnmodeledTerms unmodeled;          ///< validated unmodeled terms
+  DriftMetrics fit_after_unmodeled;  ///< validation drift of params + unmodeled terms
   std::size_t fit_windows = 0, validation_windows = 0;
+  /// RMS measurement-noise floor of a window mean on the fit data (m/s, rad/s).
+  double noise_floor_v_m_s = 0, noise_floor_omega_rad_s = 0;
   nlohmann::json toJson() const;
 };
 
@@ -103,10 +131,37 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
 /// Open-loop drift of a command-driven model over `recordings` (see header comment).
 DriftMetrics openLoopDrift(const std::vector<io::Recording>& recordings,
                            const model::CommandResponseParams& params, bool ignore_zero_runs,
-                           const CommandResponseOptions& options = {});
+                           const CommandResponseOptions& options = {},
+                           const UnmodeledTerms* extra = nullptr);
+
+/// Recordings cut at `fraction` of each one's command time span: (first parts, last parts),
+/// for a fit / held-out split of one set of recordings (each part keeps its own streams).
+std::pair<std::vector<io::Recording>, std::vector<io::Recording>> splitRecordingsInTime(
+    const std::vector<io::Recording>& recs, double fraction);
 
 /// Command stream of a recording as model input (duplicates: last wins; optional blip drop).
 model::CommandSignal commandSignal(const io::Recording& rec, bool ignore_zero_runs,
                                    double max_zero_run_s = 0.1);
+
+/// The result in the shared schema of `wheelchair diagnose` (Finding.h, issue 7): one
+/// Finding per VALIDATED catalogue term (actuator_lag per channel: delay_s, time_constant_s;
+/// command_gain: kind, scale; deadband: threshold_*; ignored_zero_commands: max_run_s) and one
+/// `unmodeled` Finding per channel (library term -> coefficient, plus channel), each with
+/// fit_before / fit_after = held-out open-loop drift (drift_10s_m, drift_60s_m,
+/// heading_drift_10s_deg, heading_drift_60s_deg) and window residual RMS without / with it.
+/// Sets rep.fit_before / rep.fit_after (nominal vs corrected, held-out drift) and puts the
+/// analyser's own JSON into rep.validation["command_response"]. Terms that fail validation
+/// are listed in rep.info["command_response_rejected"], not as findings.
+void addCommandResponseFindings(const CommandResponseResult& r, DiagnosisReport& rep);
+
+/// Writes the selected model into [mrclam_response] (the keys of config/mrclam.ini, read by
+/// estimation::loadCommandDrivenEkfOptions): delays, time constants, deadbands, gains per
+/// command kind, ignore_zero_runs; validated unmodeled terms as
+/// [mrclam_response] unmodeled_v / unmodeled_omega = JSON {term: coefficient} (documented, not
+/// read by the EKF).
+/// addCommandResponseFindings stores the same keys in rep.config_updates, so
+/// diagnosis::correctedConfig(cfg, rep) writes them too.
+std::map<std::string, std::string> commandResponseConfigKeys(const CommandResponseResult& r);
+void writeCommandResponseConfig(const CommandResponseResult& r, config::WheelchairConfig& cfg);
 
 }  // namespace wheelchair::diagnosis

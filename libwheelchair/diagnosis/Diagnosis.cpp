@@ -1,5 +1,6 @@
 #include "libwheelchair/diagnosis/Diagnosis.h"
 
+#include "libwheelchair/diagnosis/SensorFaults.h"
 #include "libwheelchair/diagnosis/Stages.h"
 #include "libwheelchair/estimation/ChiSquare.h"
 #include "libwheelchair/model/DriveDynamics.h"
@@ -833,6 +834,15 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   }
   if (!skipped.empty()) rep.info["skipped"] = skipped;
 
+  // ---------------- sensor faults (not physics): sonar dropouts, Pozyx outliers ----------------
+  {
+    SensorFaultOptions so;
+    so.alpha = opt.alpha;
+    SensorFaultReport sf = detectSensorFaults(fit_recs, cfg, corr, so);
+    for (auto& f : sf.findings) rep.addFinding(f);
+    rep.info["sensor_faults"] = sf.info;
+  }
+
   // ---------------- verify: trajectories against ground truth ----------------
   Corrections none;
   nlohmann::json tb = trajectoryJson(valS, none, cfg), ta = trajectoryJson(valS, corr, cfg);
@@ -854,7 +864,7 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
 std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep) {
   std::vector<simulation::EffectSpec> out;
   for (auto& f : rep.findings) {
-    if (f.effect == "unmodeled" || f.is_fault) continue;
+    if (f.effect == "unmodeled" || f.is_fault || f.command_response) continue;
     simulation::EffectSpec e;
     e.id = f.effect;
     for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it) {
@@ -880,7 +890,7 @@ config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
   out.set("model_extensions", "count", std::to_string(effects.size()));
   int k = 0;
   for (auto& f : rep.findings) {
-    if (f.effect == "unmodeled" || f.is_fault) continue;
+    if (f.effect == "unmodeled" || f.is_fault || f.command_response) continue;
     ++k;
     out.set("model_extensions", fmt::format("effect_{}", k),
             simulation::formatEffect(effects[k - 1]));
@@ -890,9 +900,11 @@ config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
         u += fmt::format("{}{}={:.6g}", u.empty() ? "" : ",", it.key(), it->get<double>());
     out.set("model_extensions", fmt::format("sigma_{}", k), u);
   }
+  for (const auto& [section, keys] : rep.config_updates)
+    for (const auto& [key, value] : keys) out.set(section, key, value);
   int u = 0;
   for (auto& f : rep.findings)
-    if (f.effect == "unmodeled")
+    if (f.effect == "unmodeled" && !f.command_response)
       out.set("model_extensions", fmt::format("unmodeled_{}", ++u), f.parameters.dump());
   return out;
 }

@@ -46,6 +46,7 @@ nlohmann::json Finding::toJson() const {
   j["fit_before"] = fit_before;
   j["fit_after"] = fit_after;
   if (is_fault) j["fault"] = true;
+  if (command_response) j["analyser"] = "command_response";
   return j;
 }
 
@@ -67,6 +68,8 @@ nlohmann::json DiagnosisReport::toJson() const {
   for (auto& f : findings) fs.push_back(f.toJson());
   j["findings"] = fs;
   j["config_written"] = config_written;
+  if (!fit_before.empty()) j["fit_before"] = fit_before;
+  if (!fit_after.empty()) j["fit_after"] = fit_after;
   j["channels"] = channels;
   j["validation"] = validation;
   j["info"] = info;

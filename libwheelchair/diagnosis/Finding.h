@@ -31,6 +31,9 @@ struct Finding {
   nlohmann::json fit_before = nlohmann::json::object();   ///< validation metrics without it
   nlohmann::json fit_after = nlohmann::json::object();    ///< ... and with it
   bool is_fault = false;  ///< sensor fault (sonar_dropout, pozyx_outliers), not physics
+  /// Found by the command-driven analyser (CommandResponse.h): its corrected parameters go to
+  /// [mrclam_response], not to [model_extensions] (JSON: "analyser": "command_response").
+  bool command_response = false;
 
   /// The simulator's effect text of this finding (`id:key=value,...`), empty for
   /// findings that are not catalogue effects (unmodeled).
@@ -47,6 +50,14 @@ struct DiagnosisReport {
   nlohmann::json channels = nlohmann::json::object();
   nlohmann::json validation = nlohmann::json::object();
   nlohmann::json info = nlohmann::json::object();
+  /// Command-driven recordings: open-loop drift on the validation recordings of the nominal
+  /// model and of the corrected one (drift_10s_m, drift_60s_m, heading_drift_10s_deg,
+  /// heading_drift_60s_deg); written to the JSON only when set.
+  nlohmann::json fit_before = nlohmann::json::object();
+  nlohmann::json fit_after = nlohmann::json::object();
+  /// Extra INI keys of the corrected configuration (section -> key -> value), e.g. the
+  /// command-driven model's [mrclam_response]; correctedConfig() writes them.
+  std::map<std::string, std::map<std::string, std::string>> config_updates;
 
   /// Adds a finding of another analyser (sets mismatch).
   void addFinding(Finding f);

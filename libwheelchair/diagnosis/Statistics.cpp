@@ -141,6 +141,13 @@ Evidence compareNested(double rss0, double rss1, int k, double n_eff) {
   return e;
 }
 
+Evidence compareNestedWithFloor(double rss0, double rss1, double n, int k, double n_eff,
+                                double floor_var) {
+  if (!(n > 0)) return compareNested(rss0, rss1, k, n_eff);
+  const double f = std::max(0.0, floor_var);
+  return compareNested(rss0 / n + f, rss1 / n + f, k, n_eff);
+}
+
 BiasTest biasTest(const Eigen::VectorXd& r, const Groups& groups, int lags) {
   BiasTest b;
   double n = 0, s = 0, s2 = 0;

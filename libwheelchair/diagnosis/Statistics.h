@@ -69,6 +69,15 @@ struct Evidence {
 };
 Evidence compareNested(double rss0, double rss1, int k, double n_eff);
 
+/// Same with a known measurement-noise floor: the residual of n rows is model misfit plus
+/// measurement error of at least `floor_var` per row (e.g. the noise of differenced
+/// motion-capture poses and the time resolution of the model's window means), so the
+/// profiled variance is rss / n + floor_var: LR = n_eff log((rss0/n + floor) / (rss1/n +
+/// floor)). Improvements far below the measurement noise carry no evidence (with floor_var = 0
+/// this is compareNested).
+Evidence compareNestedWithFloor(double rss0, double rss1, double n, int k, double n_eff,
+                                double floor_var);
+
 /// Upper tail of chi2(k).
 double chi2Sf(double x, double k);
 /// Standard normal two-sided p-value of |z|.

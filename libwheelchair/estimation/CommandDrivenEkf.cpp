@@ -2,13 +2,16 @@
 
 #include "libwheelchair/estimation/ChiSquare.h"
 
+#include <fmt/format.h>
 #include <mrpt/config/CConfigFile.h>
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <set>
 #include <stdexcept>
 
 namespace wheelchair::estimation {
@@ -18,11 +21,101 @@ constexpr double kPi = 3.14159265358979323846;
 double wrap(double a) {
   return std::remainder(a, 2 * kPi);
 }
+
+model::CommandSignal commandSignal(const io::Recording& rec, const CommandDrivenEkfOptions& o) {
+  std::vector<model::CommandSample> rows;
+  rows.reserve(rec.joystick.size());
+  for (const auto& j : rec.joystick) rows.push_back({j.t_s, j.v_cmd_m_s, j.omega_cmd_rad_s});
+  // CommandSignal needs file order (non-decreasing time); a stable sort keeps the order of
+  // equal timestamps, so the LAST row of equal times stays the one in effect.
+  std::stable_sort(
+      rows.begin(), rows.end(),
+      [](const model::CommandSample& a, const model::CommandSample& b) { return a.t_s < b.t_s; });
+  model::CommandSignalOptions so;
+  so.drop_short_zero_runs = o.ignore_zero_runs;
+  so.max_zero_run_s = o.max_zero_run_s;
+  return model::CommandSignal(rows, so);
+}
 }  // namespace
 
 CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const std::string& path) {
   if (!std::filesystem::exists(path)) throw std::runtime_error(path + ": no such file");
-  mrpt::config::CConfigFile ini(path);
+  const mrpt::config::CConfigFile ini(path);
+  return loadCommandDrivenEkfOptions(ini);
+}
+
+std::string toIni(const CommandDrivenEkfOptions& o) {
+  using K = model::CommandKind;
+  const auto& p = o.response;
+  std::string s = "[mrclam_response]\n";
+  const auto kv = [&s](const char* k, double v) { s += fmt::format("{} = {:.17g}\n", k, v); };
+  kv("v_delay_s", p.v.delay_s);
+  kv("v_time_constant_s", p.v.time_constant_s);
+  kv("v_deadband_m_s", p.v.deadband);
+  kv("omega_delay_s", p.omega.delay_s);
+  kv("omega_time_constant_s", p.omega.time_constant_s);
+  kv("omega_deadband_rad_s", p.omega.deadband);
+  kv("v_gain_straight", p.v_gain[static_cast<int>(K::Straight)]);
+  kv("v_gain_arc", p.v_gain[static_cast<int>(K::Arc)]);
+  kv("v_gain_backward", p.v_gain_backward);
+  kv("omega_gain_turn_in_place", p.omega_gain[static_cast<int>(K::TurnInPlace)]);
+  kv("omega_gain_arc", p.omega_gain[static_cast<int>(K::Arc)]);
+  s += fmt::format("ignore_zero_runs = {}\n", o.ignore_zero_runs ? "true" : "false");
+  kv("max_zero_run_s", o.max_zero_run_s);
+  s += "\n[mrclam_filter]\n";
+  kv("dt_s", o.dt_s);
+  kv("output_every_s", o.output_every_s);
+  kv("v_noise_m_s_sqrt_s", std::sqrt(o.q_v));
+  kv("omega_noise_rad_s_sqrt_s", std::sqrt(o.q_omega));
+  kv("range_sigma_m", o.range_sigma_m);
+  kv("bearing_sigma_rad", o.bearing_sigma_rad);
+  kv("gate_probability", o.gate_probability);
+  kv("init_window_s", o.init_window_s);
+  kv("init_min_separation_m", o.init_min_separation_m);
+  kv("init_sigma_xy_m", o.init_sigma_xy_m);
+  kv("init_sigma_phi_rad", o.init_sigma_phi_rad);
+  s += fmt::format("init_from_geometry = {}\n", o.init_from_geometry ? "true" : "false");
+  return s;
+}
+
+bool hasCommandDrivenSections(const mrpt::config::CConfigFileBase& ini) {
+  std::vector<std::string> sections;
+  ini.getAllSections(sections);
+  return std::any_of(sections.begin(), sections.end(), [](const std::string& s) {
+    return s == "mrclam_filter" || s == "mrclam_response";
+  });
+}
+
+bool isCommandDrivenRecording(const io::Recording& rec) {
+  return !rec.landmarks.empty() || !io::landmarkMap(rec).empty();
+}
+
+std::vector<std::string> missingForCommandDrivenEkf(const io::Recording& rec) {
+  std::vector<std::string> missing;
+  const auto map = io::landmarkMap(rec);
+  if (rec.joystick.empty()) missing.push_back("the command stream (JOYSTICK)");
+  if (rec.landmarks.empty())
+    missing.push_back("landmark range-bearing sightings (LANDMARKS, CObservationBearingRange)");
+  if (map.empty())
+    missing.push_back(
+        "the landmark map (header meta keys landmark.<id> = x y sx sy, written by `wheelchair "
+        "import --format mrclam` from Landmark_Groundtruth.dat)");
+  if (!map.empty() && !rec.landmarks.empty()) {
+    std::set<int> ids;
+    for (const auto& m : map) ids.insert(m.id);
+    if (std::none_of(rec.landmarks.begin(), rec.landmarks.end(),
+                     [&](const io::LandmarkSample& z) { return ids.count(z.landmark_id) > 0; }))
+      missing.push_back("sightings of mapped landmarks (every sighting is of an unmapped subject)");
+  }
+  return missing;
+}
+
+std::pair<double, double> CommandDrivenEkfResult::meanNisBand95() const {
+  if (!accepted) return {0.0, 0.0};
+  return chi2MeanBand(0.95, 2, static_cast<double>(accepted));
+}
+
+CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const mrpt::config::CConfigFileBase& ini) {
   CommandDrivenEkfOptions o;
   const std::string f = "mrclam_filter", r = "mrclam_response";
   o.dt_s = ini.read_double(f, "dt_s", o.dt_s);
@@ -36,6 +129,7 @@ CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const std::string& path) {
   o.init_min_separation_m = ini.read_double(f, "init_min_separation_m", o.init_min_separation_m);
   o.init_sigma_xy_m = ini.read_double(f, "init_sigma_xy_m", o.init_sigma_xy_m);
   o.init_sigma_phi_rad = ini.read_double(f, "init_sigma_phi_rad", o.init_sigma_phi_rad);
+  o.init_from_geometry = ini.read_bool(f, "init_from_geometry", o.init_from_geometry);
   auto& p = o.response;
   p.v.delay_s = ini.read_double(r, "v_delay_s", 0);
   p.v.time_constant_s = ini.read_double(r, "v_time_constant_s", 0);
@@ -72,14 +166,19 @@ Eigen::Vector2d rangeBearing(const model::CommandState& x, const Eigen::Vector2d
 
 CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
                                            const std::vector<io::LandmarkPosition>& map,
-                                           const CommandDrivenEkfOptions& o) {
+                                           const CommandDrivenEkfOptions& o,
+                                           const ProgressFunction& progress) {
   using model::CommandState;
   CommandDrivenEkfResult res;
   std::map<int, Eigen::Vector2d> L;
   for (const auto& m : map) L[m.id] = {m.x_m, m.y_m};
   if (L.empty()) throw std::invalid_argument("runCommandDrivenEkf: empty landmark map");
   std::vector<io::LandmarkSample> z;
-  for (const auto& s : rec.landmarks) {
+  std::vector<io::LandmarkSample> sightings = rec.landmarks;
+  std::stable_sort(
+      sightings.begin(), sightings.end(),
+      [](const io::LandmarkSample& a, const io::LandmarkSample& b) { return a.t_s < b.t_s; });
+  for (const auto& s : sightings) {
     if (L.count(s.landmark_id))
       z.push_back(s);
     else
@@ -87,39 +186,64 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   }
   // Initialisation from two sightings of well separated landmarks.
   std::size_t start = z.size();
+  bool found = false;
   CommandState x = CommandState::Zero();
-  for (std::size_t i = 0; i < z.size() && start == z.size(); ++i)
+  // Closed form from sightings (r_i, b_i) of L_i and (r_j, b_j) of L_j: heading from the
+  // landmark pair, position from L_j. With init_from_geometry its covariance is the sighting
+  // noise propagated through it (numerical Jacobian), added to the configured initial one.
+  const auto initPose = [](const Eigen::Vector2d& Li, const Eigen::Vector2d& Lj,
+                           const Eigen::Vector4d& m) {
+    const Eigen::Vector2d bi = m(0) * Eigen::Vector2d(std::cos(m(1)), std::sin(m(1)));
+    const Eigen::Vector2d bj = m(2) * Eigen::Vector2d(std::cos(m(3)), std::sin(m(3)));
+    const double phi =
+        wrap(std::atan2(Lj(1) - Li(1), Lj(0) - Li(0)) - std::atan2(bj(1) - bi(1), bj(0) - bi(0)));
+    const Eigen::Vector2d p = Lj - Eigen::Vector2d(std::cos(phi) * bj(0) - std::sin(phi) * bj(1),
+                                                   std::sin(phi) * bj(0) + std::cos(phi) * bj(1));
+    return Eigen::Vector3d(p(0), p(1), phi);
+  };
+  Eigen::Matrix3d P_init = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < z.size() && !found; ++i)
     for (std::size_t j = i + 1; j < z.size() && z[j].t_s - z[i].t_s <= o.init_window_s; ++j) {
       const Eigen::Vector2d Li = L[z[i].landmark_id], Lj = L[z[j].landmark_id];
       if ((Lj - Li).norm() < o.init_min_separation_m) continue;
-      const Eigen::Vector2d bi =
-          z[i].range_m * Eigen::Vector2d(std::cos(z[i].bearing_rad), std::sin(z[i].bearing_rad));
-      const Eigen::Vector2d bj =
-          z[j].range_m * Eigen::Vector2d(std::cos(z[j].bearing_rad), std::sin(z[j].bearing_rad));
-      const double phi =
-          wrap(std::atan2(Lj(1) - Li(1), Lj(0) - Li(0)) - std::atan2(bj(1) - bi(1), bj(0) - bi(0)));
-      const Eigen::Vector2d p = Lj - Eigen::Vector2d(std::cos(phi) * bj(0) - std::sin(phi) * bj(1),
-                                                     std::sin(phi) * bj(0) + std::cos(phi) * bj(1));
-      x << p(0), p(1), phi, 0, 0;
+      const Eigen::Vector4d m(z[i].range_m, z[i].bearing_rad, z[j].range_m, z[j].bearing_rad);
+      const Eigen::Vector3d pose = initPose(Li, Lj, m);
+      Eigen::Matrix<double, 3, 4> J;
+      for (int k = 0; k < 4; ++k) {
+        const double h = k % 2 ? 1e-6 : 1e-6 * std::max(1.0, m(k));
+        Eigen::Vector4d a = m, b = m;
+        a(k) += h;
+        b(k) -= h;
+        Eigen::Vector3d d = initPose(Li, Lj, a) - initPose(Li, Lj, b);
+        d(2) = wrap(d(2));
+        J.col(k) = d / (2 * h);
+      }
+      const Eigen::Vector4d r_var(
+          o.range_sigma_m * o.range_sigma_m, o.bearing_sigma_rad * o.bearing_sigma_rad,
+          o.range_sigma_m * o.range_sigma_m, o.bearing_sigma_rad * o.bearing_sigma_rad);
+      if (o.init_from_geometry) P_init = J * r_var.asDiagonal() * J.transpose();
+      x << pose(0), pose(1), pose(2), 0, 0;
       start = j + 1;
       res.t_start_s = z[j].t_s;
+      found = true;
       break;
     }
-  if (start >= z.size()) return res;
+  if (!found) return res;
   res.initialised = true;
+  res.before_start = start;
+  res.start_pose_xy = x.head<2>();
+  res.start_phi_rad = x(2);
   Eigen::Matrix<double, 5, 5> P = Eigen::Matrix<double, 5, 5>::Zero();
-  P(0, 0) = P(1, 1) = o.init_sigma_xy_m * o.init_sigma_xy_m;
-  P(2, 2) = o.init_sigma_phi_rad * o.init_sigma_phi_rad;
+  P.topLeftCorner<3, 3>() = P_init;
+  P(0, 0) += o.init_sigma_xy_m * o.init_sigma_xy_m;
+  P(1, 1) += o.init_sigma_xy_m * o.init_sigma_xy_m;
+  P(2, 2) += o.init_sigma_phi_rad * o.init_sigma_phi_rad;
   P(3, 3) = 0.05 * 0.05;
   P(4, 4) = 0.2 * 0.2;
 
-  std::vector<io::JoystickSample> js = rec.joystick;
-  std::vector<model::CommandSample> rows;
-  for (const auto& j : js) rows.push_back({j.t_s, j.v_cmd_m_s, j.omega_cmd_rad_s});
-  model::CommandSignalOptions so;
-  so.drop_short_zero_runs = o.ignore_zero_runs;
-  so.max_zero_run_s = o.max_zero_run_s;
-  const model::CommandSignal sig(rows, so);
+  const model::CommandSignal sig = commandSignal(rec, o);
+  res.commands = sig.samples().size();
+  res.dropped_zero_runs = sig.droppedZeroRuns();
   const model::CommandDrivenModel mdl(o.response);
   const bool lag_v = o.response.v.time_constant_s > 0, lag_w = o.response.omega.time_constant_s > 0;
   // Velocity states: start at the model's response (integrated from the first command).
@@ -132,6 +256,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
     }
     x(3) = yv;
     x(4) = yw;
+    res.start_velocity = {yv, yw};
   }
   const double gate = o.gate_probability > 0 ? chi2Quantile(o.gate_probability, 2) : 0.0;
   Eigen::Matrix2d R =
@@ -139,9 +264,23 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
           .asDiagonal();
   double t = res.t_start_s, next_out = t;
   const double t_end = std::max(sig.endTime(), z.empty() ? t : z.back().t_s);
-  double nis_sum = 0;
+  double nis_sum = 0, nis_sum_all = 0;
+  const double band_lo = chi2Quantile(0.025, 2), band_hi = chi2Quantile(0.975, 2);
+  const double t_first = t, span = std::max(t_end - t_first, 1e-9);
+  double next_progress = t_first;
   const auto emit = [&] {
-    res.trajectory.push_back({t, x(0), x(1), wrap(x(2)), P(0, 0), P(1, 1), P(0, 1), P(2, 2)});
+    CommandDrivenEstimate e{t, x(0), x(1), wrap(x(2)), P(0, 0), P(1, 1), P(0, 1), P(2, 2)};
+    // With no lag the velocity state is unused: the velocities in effect are the targets.
+    const Eigen::Vector2d vel = mdl.effectiveVelocity(x, mdl.target(sig, t));
+    e.v_m_s = vel(0);
+    e.omega_rad_s = vel(1);
+    e.var_v = P(3, 3);
+    e.var_omega = P(4, 4);
+    res.trajectory.push_back(e);
+    if (progress && t >= next_progress) {
+      progress(std::min(1.0, (t - t_first) / span));
+      next_progress += span / 200;
+    }
   };
   emit();
   next_out += o.output_every_s;
@@ -181,6 +320,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
     Eigen::Vector2d y(z[k].range_m - h(0), wrap(z[k].bearing_rad - h(1)));
     const Eigen::Matrix2d S = H * P * H.transpose() + R;
     const double nis = y.dot(S.ldlt().solve(y));
+    nis_sum_all += nis;
     if (gate > 0 && nis > gate) {
       ++res.rejected;
       continue;
@@ -191,10 +331,45 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
     P = IKH * P * IKH.transpose() + K * R * K.transpose();
     ++res.accepted;
     nis_sum += nis;
+    res.nis_inside95 += nis >= band_lo && nis <= band_hi;
   }
   propagateTo(t_end);
   res.mean_nis = res.accepted ? nis_sum / res.accepted : 0;
+  const std::size_t attempts = res.accepted + res.rejected;
+  res.mean_nis_all = attempts ? nis_sum_all / attempts : 0;
+  if (progress) progress(1.0);
   return res;
+}
+
+std::vector<CommandDrivenEstimate> deadReckoningCommands(const io::Recording& rec,
+                                                         const CommandDrivenEkfOptions& o,
+                                                         double t0_s, const Eigen::Vector3d& pose0,
+                                                         const Eigen::Vector2d& vel0) {
+  std::vector<CommandDrivenEstimate> out;
+  const model::CommandSignal sig = commandSignal(rec, o);
+  if (sig.samples().empty()) return out;
+  const model::CommandDrivenModel mdl(o.response);
+  model::CommandState x;
+  x << pose0(0), pose0(1), pose0(2), vel0(0), vel0(1);
+  double t = t0_s, next_out = t0_s;
+  const double t_end = sig.endTime();
+  const auto emit = [&] {
+    CommandDrivenEstimate e{t, x(0), x(1), wrap(x(2)), 0, 0, 0, 0};
+    const Eigen::Vector2d vel = mdl.effectiveVelocity(x, mdl.target(sig, t));
+    e.v_m_s = vel(0);
+    e.omega_rad_s = vel(1);
+    out.push_back(e);
+    next_out += o.output_every_s;
+  };
+  emit();
+  while (t < t_end - 1e-12) {
+    const double h = std::min(o.dt_s, t_end - t);
+    x = mdl.step(x, mdl.target(sig, t + h / 2), h);
+    t += h;
+    if (t >= next_out - 1e-9) emit();
+  }
+  if (out.back().t_s < t) emit();
+  return out;
 }
 
 }  // namespace wheelchair::estimation

@@ -12,12 +12,22 @@
 //                (other robots) are skipped and counted;
 //   start:       the first two sightings of mapped landmarks at least init_min_separation_m
 //                apart within init_window_s: closed-form pose (heading from the landmark pair,
-//                position from the first); the filter starts there.
+//                position from the second); the filter starts there with covariance
+//                init_sigma_xy_m^2, init_sigma_phi_rad^2, plus (init_from_geometry) the
+//                range-bearing noise propagated through that closed form (numerical Jacobian),
+//                so that a poor geometry (far, nearly aligned landmarks) starts uncertain.
 //
-// Integration point for `wheelchair filter` on MRCLAM rawlogs: when the recording has
-// JOYSTICK + LANDMARKS and a landmark map in its meta keys (io::landmarkMap(rec) non-empty),
-// call runCommandDrivenEkf(rec, io::landmarkMap(rec), loadCommandDrivenEkfOptions(ini)) and
-// write result.trajectory (t, x, y, phi).
+// Frame: the estimates are in the MAP frame (the frame of the landmark positions; for MRCLAM
+// that is the Vicon frame), not the start frame of the wheelchair filters.
+//
+// Open-loop reference (`commands` variant of `wheelchair evaluate`, the "encoders only"
+// analogue): deadReckoningCommands() propagates the same model's mean on the commands alone,
+// from the EKF's landmark initialisation (pose and time; no ground truth), so both cover the
+// same span in the same frame.
+//
+// Used by `wheelchair filter` and `wheelchair evaluate` when isCommandDrivenRecording(rec)
+// (landmark sightings or a landmark map present); missingForCommandDrivenEkf() names what a
+// recording lacks.
 #pragma once
 
 #include "libwheelchair/io/MrclamImport.h"
@@ -26,8 +36,13 @@
 
 #include <Eigen/Core>
 
+#include <functional>
 #include <string>
 #include <vector>
+
+namespace mrpt::config {
+class CConfigFileBase;
+}
 
 namespace wheelchair::estimation {
 
@@ -46,14 +61,31 @@ struct CommandDrivenEkfOptions {
   double init_min_separation_m = 0.5;
   double init_sigma_xy_m = 0.1;
   double init_sigma_phi_rad = 0.1;
+  bool init_from_geometry = false;  ///< add the propagated sighting noise to the initial P
 };
 
-/// [mrclam_filter] and [mrclam_response] sections of an INI (config/mrclam.ini).
+/// [mrclam_filter] and [mrclam_response] sections of an INI (config/mrclam.ini). Absent keys
+/// (or sections) keep the defaults above (nominal response).
 CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const std::string& ini_path);
+CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const mrpt::config::CConfigFileBase& ini);
+/// The options as [mrclam_response] and [mrclam_filter] sections (read back by
+/// loadCommandDrivenEkfOptions to the same values): the configuration a result was made with.
+std::string toIni(const CommandDrivenEkfOptions& options);
+/// Whether the INI has an [mrclam_filter] or [mrclam_response] section.
+bool hasCommandDrivenSections(const mrpt::config::CConfigFileBase& ini);
 
+/// A recording meant for the command-driven EKF: landmark sightings or a landmark map.
+bool isCommandDrivenRecording(const io::Recording& rec);
+/// What the command-driven EKF needs and `rec` lacks (empty = nothing): the JOYSTICK command
+/// stream, LANDMARKS range-bearing sightings, the landmark map (meta keys landmark.<id>),
+/// sightings of mapped landmarks.
+std::vector<std::string> missingForCommandDrivenEkf(const io::Recording& rec);
+
+/// Pose (map frame), velocities and their (co)variances.
 struct CommandDrivenEstimate {
   double t_s, x_m, y_m, phi_rad;
   double var_x, var_y, cov_xy, var_phi;
+  double v_m_s = 0, omega_rad_s = 0, var_v = 0, var_omega = 0;
 };
 
 struct CommandDrivenEkfResult {
@@ -61,8 +93,22 @@ struct CommandDrivenEkfResult {
   double t_start_s = 0;  ///< time of the landmark initialisation
   bool initialised = false;
   std::size_t accepted = 0, rejected = 0, unmapped = 0;
-  double mean_nis = 0;  ///< over accepted updates
+  std::size_t before_start = 0;  ///< mapped sightings up to the initialisation (incl. its two)
+  double mean_nis = 0;           ///< over accepted updates
+  double mean_nis_all = 0;       ///< over every update attempt (accepted and gated out)
+  std::size_t nis_inside95 = 0;  ///< accepted NIS inside the two-sided 95 % band of chi2(2)
+  std::size_t commands = 0;      ///< command rows in the signal (after the quirk handling)
+  std::size_t dropped_zero_runs = 0;
+  Eigen::Vector2d start_pose_xy = Eigen::Vector2d::Zero();  ///< initial pose (map frame)
+  double start_phi_rad = 0;
+  Eigen::Vector2d start_velocity = Eigen::Vector2d::Zero();  ///< (v, omega) at t_start_s
+  /// Two-sided 95 % band of mean_nis for a consistent filter (chi2(2), `accepted` samples).
+  std::pair<double, double> meanNisBand95() const;
+  double fractionInside95() const { return accepted ? double(nis_inside95) / accepted : 0.0; }
 };
+
+/// Called with the fraction (0..1) of the recording's time span processed.
+using ProgressFunction = std::function<void(double)>;
 
 /// Range-bearing model: h(x) and H = dh/dx (2x5) for landmark L.
 Eigen::Vector2d rangeBearing(const model::CommandState& x, const Eigen::Vector2d& L,
@@ -70,6 +116,16 @@ Eigen::Vector2d rangeBearing(const model::CommandState& x, const Eigen::Vector2d
 
 CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
                                            const std::vector<io::LandmarkPosition>& map,
-                                           const CommandDrivenEkfOptions& options);
+                                           const CommandDrivenEkfOptions& options,
+                                           const ProgressFunction& progress = {});
+
+/// Open-loop dead reckoning of the commands: the model's mean (same response, same grid and
+/// output interval as the EKF), no measurement. Starts at (x0, y0, phi0) with velocities
+/// `vel0` at t0_s (the EKF's initialisation: result.start_*, result.t_start_s); runs to the
+/// last command. Variances are 0.
+std::vector<CommandDrivenEstimate> deadReckoningCommands(const io::Recording& rec,
+                                                         const CommandDrivenEkfOptions& options,
+                                                         double t0_s, const Eigen::Vector3d& pose0,
+                                                         const Eigen::Vector2d& vel0);
 
 }  // namespace wheelchair::estimation

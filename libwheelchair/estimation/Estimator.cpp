@@ -302,7 +302,8 @@ std::vector<T> sortedCopy(const std::vector<T>& v, Less less) {
 }  // namespace
 
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                              const EkfOptions& options) {
+                              const EkfOptions& options,
+                              const std::function<void(double)>& progress) {
   EkfOptions opt = options;
   opt.resolveSensorDefaults(cfg);
   opt.validate();
@@ -365,8 +366,10 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
   const bool fixed_rate = opt.output_rate_hz > 0;
   long k_out = 0;
   auto nextOut = [&] { return t0 + static_cast<double>(k_out) / opt.output_rate_hz; };
+  const std::size_t progress_every = std::max<std::size_t>(1, ev.size() / 100);
   for (std::size_t e = 0; e < ev.size(); ++e) {
     const Event& E = ev[e];
+    if (progress && e % progress_every == 0) progress(static_cast<double>(e) / ev.size());
     if (fixed_rate) {
       while (nextOut() <= E.t) {
         est->predictTo(nextOut());

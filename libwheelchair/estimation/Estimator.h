@@ -24,6 +24,7 @@
 
 #include <Eigen/Core>
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <vector>
@@ -136,8 +137,10 @@ class Estimator {
 std::unique_ptr<Estimator> makeEstimator(const config::WheelchairConfig& cfg, const EkfOptions& opt,
                                          const InputSignal* input);
 
-/// Runs the selected filter over a whole recording (see the header comment).
+/// Runs the selected filter over a whole recording (see the header comment). `progress`, when
+/// set, is called with the fraction of measurements processed (0..1) about every 1 %.
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                              const EkfOptions& opt);
+                              const EkfOptions& opt,
+                              const std::function<void(double)>& progress = {});
 
 }  // namespace wheelchair::estimation

@@ -118,6 +118,73 @@ Trajectory toTrajectory(const std::vector<estimation::DeadReckoningSample>& dr) 
   return t;
 }
 
+Trajectory toTrajectory(const std::vector<estimation::CommandDrivenEstimate>& est) {
+  Trajectory t;
+  t.reserve(est.size());
+  for (const auto& e : est) t.push_back({e.t_s, e.x_m, e.y_m, e.phi_rad});
+  std::stable_sort(t.begin(), t.end(),
+                   [](const Pose2DStamped& a, const Pose2DStamped& b) { return a.t_s < b.t_s; });
+  keepLastOfEqualTimes(t, [](const Pose2DStamped& p) { return p.t_s; });
+  return t;
+}
+
+const std::vector<std::string>& commandDrivenVariantNames() {
+  static const std::vector<std::string> v{"ekf", "commands"};
+  return v;
+}
+
+Trajectory CommandDrivenEstimates::trajectory(const std::string& variant) const {
+  if (variant == "ekf") return toTrajectory(ekf.trajectory);
+  if (variant == "commands") return toTrajectory(commands);
+  throw std::invalid_argument("unknown command-driven trajectory variant '" + variant + "'");
+}
+
+CommandDrivenEstimates estimateCommandDrivenVariants(const io::Recording& rec,
+                                                     const config::WheelchairConfig& cfg) {
+  CommandDrivenEstimates r;
+  const auto opt = estimation::loadCommandDrivenEkfOptions(cfg.ini());
+  const auto missing = estimation::missingForCommandDrivenEkf(rec);
+  std::string ekf_error;
+  if (!missing.empty()) {
+    ekf_error = "the command-driven EKF needs ";
+    for (std::size_t i = 0; i < missing.size(); ++i) ekf_error += (i ? "; " : "") + missing[i];
+  } else {
+    try {
+      r.ekf = estimation::runCommandDrivenEkf(rec, io::landmarkMap(rec), opt);
+      if (!r.ekf.initialised)
+        ekf_error = fmt::format(
+            "no landmark initialisation: no two sightings of mapped landmarks at least {} m "
+            "apart within {} s",
+            opt.init_min_separation_m, opt.init_window_s);
+      else if (r.ekf.trajectory.empty())
+        ekf_error = "the command-driven EKF produced no estimate";
+    } catch (const std::exception& e) {
+      ekf_error = e.what();
+    }
+  }
+  r.errors.emplace_back("ekf", ekf_error);
+  std::string cmd_error;
+  try {
+    if (rec.joystick.empty()) throw std::runtime_error("no command stream (JOYSTICK)");
+    if (r.ekf.initialised) {
+      r.commands = estimation::deadReckoningCommands(
+          rec, opt, r.ekf.t_start_s,
+          {r.ekf.start_pose_xy(0), r.ekf.start_pose_xy(1), r.ekf.start_phi_rad},
+          r.ekf.start_velocity);
+    } else {
+      double t0 = rec.joystick.front().t_s;
+      for (const auto& j : rec.joystick) t0 = std::min(t0, j.t_s);
+      r.commands = estimation::deadReckoningCommands(rec, opt, t0, Eigen::Vector3d::Zero(),
+                                                     Eigen::Vector2d::Zero());
+    }
+    if (r.commands.empty()) throw std::runtime_error("the command dead reckoning is empty");
+  } catch (const std::exception& e) {
+    cmd_error = e.what();
+  }
+  r.errors.emplace_back("commands", cmd_error);
+  return r;
+}
+
 const std::vector<std::string>& variantNames() {
   static const std::vector<std::string> v{"ekf", "encoders", "encoders_gyro", "baseline"};
   return v;
@@ -225,8 +292,22 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
     const GroundTruth gt = groundTruthOf(rec, cfg);
     MetricOptions mo = options.metrics;
     mo.lever_arm_m = gt.lever_arm_m;
-    const RecordingEstimates est = estimateVariants(rec, cfg, options.baseline);
-    for (const auto& [variant, err] : est.errors) {
+    // Command-driven recordings (MRCLAM): ekf + commands; others: the wheelchair variants.
+    const bool command_driven = estimation::isCommandDrivenRecording(rec);
+    std::vector<std::pair<std::string, std::string>> errors;
+    RecordingEstimates wc;
+    CommandDrivenEstimates cd;
+    if (command_driven) {
+      cd = estimateCommandDrivenVariants(rec, cfg);
+      errors = cd.errors;
+    } else {
+      wc = estimateVariants(rec, cfg, options.baseline);
+      errors = wc.errors;
+    }
+    const auto trajectoryOf = [&](const std::string& v) {
+      return command_driven ? cd.trajectory(v) : wc.trajectory(v);
+    };
+    for (const auto& [variant, err] : errors) {
       BatchRow row;
       row.recording = path;
       row.variant = variant;
@@ -234,7 +315,7 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
       row.error = oneLine(err);
       if (err.empty()) {
         try {
-          const Trajectory t = est.trajectory(variant);
+          const Trajectory t = trajectoryOf(variant);
           row.n_estimates = t.size();
           row.metrics = computeMetrics(t, gt.samples, mo);
         } catch (const std::exception& e) {

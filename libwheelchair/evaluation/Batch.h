@@ -8,6 +8,20 @@
 //   encoders_gyro  dead reckoning, encoder v + gyro omega (estimation::deadReckoningEncoderGyro)
 //   baseline       kinematic discrete EKF (filter=baseline), when BatchOptions::baseline
 //
+// Command-driven recordings (estimation::isCommandDrivenRecording: landmark sightings or a
+// landmark map, e.g. `wheelchair import --format mrclam`) get two rows instead:
+//
+//   ekf            command-driven EKF on commands + landmark range-bearing, map known
+//                  (estimation::runCommandDrivenEkf; options from the configuration's
+//                  [mrclam_filter] / [mrclam_response] sections, config/mrclam.ini; absent =
+//                  nominal response, default noise)
+//   commands       open-loop dead reckoning of the commands through the same model
+//                  (estimation::deadReckoningCommands), started at the EKF's landmark
+//                  initialisation: the "encoders only" analogue
+//
+// Both are in the map frame (= the Vicon frame for MRCLAM), so `--alignment none` is
+// meaningful for them as well as the default se2.
+//
 // Ground truth: the GROUND_TRUTH stream (motion-capture poses, with heading, lever arm 0) when
 // the recording has one, else the POZYX stream (tag positions in the anchor frame, no
 // heading, lever arm [pozyx] lever_x_m, lever_y_m), else none (only d_path_m and
@@ -29,6 +43,7 @@
 #pragma once
 
 #include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/estimation/CommandDrivenEkf.h"
 #include "libwheelchair/estimation/DeadReckoning.h"
 #include "libwheelchair/estimation/EstimationTypes.h"
 #include "libwheelchair/evaluation/Metrics.h"
@@ -60,9 +75,12 @@ GroundTruth groundTruthOf(const io::Recording& rec, const config::WheelchairConf
 /// equal timestamps the last one is kept).
 Trajectory toTrajectory(const estimation::EstimationResult& res);
 Trajectory toTrajectory(const std::vector<estimation::DeadReckoningSample>& dr);
+Trajectory toTrajectory(const std::vector<estimation::CommandDrivenEstimate>& est);
 
 /// Variant names in their fixed order.
 const std::vector<std::string>& variantNames();  ///< ekf, encoders, encoders_gyro, baseline
+/// Variants of command-driven recordings, in their fixed order: ekf, commands.
+const std::vector<std::string>& commandDrivenVariantNames();
 
 /// All trajectory variants of one recording, with the filters' full outputs (for plots).
 struct RecordingEstimates {
@@ -80,6 +98,22 @@ struct RecordingEstimates {
 /// A failing variant is recorded in `errors`, the others are still computed.
 RecordingEstimates estimateVariants(const io::Recording& rec, const config::WheelchairConfig& cfg,
                                     bool with_baseline);
+
+/// Both variants of a command-driven recording (see the header comment).
+struct CommandDrivenEstimates {
+  estimation::CommandDrivenEkfResult ekf;
+  std::vector<estimation::CommandDrivenEstimate> commands;
+  /// Per variant (commandDrivenVariantNames() order): the error message ("" = ok).
+  std::vector<std::pair<std::string, std::string>> errors;
+  Trajectory trajectory(const std::string& variant) const;
+};
+
+/// Runs the command-driven EKF and the open-loop command dead reckoning. Options from cfg's
+/// [mrclam_filter] / [mrclam_response] sections. What the recording lacks (commands,
+/// sightings, the landmark map) or a failed landmark initialisation is reported in `errors`
+/// (the commands variant then starts at the origin at the first command).
+CommandDrivenEstimates estimateCommandDrivenVariants(const io::Recording& rec,
+                                                     const config::WheelchairConfig& cfg);
 
 struct BatchOptions {
   MetricOptions metrics;  ///< alignment etc.; lever_arm_m is set from the ground truth

@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <iostream>
 #include <random>
+#include <set>
 
 namespace wheelchair::diagnosis {
 namespace {
@@ -111,6 +112,58 @@ TEST(CommandResponse, FindsDelayLagAndTurnInPlaceScaleAndImprovesHeldOut) {
     EXPECT_TRUE(j["fit_before"].contains(k));
     EXPECT_TRUE(j["fit_after"].contains(k));
   }
+}
+
+// "Never a false or extra finding": the drive has a lag on both channels, a turn-in-place
+// gain and ignores the blips -- nothing else. Noise-free ground truth used to give extra terms
+// (command_gain omega arc = 1.000003, unmodeled omega_cmd = -2e-6): the likelihood ratio on the
+// residual sum of squares is scale-free, so numerical residue of 1e-6 rad/s was "significant".
+// The window measurement model now carries its noise floor (differenced motion-capture noise +
+// the time resolution of the model's window means; compareNestedWithFloor).
+void expectExactlyTheDrivesTerms(const CommandResponseResult& r) {
+  std::set<std::string> got;
+  for (const auto& f : r.findings) got.insert(f.effect + "/" + f.channel + "/" + f.kind);
+  const std::set<std::string> want = {"actuator_lag/v/", "actuator_lag/omega/",
+                                      "command_gain/omega/turn_in_place",
+                                      "ignored_zero_commands/v+omega/"};
+  EXPECT_EQ(got, want);
+}
+
+TEST(CommandResponse, NoExtraFindingsNoiseFree) {
+  const auto truth = drive();
+  const auto r =
+      diagnoseCommandResponse({synthetic(truth, 1, 240, true), synthetic(truth, 2, 240, true)},
+                              {synthetic(truth, 3, 240, true)}, {});
+  expectExactlyTheDrivesTerms(r);
+  for (const auto& f : r.findings) {
+    EXPECT_TRUE(f.validated) << f.effect;
+    EXPECT_FALSE(f.uncertainty.empty() && f.effect != "ignored_zero_commands") << f.effect;
+  }
+}
+
+TEST(CommandResponse, NoExtraFindingsWithMotionCaptureNoise) {
+  // Vicon-like noise: 1 mm in position, 0.3 deg in heading, on every pose.
+  const auto truth = drive();
+  auto noisy = [&](unsigned seed) {
+    auto rec = synthetic(truth, seed, 240, true);
+    std::mt19937 rng(seed + 100);
+    std::normal_distribution<double> n(0, 1);
+    for (auto& g : rec.ground_truth) {
+      g.x_m += 0.001 * n(rng);
+      g.y_m += 0.001 * n(rng);
+      g.phi_rad = std::remainder(g.phi_rad + 0.3 * M_PI / 180 * n(rng), 2 * M_PI);
+    }
+    return rec;
+  };
+  const auto r = diagnoseCommandResponse({noisy(1), noisy(2)}, {noisy(3)}, {});
+  expectExactlyTheDrivesTerms(r);
+  EXPECT_GT(r.noise_floor_omega_rad_s, 0.01);
+  const auto* lw = find(r, "actuator_lag", "omega");
+  ASSERT_TRUE(lw);
+  EXPECT_NEAR(lw->parameters.at("delay_s"), 0.25, 0.02);
+  // The reported 1-sigma covers the error (3 sigma).
+  EXPECT_LT(std::abs(lw->parameters.at("delay_s") - 0.25),
+            3 * lw->uncertainty.at("delay_s") + 0.005);
 }
 
 TEST(CommandResponse, NominalDriveGivesNoFindings) {

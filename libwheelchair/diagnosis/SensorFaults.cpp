@@ -1,0 +1,420 @@
+#include "libwheelchair/diagnosis/SensorFaults.h"
+
+#include "libwheelchair/estimation/ChiSquare.h"
+
+#include <Eigen/Dense>
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace wheelchair::diagnosis {
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  const std::size_t m = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + m, v.end());
+  return v[m];
+}
+
+/// Merges time points / intervals into segments (gaps < 1 s joined); at most 20 (longest).
+std::vector<std::pair<double, double>> mergeSegments(std::vector<std::pair<double, double>> iv) {
+  std::sort(iv.begin(), iv.end());
+  std::vector<std::pair<double, double>> out;
+  for (auto& s : iv) {
+    if (!out.empty() && s.first - out.back().second < 1.0)
+      out.back().second = std::max(out.back().second, s.second);
+    else
+      out.push_back(s);
+  }
+  if (out.size() > 20) {
+    std::sort(out.begin(), out.end(),
+              [](auto& a, auto& b) { return a.second - a.first > b.second - b.first; });
+    out.resize(20);
+    std::sort(out.begin(), out.end());
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------- sonar
+
+struct SonarStats {
+  std::size_t readings = 0, zeros = 0, valid = 0, out_of_range = 0, zero_runs = 0;
+  std::size_t tested_runs = 0, dropout_runs = 0, dropout_readings = 0;
+  std::vector<double> run_lengths;
+  std::vector<std::pair<double, double>> intervals;
+  double noise_used_m = 0, noise_estimated_m = 0;
+};
+
+void sonarRecording(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                    const SensorFaultOptions& o, SonarStats& st) {
+  std::vector<io::SonarSample> s = rec.sonar;
+  std::stable_sort(s.begin(), s.end(), [](auto& a, auto& b) { return a.t_s < b.t_s; });
+  const auto& sp = cfg.sonar;
+  // Noise: configured, or larger if the data say so (second differences of consecutive valid
+  // readings: var = 6 sigma^2 for white noise; the robust MAD ignores manoeuvres).
+  std::vector<double> d2;
+  auto inBand0 = [&](double r) { return r >= sp.min_range_m && r <= sp.max_range_m; };
+  for (std::size_t i = 1; i + 1 < s.size(); ++i)
+    if (inBand0(s[i - 1].range_m) && inBand0(s[i].range_m) && inBand0(s[i + 1].range_m) &&
+        s[i + 1].t_s - s[i - 1].t_s <= 2 * o.sonar_max_track_gap_s)
+      d2.push_back(std::abs(s[i + 1].range_m - 2 * s[i].range_m + s[i - 1].range_m));
+  const double s_est = d2.size() >= 10 ? 1.4826 * median(d2) / std::sqrt(6.0) : 0.0;
+  const double sig = std::max(sp.noise_m, s_est);
+  st.noise_used_m = std::max(st.noise_used_m, sig);
+  st.noise_estimated_m = std::max(st.noise_estimated_m, s_est);
+  // A non-zero reading beyond the band by more than the Bonferroni quantile of the noise is
+  // impossible for a healthy sensor.
+  const double n_all = std::max<double>(1, s.size());
+  const double z = std::sqrt(estimation::chi2Quantile(1 - o.alpha / n_all, 1));
+  const double lo = sp.min_range_m - z * sig, hi = sp.max_range_m + z * sig;
+  enum Kind { kZero, kValid, kBad };
+  std::vector<Kind> kind(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const double r = s[i].range_m;
+    kind[i] = r == 0 ? kZero : (std::isfinite(r) && r >= lo && r <= hi ? kValid : kBad);
+    ++st.readings;
+    if (kind[i] == kZero) ++st.zeros;
+    if (kind[i] == kValid) ++st.valid;
+    if (kind[i] == kBad) {
+      ++st.out_of_range;
+      st.intervals.push_back({s[i].t_s, s[i].t_s});
+    }
+  }
+  // Zero runs and the target tracks around them.
+  struct Run {
+    std::size_t a, b;  // zero readings a..b
+  };
+  std::vector<Run> runs;
+  for (std::size_t i = 0; i < s.size();) {
+    if (kind[i] != kZero) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    while (j + 1 < s.size() && kind[j + 1] == kZero) ++j;
+    runs.push_back({i, j});
+    i = j + 1;
+  }
+  st.zero_runs += runs.size();
+  // A target track: consecutive valid readings without a jump (a jump = another target).
+  auto track = [&](std::size_t start, int dir, std::vector<double>& t, std::vector<double>& r) {
+    long k = static_cast<long>(start);
+    while (k >= 0 && k < static_cast<long>(s.size()) &&
+           static_cast<int>(t.size()) < o.sonar_track_readings && kind[k] == kValid) {
+      if (!t.empty()) {
+        const double dt = std::abs(s[k].t_s - t.back());
+        if (dt > o.sonar_max_track_gap_s ||
+            std::abs(s[k].range_m - r.back()) >
+                z * sig * std::sqrt(2.0) + o.sonar_max_range_rate_m_s * dt)
+          break;
+      }
+      t.push_back(s[k].t_s);
+      r.push_back(s[k].range_m);
+      k += dir;
+    }
+  };
+  for (const Run& run : runs) {
+    if (run.a == 0 || run.b + 1 >= s.size()) continue;
+    const std::size_t p = run.a - 1, q = run.b + 1;
+    if (kind[p] != kValid || kind[q] != kValid) continue;
+    const double dur = s[q].t_s - s[p].t_s;
+    if (dur > o.sonar_max_run_s) continue;
+    // Both neighbours inside the band (not the edge of the range where echoes may vanish).
+    if (!(s[p].range_m > sp.min_range_m + z * sig && s[p].range_m < sp.max_range_m - z * sig &&
+          s[q].range_m > sp.min_range_m + z * sig && s[q].range_m < sp.max_range_m - z * sig))
+      continue;
+    std::vector<double> t, r;
+    track(p, -1, t, r);
+    std::vector<double> ta, ra;
+    track(q, +1, ta, ra);
+    t.insert(t.end(), ta.begin(), ta.end());
+    r.insert(r.end(), ra.begin(), ra.end());
+    if (t.size() < 3) continue;
+    ++st.tested_runs;
+    // One target across the run: a line through both tracks (weighted least squares; each
+    // reading's variance = noise + random range acceleration over its distance from the run's
+    // midpoint); its chi-square (n - 2 dof) must lie inside the 1 - alpha band.
+    const double tm = 0.5 * (s[p].t_s + s[q].t_s);
+    const int n = static_cast<int>(t.size());
+    Eigen::MatrixXd A(n, 2);
+    Eigen::VectorXd y(n), w(n);
+    for (int k = 0; k < n; ++k) {
+      const double g = t[k] - tm;
+      A(k, 0) = 1, A(k, 1) = g, y(k) = r[k];
+      w(k) = 1.0 / (sig * sig + std::pow(0.5 * o.sonar_range_accel_m_s2 * g * g, 2));
+    }
+    const Eigen::MatrixXd Aw = w.cwiseSqrt().asDiagonal() * A;
+    const Eigen::VectorXd yw = w.cwiseSqrt().cwiseProduct(y);
+    const Eigen::Vector2d b = Aw.colPivHouseholderQr().solve(yw);
+    const double chi2 = (yw - Aw * b).squaredNorm();
+    if (chi2 > estimation::chi2Quantile(1 - o.alpha, n - 2)) continue;  // target changed
+    ++st.dropout_runs;
+    const std::size_t len = run.b - run.a + 1;
+    st.dropout_readings += len;
+    st.run_lengths.push_back(static_cast<double>(len));
+    st.intervals.push_back({s[run.a].t_s, s[run.b].t_s});
+  }
+}
+
+// ---------------------------------------------------------------- Pozyx
+
+struct PozyxStats {
+  std::size_t fixes = 0, tested = 0, outliers = 0;
+  std::vector<double> outlier_times, outlier_mag;
+  double noise_used_m = 0, noise_estimated_m = 0, threshold_chi2 = 0;
+};
+
+struct Track {
+  std::vector<double> t, x, y, phi;
+};
+
+// Odometric track (start frame) from corrected encoders and, when present, the gyro heading.
+Track odometry(const Streams& s, const config::WheelchairConfig& cfg, const Corrections& c) {
+  Track tr;
+  if (s.te.size() < 2) return tr;
+  const double lw = cfg.vehicle.geom.track_width_m;
+  std::vector<double> G;  // cumulative gyro integral at tg
+  const bool gyro = s.tg.size() >= 2;
+  if (gyro) {
+    G.assign(s.tg.size(), 0.0);
+    for (std::size_t k = 1; k < s.tg.size(); ++k)
+      G[k] = G[k - 1] + 0.5 * ((s.gz[k] + s.gz[k - 1]) - 2 * c.gyro_bias) / c.gyro_scale *
+                            (s.tg[k] - s.tg[k - 1]);
+  }
+  auto Gat = [&](double t) {
+    if (t <= s.tg.front()) return G.front();
+    if (t >= s.tg.back()) return G.back();
+    const std::size_t k = std::upper_bound(s.tg.begin(), s.tg.end(), t) - s.tg.begin();
+    const double a = (t - s.tg[k - 1]) / (s.tg[k] - s.tg[k - 1]);
+    return G[k - 1] + a * (G[k] - G[k - 1]);
+  };
+  double x = 0, y = 0, phi = 0;
+  tr.t.push_back(s.te[0]), tr.x.push_back(x), tr.y.push_back(y), tr.phi.push_back(phi);
+  for (std::size_t i = 1; i < s.te.size(); ++i) {
+    const double dR = (s.sR[i] - s.sR[i - 1]) / c.enc_scale[0];
+    const double dL = (s.sL[i] - s.sL[i - 1]) / c.enc_scale[1];
+    const double dphi = gyro ? Gat(s.te[i]) - Gat(s.te[i - 1]) : (dR - dL) / lw;
+    const double ds = 0.5 * (dR + dL);
+    x += ds * std::cos(phi + 0.5 * dphi);
+    y += ds * std::sin(phi + 0.5 * dphi);
+    phi += dphi;
+    tr.t.push_back(s.te[i]), tr.x.push_back(x), tr.y.push_back(y), tr.phi.push_back(phi);
+  }
+  return tr;
+}
+
+void pozyxRecording(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                    const Corrections& corr, const SensorFaultOptions& o, PozyxStats& st,
+                    std::vector<std::vector<double>>& keep) {
+  const Streams s = makeStreams(rec, cfg);
+  if (s.pozyx.size() < static_cast<std::size_t>(o.pozyx_min_window_fixes) || !s.hasEncoders())
+    return;
+  const Track tr = odometry(s, cfg, corr);
+  const double lx = cfg.pozyx.lever_x_m, ly = cfg.pozyx.lever_y_m;
+  // Tag positions of the odometric track at the fix times.
+  std::vector<double> t, qx, qy, zx, zy;
+  for (const auto& p : s.pozyx) {
+    if (!(p.t_s >= tr.t.front() && p.t_s <= tr.t.back())) continue;
+    if (!std::isfinite(p.x_m) || !std::isfinite(p.y_m)) continue;
+    const std::size_t k =
+        std::max<std::size_t>(1, std::upper_bound(tr.t.begin(), tr.t.end(), p.t_s) - tr.t.begin());
+    const std::size_t k1 = std::min(k, tr.t.size() - 1);
+    const double a =
+        tr.t[k1] > tr.t[k1 - 1] ? (p.t_s - tr.t[k1 - 1]) / (tr.t[k1] - tr.t[k1 - 1]) : 0;
+    const double x = tr.x[k1 - 1] + a * (tr.x[k1] - tr.x[k1 - 1]);
+    const double y = tr.y[k1 - 1] + a * (tr.y[k1] - tr.y[k1 - 1]);
+    const double ph = tr.phi[k1 - 1] + a * (tr.phi[k1] - tr.phi[k1 - 1]);
+    t.push_back(p.t_s);
+    qx.push_back(x + std::cos(ph) * lx - std::sin(ph) * ly);
+    qy.push_back(y + std::sin(ph) * lx + std::cos(ph) * ly);
+    zx.push_back(p.x_m), zy.push_back(p.y_m);
+  }
+  const std::size_t n = t.size();
+  st.fixes += n;
+  const double s_cfg = cfg.pozyx.noise_m;
+  // Leave-one-out innovations against a robust local SE(2) alignment.
+  std::vector<double> ex(n, 0), ey(n, 0), nw(n, 0);
+  std::vector<char> tested(n, 0);
+  std::size_t lo = 0, hi = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    while (t[lo] < t[i] - o.pozyx_window_s) ++lo;
+    while (hi < n && t[hi] <= t[i] + o.pozyx_window_s) ++hi;
+    if (static_cast<int>(hi - lo) - 1 < o.pozyx_min_window_fixes) continue;
+    std::vector<double> w(hi - lo, 1.0);
+    w[i - lo] = 0;  // leave the fix itself out
+    double th = 0, Tx = 0, Ty = 0;
+    for (int it = 0; it < 6; ++it) {
+      double W = 0, qbx = 0, qby = 0, zbx = 0, zby = 0;
+      for (std::size_t j = lo; j < hi; ++j) {
+        const double wj = w[j - lo];
+        W += wj, qbx += wj * qx[j], qby += wj * qy[j], zbx += wj * zx[j], zby += wj * zy[j];
+      }
+      if (W <= 0) break;
+      qbx /= W, qby /= W, zbx /= W, zby /= W;
+      double h00 = 0, h01 = 0, h10 = 0, h11 = 0;
+      for (std::size_t j = lo; j < hi; ++j) {
+        const double wj = w[j - lo];
+        const double ax = qx[j] - qbx, ay = qy[j] - qby, bx = zx[j] - zbx, by = zy[j] - zby;
+        h00 += wj * ax * bx, h01 += wj * ax * by, h10 += wj * ay * bx, h11 += wj * ay * by;
+      }
+      th = std::atan2(h01 - h10, h00 + h11);
+      const double c = std::cos(th), sn = std::sin(th);
+      Tx = zbx - (c * qbx - sn * qby);
+      Ty = zby - (sn * qbx + c * qby);
+      // Tukey biweight on the residuals (scale: robust, floored by the configured noise).
+      std::vector<double> r(hi - lo);
+      std::vector<double> ra;
+      for (std::size_t j = lo; j < hi; ++j) {
+        const double rx = zx[j] - (c * qx[j] - sn * qy[j] + Tx);
+        const double ry = zy[j] - (sn * qx[j] + c * qy[j] + Ty);
+        r[j - lo] = std::hypot(rx, ry);
+        if (j != i) ra.push_back(std::abs(rx)), ra.push_back(std::abs(ry));
+      }
+      const double sc = std::max(s_cfg, 1.4826 * median(ra));
+      const double cc = 4.685 * sc * std::sqrt(2.0);
+      for (std::size_t j = lo; j < hi; ++j) {
+        const double u = r[j - lo] / cc;
+        w[j - lo] = j == i ? 0.0 : (u < 1 ? (1 - u * u) * (1 - u * u) : 0.0);
+      }
+    }
+    const double c = std::cos(th), sn = std::sin(th);
+    ex[i] = zx[i] - (c * qx[i] - sn * qy[i] + Tx);
+    ey[i] = zy[i] - (sn * qx[i] + c * qy[i] + Ty);
+    nw[i] = static_cast<double>(hi - lo - 1);
+    tested[i] = 1;
+  }
+  std::vector<double> ae;
+  for (std::size_t i = 0; i < n; ++i)
+    if (tested[i]) ae.push_back(std::abs(ex[i])), ae.push_back(std::abs(ey[i]));
+  if (ae.empty()) return;
+  const double s_est = 1.4826 * median(ae);
+  const double sig = std::max(s_cfg, s_est);
+  st.noise_used_m = std::max(st.noise_used_m, sig);
+  st.noise_estimated_m = std::max(st.noise_estimated_m, s_est);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!tested[i]) continue;
+    ++st.tested;
+    const double var = sig * sig * (1 + 1.0 / std::max(1.0, nw[i]));
+    keep.push_back({t[i], (ex[i] * ex[i] + ey[i] * ey[i]) / var, std::hypot(ex[i], ey[i])});
+  }
+}
+
+}  // namespace
+
+SensorFaultReport detectSensorFaults(const std::vector<io::Recording>& recs,
+                                     const config::WheelchairConfig& cfg, const Corrections& corr,
+                                     const SensorFaultOptions& o) {
+  SensorFaultReport rep;
+  // ---- sonar
+  SonarStats ss;
+  for (const auto& r : recs) sonarRecording(r, cfg, o, ss);
+  if (ss.readings > 0) {
+    const std::size_t failed = ss.dropout_readings + ss.out_of_range;
+    const std::size_t expected = ss.valid + failed;
+    nlohmann::json info = {{"readings", ss.readings},
+                           {"zero_readings", ss.zeros},
+                           {"zero_fraction", double(ss.zeros) / ss.readings},
+                           {"valid_readings", ss.valid},
+                           {"zero_runs", ss.zero_runs},
+                           {"zero_runs_tested", ss.tested_runs},
+                           {"dropout_runs", ss.dropout_runs},
+                           {"dropout_readings", ss.dropout_readings},
+                           {"out_of_range_readings", ss.out_of_range},
+                           {"noise_used_m", ss.noise_used_m},
+                           {"noise_estimated_m", ss.noise_estimated_m}};
+    rep.info["sonar"] = info;
+    if (failed > 0) {
+      Finding f;
+      f.effect = "sonar_dropout";
+      f.is_fault = true;
+      f.channels = {"sonar"};
+      const double p = expected > 0 ? double(failed) / expected : 0.0;
+      std::vector<double> lens = ss.run_lengths;
+      for (std::size_t k = 0; k < ss.out_of_range; ++k) lens.push_back(1);
+      const double L =
+          lens.empty() ? 1.0 : std::accumulate(lens.begin(), lens.end(), 0.0) / lens.size();
+      double varL = 0;
+      for (double l : lens) varL += (l - L) * (l - L);
+      varL = lens.size() > 1 ? varL / (lens.size() - 1) : 0;
+      const double nr = std::max<double>(1, lens.size());
+      f.parameters = {{"probability", p}, {"burst_length", L}};
+      // Failures come in bursts: binomial variance inflated by the mean burst length.
+      f.uncertainty = {{"probability",
+                        std::sqrt(std::max(0.0, p * (1 - p)) * L / std::max<double>(1, expected))},
+                       {"burst_length", std::sqrt(varL / nr)}};
+      f.evidence = info;
+      f.evidence["test"] =
+          "zero runs that interrupt a continuing target track (2-dof chi-square continuity test "
+          "of the range tracks on both sides), plus non-zero readings outside the range band "
+          "(Bonferroni)";
+      f.segments = mergeSegments(ss.intervals);
+      f.description = fmt::format(
+          "the sonar fails on {:.1f}% of the readings where an echo was expected ({} of {}), in "
+          "bursts of {:.1f} readings on average ({} runs of 0 inside a target track{}): a sensor "
+          "fault (no echo / failed reading), not physics; those readings must be ignored",
+          100 * p, failed, expected, L, ss.dropout_runs,
+          ss.out_of_range ? fmt::format(", {} readings out of range", ss.out_of_range) : "");
+      rep.findings.push_back(f);
+    }
+  }
+  // ---- Pozyx
+  PozyxStats ps;
+  std::vector<std::vector<double>> keep;  // t, d2, |e|
+  for (const auto& r : recs) pozyxRecording(r, cfg, corr, o, ps, keep);
+  if (ps.tested > 0) {
+    ps.threshold_chi2 = -2.0 * std::log(o.alpha / static_cast<double>(ps.tested));
+    std::vector<std::pair<double, double>> iv;
+    for (auto& k : keep)
+      if (k[1] > ps.threshold_chi2) {
+        ++ps.outliers;
+        ps.outlier_times.push_back(k[0]);
+        ps.outlier_mag.push_back(k[2]);
+        iv.push_back({k[0], k[0]});
+      }
+    nlohmann::json info = {{"fixes", ps.fixes},
+                           {"fixes_tested", ps.tested},
+                           {"outliers", ps.outliers},
+                           {"threshold_chi2_2dof", ps.threshold_chi2},
+                           {"bonferroni_level", o.alpha / static_cast<double>(ps.tested)},
+                           {"noise_used_m", ps.noise_used_m},
+                           {"noise_estimated_m", ps.noise_estimated_m},
+                           {"window_s", o.pozyx_window_s}};
+    rep.info["pozyx"] = info;
+    if (ps.outliers > 0) {
+      Finding f;
+      f.effect = "pozyx_outliers";
+      f.is_fault = true;
+      f.channels = {"pozyx"};
+      const double rate = double(ps.outliers) / ps.tested;
+      const double mag = median(ps.outlier_mag);
+      f.parameters = {{"rate", rate}, {"magnitude_m", mag}};
+      double mad = 0;
+      {
+        std::vector<double> dev;
+        for (double m : ps.outlier_mag) dev.push_back(std::abs(m - mag));
+        mad = 1.4826 * median(dev);
+      }
+      f.uncertainty = {{"rate", std::sqrt(rate * (1 - rate) / ps.tested)},
+                       {"magnitude_m", 1.2533 * mad / std::sqrt(double(ps.outliers))}};
+      f.evidence = info;
+      std::vector<double> times = ps.outlier_times;
+      if (times.size() > 200) times.resize(200);
+      f.evidence["outlier_times_s"] = times;
+      f.segments = mergeSegments(iv);
+      f.description = fmt::format(
+          "{} of {} Pozyx fixes ({:.1f}%) lie far outside their noise ({:.2f} m) from the "
+          "odometric track, displaced by {:.2f} m (median): non-line-of-sight / multipath UWB "
+          "fixes, a sensor fault, not physics; gate them in the estimator",
+          ps.outliers, ps.tested, 100 * rate, ps.noise_used_m, mag);
+      rep.findings.push_back(f);
+    }
+  }
+  return rep;
+}
+
+}  // namespace wheelchair::diagnosis

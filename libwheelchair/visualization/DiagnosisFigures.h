@@ -1,0 +1,110 @@
+// Figures and index of `wheelchair diagnose --report DIR` (docs/visualization.md, "Diagnosis
+// report"; issue 7 step 5): what the corrected model changes on data NOT used for fitting.
+//
+// Inputs are the diagnosis JSON (the documented contract of docs/discovery.md, as written by
+// `--json`), the input and the corrected configuration (with [model_extensions]) and the
+// rawlog paths, so the figures can also be made later from files. The corrected model is
+// applied exactly as `wheelchair filter` applies it (estimation::ModelExtensions: sensor
+// effects inverted on the raw data, drive-train extension currents removed from the measured
+// currents, payload written into [vehicle]); a ground_slope finding is added to the drive
+// model of the current residuals (the filter cannot apply it without the heading).
+//
+// Validation data: the --validate recordings; without them the fit recordings, whose first
+// `fit_fraction` (the part the diagnosis fitted on) is shaded in the time plots and left out
+// of the statistics in the legends.
+//
+// Files (a suffix _<k> per validation recording when there are several):
+//   residual_gyro_omega.png     gyro minus encoder omega, mean over windows of window_s
+//                               (the stage-1 channel), before / after the correction (rad/s)
+//   residual_current_right.png  measured minus model (6) current of the right motor, zero-phase
+//   residual_current_left.png   filtered at cutoff_hz like the stage-2 channel, before / after (A)
+//   trajectories.png            encoder odometry, encoder v + gyro omega and the EKF with the
+//                               nominal (dashed) and the corrected (solid) model, ground truth
+//   trajectory_error.png        their position error against the ground truth over time
+//   drift.png                   command-driven recordings (MRCLAM): open-loop drift of the
+//                               command-response model before / after (from the JSON)
+//   index.md                    findings with parameters +- sigma, evidence, before/after
+//                               numbers of the JSON, per-channel validation statistics, the
+//                               trajectory errors, the figures and the corrected configuration
+//   summary.txt, diagnosis.json the command's text summary and the full JSON
+//
+// Ground truth in the figures: the simulator's truth (<rawlog>.truth.json) when present, else
+// the recording's Pozyx / ground-truth stream mapped into the start frame by the SE(2)
+// alignment of the CORRECTED EKF over the first `align_first_s` seconds (one transform for
+// every curve, so the drift of the uncorrected ones stays visible).
+//
+// Example:
+//   DiagnosisFigureOptions o;  o.out_dir = "rep";  o.summary_text = text;
+//   auto r = writeDiagnosisFigures(rep.toJson(), cfg, diagnosis::correctedConfig(cfg, rep),
+//                                  {"a.rawlog"}, {"b.rawlog"}, o);
+#pragma once
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/io/Recording.h"
+
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace wheelchair::visualization {
+
+struct DiagnosisFigureOptions {
+  std::string out_dir;
+  int width = 1000, height = 620;  ///< time plots (px); the trajectory plot is wider
+  double window_s = 0.2;           ///< [diagnosis] window_s: gyro-vs-encoder windows
+  double cutoff_hz = 2.0;          ///< [diagnosis] cutoff_hz: current residual low-pass
+  double grid_rate_hz = 50.0;      ///< [diagnosis] grid_rate_hz
+  double max_gap_s = 0.25;         ///< [diagnosis] max_gap_s: a longer gap splits a segment
+  double edge_trim_s = 1.0;        ///< [diagnosis] edge_trim_s: dropped at segment ends
+  double fit_fraction = 0.7;       ///< [diagnosis] fit_fraction (no validation recordings)
+  double align_first_s = 10.0;     ///< ground-truth frame without a truth file (see above)
+  std::size_t max_recordings = 4;  ///< validation recordings drawn (the index lists all)
+  std::string summary_text;        ///< written as summary.txt and quoted in index.md
+};
+
+struct DiagnosisFigureResult {
+  std::vector<std::string> figures;  ///< PNG paths written
+  std::string index_path;
+  std::vector<std::string> notes;  ///< what was skipped and why
+};
+
+/// Writes the figures, index.md, summary.txt and diagnosis.json into options.out_dir
+/// (created). `report` is the diagnosis JSON. Throws on an unwritable directory; a recording
+/// that cannot be read or drawn, or lacks the streams a figure needs, only skips its figures
+/// (said in `notes` and index.md).
+DiagnosisFigureResult writeDiagnosisFigures(const nlohmann::json& report,
+                                            const config::WheelchairConfig& input_cfg,
+                                            const config::WheelchairConfig& corrected_cfg,
+                                            const std::vector<std::string>& fit_paths,
+                                            const std::vector<std::string>& validate_paths,
+                                            const DiagnosisFigureOptions& options);
+
+// ---- building blocks (for reuse and tests) ----
+
+/// A residual over time (recording clock).
+struct ResidualSeries {
+  std::vector<double> t_s, r;
+};
+
+/// Gyro minus encoder angular velocity (rad/s), each the mean over consecutive windows of
+/// encoder samples of about window_s: (integral of gyro_z - odometric heading change) / T.
+ResidualSeries gyroEncoderResidual(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                                   double window_s);
+
+/// Per motor (0 right, 1 left): measured current minus the drive model's current for the
+/// motion seen by the encoders (model::DriveTrain of cfg's [vehicle], plus a floor slope when
+/// slope_rad != 0), both zero-phase filtered at cutoff_hz on a grid of grid_rate_hz.
+std::array<ResidualSeries, 2> currentResiduals(const io::Recording& rec,
+                                               const config::WheelchairConfig& cfg,
+                                               const DiagnosisFigureOptions& options,
+                                               double slope_rad = 0.0,
+                                               double downhill_heading_rad = 0.0);
+
+/// The recording and configuration the corrected model sees: [model_extensions] of
+/// `corrected_cfg` applied as the filter applies them (estimation::ModelExtensions).
+void applyCorrection(const io::Recording& rec, const config::WheelchairConfig& corrected_cfg,
+                     io::Recording& rec_out, config::WheelchairConfig& cfg_out);
+
+}  // namespace wheelchair::visualization

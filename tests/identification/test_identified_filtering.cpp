@@ -1,0 +1,175 @@
+// Issue 5, last check: "Filtering with the identified configuration is at least as good as with
+// the nominal one on a different recording of the same vehicle" (docs/identification.md, 8).
+//
+// A truth vehicle that differs from the nominal configuration (gearbox efficiency, yaw
+// inertia, motor viscous friction, a heavier passenger) drives the exciting scenario in the
+// project's truth simulator (`wheelchair simulate --config truth.ini`); `wheelchair identify
+// --write-config` identifies it with the nominal configuration as input. OTHER drives of the
+// same vehicle (other scenarios, other seeds) are then filtered by the physics CD-EKF with the
+// nominal and with the identified configuration, and the estimates are compared with the
+// simulator's truth: velocity states v, omega (RMSE) and the pose (RMSE of the position,
+// start frame), plus the encoders' and gyro's mean NIS. Needs the `wheelchair` program.
+#include "../common/TestUtil.h"
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/estimation/EkfOptions.h"
+#include "libwheelchair/estimation/Estimator.h"
+#include "libwheelchair/simulation/Simulator.h"
+
+#include <fmt/core.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <vector>
+
+using namespace wheelchair;
+
+namespace {
+
+struct FilterErrors {
+  double v_rmse = 0, omega_rmse = 0, pos_rmse = 0, nis_enc = 0, nis_gyro = 0;
+};
+
+/// EKF estimates against the simulator's truth (linear interpolation at the estimate times).
+FilterErrors filterErrors(const simulation::SimulationResult& sim,
+                          const config::WheelchairConfig& cfg) {
+  estimation::EkfOptions opt;
+  opt.loadFromConfig(cfg.ini(), "estimator");
+  opt.filter = estimation::FilterKind::Physics;
+  const auto res = estimation::runEstimator(sim.recording, cfg, opt);
+  const auto& tr = sim.truth.samples;
+  double sv = 0, sw = 0, sp = 0;
+  std::size_t n = 0, k = 1;
+  for (const auto& e : res.estimates) {
+    while (k + 1 < tr.size() && tr[k].t_s < e.t_s) ++k;
+    if (e.t_s < tr.front().t_s || e.t_s > tr.back().t_s) continue;
+    const auto &a = tr[k - 1], &b = tr[k];
+    const double f = b.t_s > a.t_s ? std::clamp((e.t_s - a.t_s) / (b.t_s - a.t_s), 0.0, 1.0) : 0;
+    auto lerp = [&](double x0, double x1) { return x0 + f * (x1 - x0); };
+    sv += std::pow(e.x(0) - lerp(a.v_m_s, b.v_m_s), 2);
+    sw += std::pow(e.x(1) - lerp(a.omega_rad_s, b.omega_rad_s), 2);
+    sp += std::pow(e.x(2) - lerp(a.x_m, b.x_m), 2) + std::pow(e.x(3) - lerp(a.y_m, b.y_m), 2);
+    ++n;
+  }
+  FilterErrors out;
+  if (n == 0) return out;
+  out.v_rmse = std::sqrt(sv / n);
+  out.omega_rmse = std::sqrt(sw / n);
+  out.pos_rmse = std::sqrt(sp / n);
+  out.nis_enc = res.stats(estimation::Sensor::Encoders).meanNis();
+  out.nis_gyro = res.stats(estimation::Sensor::Gyro).meanNis();
+  return out;
+}
+
+struct Drive {
+  const char* scenario;
+  uint64_t seed;
+};
+
+struct Comparison {
+  std::vector<std::pair<FilterErrors, FilterErrors>> runs;  ///< (nominal, identified) per drive
+  std::string table;
+};
+
+/// Simulates the truth vehicle's exciting drive, identifies it through the CLI (nominal
+/// configuration as input, --write-config), then filters other drives with both configurations.
+Comparison compare(const config::WheelchairConfig& truth, const std::vector<Drive>& drives,
+                   const test::TempDir& dir) {
+  Comparison c;
+  const std::string nominal_ini = test::sourcePath("config/wheelchair.ini");
+  const auto nominal = config::WheelchairConfig::load(nominal_ini);
+  truth.save(dir / "truth.ini");
+  const std::string excite = dir / "excite.rawlog";
+  const auto sim = test::cli("simulate --scenario excite --seed 4 --duration 120 --config " +
+                             (dir / "truth.ini") + " -o " + excite);
+  EXPECT_EQ(sim.exit_code, 0) << sim.out;
+  const auto id = test::cli("identify " + excite + " --config " + nominal_ini + " --json " +
+                            (dir / "id.json") + " --write-config " + (dir / "id.ini"));
+  EXPECT_EQ(id.exit_code, 0) << id.out;
+  if (sim.exit_code != 0 || id.exit_code != 0) return c;
+  const auto identified = config::WheelchairConfig::load(dir / "id.ini");
+  simulation::SimulationOptions so;
+  so.loadFromConfig(truth.ini(), "simulation");
+  c.table = fmt::format(
+      "| drive | config | v RMSE (m/s) | omega RMSE (rad/s) | position RMSE (m) | "
+      "mean NIS encoders | mean NIS gyro |\n|---|---|---:|---:|---:|---:|---:|\n");
+  for (const Drive& d : drives) {
+    const auto s = simulation::simulate(truth, d.scenario, d.seed, 0, {}, so);
+    const auto en = filterErrors(s, nominal), ei = filterErrors(s, identified);
+    for (auto [name, e] : {std::pair{"nominal", en}, std::pair{"identified", ei}})
+      c.table += fmt::format("| {} seed {} | {} | {:.6f} | {:.6f} | {:.6f} | {:.4f} | {:.4f} |\n",
+                             d.scenario, d.seed, name, e.v_rmse, e.omega_rmse, e.pos_rmse,
+                             e.nis_enc, e.nis_gyro);
+    c.runs.push_back({en, ei});
+  }
+  std::printf("%s", c.table.c_str());
+  return c;
+}
+
+double mean(const std::vector<std::pair<FilterErrors, FilterErrors>>& runs, bool identified,
+            double FilterErrors::*m) {
+  double s = 0;
+  for (const auto& r : runs) s += (identified ? r.second : r.first).*m;
+  return runs.empty() ? 0 : s / runs.size();
+}
+
+const std::vector<Drive> kDrives{{"three_task", 11}, {"square", 12}, {"excite", 13},
+                                 {"three_task", 14}, {"square", 15}, {"excite", 16}};
+
+}  // namespace
+
+// Tolerances (docs/identification.md, 8, has the measured table over 12 drives): the
+// comparison is PAIRED (both configurations filter the same recording), because the
+// seed-to-seed spread of the position RMSE (9.3 +- 5.1 mm over 12 drives) dwarfs any effect
+// of the model. The paired relative differences identified/nominal - 1 measured:
+//   v      -15.6 % +- 2.4 % (all 12 drives better, worst -12.9 %)
+//   omega   -1.5 % +- 1.3 % (all better, worst -0.2 %)
+//   pos    +0.05 % +- 0.29 % (both signs, worst +0.8 %: the position is set by the encoder,
+//          gyro and Pozyx updates; the dynamics only shape the prediction between them)
+//   NIS    encoders -5.6 % +- 0.9 %, gyro -6.7 % +- 4.9 % (all lower)
+// "No worse" allows +2 % per drive (about 7 standard deviations of the paired position
+// difference, 2.5 x its worst case) and +0.5 % on the mean over drives; "strictly better" on
+// v requires -5 % on every drive (4 standard deviations short of the measured mean).
+TEST(IdentifiedFiltering, DifferentVehicleIdentifiedConfigFiltersBetter) {
+  if (!std::filesystem::exists(WHEELCHAIR_CLI)) GTEST_SKIP() << WHEELCHAIR_CLI << " not built";
+  test::TempDir dir;
+  // The vehicle as it really is: less efficient gearbox, more yaw inertia and viscous
+  // friction, a heavier passenger: a1 -21 %, a2 -31 %, a3 +9 %, a4 -5 % from the nominal ones.
+  auto truth = config::WheelchairConfig::load(test::sourcePath("config/wheelchair.ini"));
+  truth.vehicle.gearbox_efficiency = 0.75;        // nominal 0.85
+  truth.vehicle.yaw_inertia_kg_m2 = 11.0;         // nominal 8.0
+  truth.vehicle.motor_viscous_Nm_s_rad = 3.2e-3;  // nominal 2.3e-3
+  truth.vehicle.geom.body_mass_kg += 20.0;        // nominal 130 kg
+  truth.syncToIni();
+  const auto c = compare(truth, kDrives, dir);
+  ASSERT_EQ(c.runs.size(), kDrives.size());
+  for (std::size_t k = 0; k < c.runs.size(); ++k) {
+    const auto& [n, i] = c.runs[k];
+    EXPECT_LT(i.v_rmse, 0.95 * n.v_rmse) << k;  // strictly better velocity states
+    EXPECT_LE(i.omega_rmse, 1.02 * n.omega_rmse) << k;
+    EXPECT_LE(i.pos_rmse, 1.02 * n.pos_rmse) << k;
+    EXPECT_LE(i.nis_enc, 1.02 * n.nis_enc) << k;
+    EXPECT_LE(i.nis_gyro, 1.02 * n.nis_gyro) << k;
+  }
+  EXPECT_LT(mean(c.runs, true, &FilterErrors::omega_rmse),
+            mean(c.runs, false, &FilterErrors::omega_rmse));
+  EXPECT_LE(mean(c.runs, true, &FilterErrors::pos_rmse),
+            1.005 * mean(c.runs, false, &FilterErrors::pos_rmse));
+}
+
+// The null case: the vehicle IS the nominal one; identifying it must not make filtering worse.
+TEST(IdentifiedFiltering, NominalVehicleIdentifiedConfigIsNoWorse) {
+  if (!std::filesystem::exists(WHEELCHAIR_CLI)) GTEST_SKIP() << WHEELCHAIR_CLI << " not built";
+  test::TempDir dir;
+  const auto truth = config::WheelchairConfig::load(test::sourcePath("config/wheelchair.ini"));
+  const auto c = compare(truth, {kDrives.begin(), kDrives.begin() + 3}, dir);
+  ASSERT_EQ(c.runs.size(), 3u);
+  for (std::size_t k = 0; k < c.runs.size(); ++k) {
+    const auto& [n, i] = c.runs[k];
+    EXPECT_LE(i.v_rmse, 1.02 * n.v_rmse) << k;
+    EXPECT_LE(i.omega_rmse, 1.02 * n.omega_rmse) << k;
+    EXPECT_LE(i.pos_rmse, 1.02 * n.pos_rmse) << k;
+  }
+}
