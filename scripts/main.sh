@@ -32,7 +32,8 @@ sed -n '/^| recording/,/^$/p' "$OUT/metrics_nominal.md"
 
 step "5. diagnose: what physics does the model leave out? (validated on another drive)"
 "$BIN" diagnose "$OUT/three_task_faulty.rawlog" --validate "$OUT/three_task_faulty_b.rawlog" \
-  --config "$CFG" --json "$OUT/diagnosis.json" --write-config "$OUT/corrected.ini"
+  --config "$CFG" --json "$OUT/diagnosis.json" --write-config "$OUT/corrected.ini" \
+  --report "$OUT/diagnosis"
 
 step "6. the other drive, filtered with the nominal and with the corrected configuration"
 "$BIN" evaluate "$OUT/three_task_faulty_b.rawlog" --config "$CFG" -q --no-baseline \
@@ -45,5 +46,12 @@ echo "corrected model:"; sed -n '/^| recording/,/^$/p' "$OUT/metrics_validation_
 step "7. report: figures like the paper's Fig. 5-8 and the metrics"
 "$BIN" report "$OUT/three_task_faulty.rawlog" --config "$CFG" -o "$OUT/report" \
   --truth datasets/three_task_faulty.truth.json
+
+step "8. real data: a UTIAS MRCLAM robot (commands + landmark sightings), EKF vs Vicon"
+"$BIN" import --format mrclam datasets/mrclam --robot 3 -o "$OUT/mrclam_robot3.rawlog"
+"$BIN" evaluate "$OUT/mrclam_robot3.rawlog" --config config/mrclam.ini -q --alignment none \
+  --markdown "$OUT/metrics_mrclam.md"
+sed -n '/^| recording/,/^$/p' "$OUT/metrics_mrclam.md"
+
 echo
-echo "done: results in $OUT/ (report: $OUT/report/index.md)"
+echo "done: results in $OUT/ (report: $OUT/report/index.md, diagnosis: $OUT/diagnosis/index.md)"
