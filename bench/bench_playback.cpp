@@ -34,8 +34,11 @@ struct Fixture {
   std::size_t measurements = 0;
 
   Fixture() {
-    cfg = config::WheelchairConfig::load(std::string(WHEELCHAIR_SOURCE_DIR) +
-                                         "/config/wheelchair.ini");
+    // WHEELCHAIR_BENCH_CONFIG: another configuration (e.g. other CVODE tolerances).
+    const char* cfg_env = std::getenv("WHEELCHAIR_BENCH_CONFIG");
+    cfg = config::WheelchairConfig::load(
+        cfg_env ? std::string(cfg_env)
+                : std::string(WHEELCHAIR_SOURCE_DIR) + "/config/wheelchair.ini");
     const char* env = std::getenv("WHEELCHAIR_BENCH_DURATION_S");
     const double duration = env ? std::atof(env) : 600.0;
     simulation::SimulationOptions so;

@@ -687,6 +687,14 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
           sasym[s] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
         }
       }
+      // The slope regressor is scaled with the configured mass; when the payload is found too,
+      // the same current means a smaller angle on the heavier chair (sin a = s M_nominal / M).
+      double payload_dm_kg = 0;
+      for (size_t a = 0; a < sel.accepted.size(); ++a)
+        if (cands[sel.accepted[a]].effect == "payload_mass")
+          payload_dm_kg = sel.fit.beta(sel.ranges[a].first);
+      const double slope_mass_scale = (mb + 2 * cfg.vehicle.geom.wheel_mass_kg) /
+                                      (mb + payload_dm_kg + 2 * cfg.vehicle.geom.wheel_mass_kg);
       bool asym_done = false;
       for (size_t a = 0; a < sel.accepted.size(); ++a) {
         const Candidate& c = cands[sel.accepted[a]];
@@ -752,6 +760,9 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
               std::abs(b(0)) / (mb + 2 * cfg.vehicle.geom.wheel_mass_kg + 17.1) * 100,
               b(0) > 0 ? "more" : "less", m, std::sqrt(C(0, 0)), mb);
         } else if (c.effect == "ground_slope") {
+          const double s_current = std::hypot(b(0), b(1));  // in units of the nominal M g / 2
+          b *= slope_mass_scale;
+          C *= slope_mass_scale * slope_mass_scale;
           double s = std::hypot(b(0), b(1));
           double ang = std::asin(std::min(1.0, s)) * kRad2Deg;
           double head = std::atan2(b(1), b(0)) * kRad2Deg;
@@ -771,8 +782,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
               "towards "
               "{:.0f} deg (+- {:.0f})",
               head, head + 180,
-              s * (cfg.vehicle.geom.body_mass_kg + 2 * cfg.vehicle.geom.wheel_mass_kg) * 9.81 / 2 *
-                  cfg.vehicle.geom.wheel_radius_m / cfg.vehicle.geom.gear_ratio /
+              s_current * (cfg.vehicle.geom.body_mass_kg + 2 * cfg.vehicle.geom.wheel_mass_kg) *
+                  9.81 / 2 * cfg.vehicle.geom.wheel_radius_m / cfg.vehicle.geom.gear_ratio /
                   (cfg.vehicle.gearbox_efficiency * cfg.vehicle.torque_constant_Nm_A),
               ang, sa, head, sh);
         } else if (c.effect == "sensor_delay") {
@@ -978,7 +989,8 @@ io::Recording correctRecording(const io::Recording& rec, const config::Wheelchai
     const double theta5 = P.motor_viscous_Nm_s_rad / P.torque_constant_Nm_A, rG = P.geom.gear_ratio,
                  r = P.geom.wheel_radius_m;
     const double alpha = 1.0 / (P.gearbox_efficiency * P.torque_constant_Nm_A);
-    const double Mg2 = (P.geom.body_mass_kg + 2 * P.geom.wheel_mass_kg) * 9.81 / 2;
+    // The reported slope angle is physical: its force uses the corrected mass.
+    const double Mg2 = (P.geom.body_mass_kg + dm + 2 * P.geom.wheel_mass_kg) * 9.81 / 2;
     for (size_t i = 0; i < out.motors.size(); ++i) {
       double u[2] = {uRm[i], uLm[i]};
       double extra[2];
