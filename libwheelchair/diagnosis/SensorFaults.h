@@ -20,10 +20,15 @@
 //                   the gyro when present, stage-1 corrections applied, tag lever arm from the
 //                   configuration) mapped into the anchor frame by a robust (Tukey IRLS) local
 //                   SE(2) fit over +-`pozyx_window_s`, leaving the fix itself out; the noise
-//                   scale is max(configured noise, 1.4826 MAD of the innovations). A fix is an
-//                   outlier when |e|^2 / s^2 exceeds the chi-square(2) quantile at alpha / n
-//                   (Bonferroni over the n fixes): the family-wise false-alarm rate of a clean
-//                   recording stays <= alpha. Parameters: `rate` (outliers / fixes),
+//                   scale is max(configured noise, 1.4826 MAD of the innovations); the
+//                   variance adds the left-out fix's prediction variance (translation and
+//                   rotation of the local fit). A fix is an outlier when |e|^2 / s^2 exceeds
+//                   the chi-square(2) quantile at p0 = 1/n (one such fix expected when clean);
+//                   the FAULT is declared when the count k of outliers is significant against
+//                   Binomial(n, p0) at level alpha (an outlier process, not one rare Gaussian
+//                   fix: 1 fix never fires) AND the largest is beyond the Bonferroni level
+//                   alpha / n (a cluster of moderate exceedances from a local track error is
+//                   not a UWB fault). Parameters: `rate` (k / fixes),
 //                   `magnitude_m` (median displacement of the outliers).
 //
 // Example:
