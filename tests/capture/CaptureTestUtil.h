@@ -21,10 +21,13 @@
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <string>
 #include <thread>
 #include <vector>
@@ -32,6 +35,27 @@
 extern char** environ;
 
 namespace wheelchair::test {
+
+/// True when this machine can open pseudo-terminals (/dev/ptmx + devpts). A bare chroot
+/// without /dev/pts mounted cannot; the capture tests that replay through ptys then skip,
+/// saying so, instead of failing for a reason that is not the code's.
+inline bool havePseudoTerminals(std::string* why = nullptr) {
+  const int m = posix_openpt(O_RDWR | O_NOCTTY);
+  if (m < 0) {
+    if (why) *why = std::string("posix_openpt: ") + std::strerror(errno);
+    return false;
+  }
+  close(m);
+  return true;
+}
+
+#define WHEELCHAIR_REQUIRE_PTYS()                                               \
+  do {                                                                          \
+    std::string why_no_pty;                                                     \
+    if (!::wheelchair::test::havePseudoTerminals(&why_no_pty))                  \
+      GTEST_SKIP() << "no pseudo-terminals on this machine (" << why_no_pty     \
+                   << "; mount devpts on /dev/pts): the pty replay cannot run"; \
+  } while (0)
 
 inline std::string captureTemplate() {
   return sourcePath("config/capture.ini");

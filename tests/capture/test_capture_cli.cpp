@@ -65,6 +65,7 @@ struct InProcessReplay {
 }  // namespace
 
 TEST(CaptureCli, ReplaySerialIntoCaptureThenSigintGivesTheOriginalBack) {
+  WHEELCHAIR_REQUIRE_PTYS();
   TempDir tmp;
   const std::string dir = tmp / "recording";
   io::writeTextRecording(test::captureRecording(3.0), dir);
@@ -121,6 +122,7 @@ TEST(CaptureCli, ReplaySerialIntoCaptureThenSigintGivesTheOriginalBack) {
 }
 
 TEST(CaptureCli, KillDashNineLeavesEverythingUpToTheLastFlushReadable) {
+  WHEELCHAIR_REQUIRE_PTYS();
   TempDir tmp;
   const double speed = 2.0;
   const double duration = 12.0;
@@ -178,6 +180,7 @@ TEST(CaptureCli, KillDashNineLeavesEverythingUpToTheLastFlushReadable) {
 }
 
 TEST(CaptureCli, FullDiskStopsWithAClearErrorAndTheFileIntact) {
+  WHEELCHAIR_REQUIRE_PTYS();
   TempDir tmp;
   InProcessReplay rp(tmp, 10.0, 4.0, 2.5);  // (the program takes ~2 s to start here)
   const std::string mnt = tmp / "mnt";

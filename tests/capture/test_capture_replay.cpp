@@ -84,6 +84,7 @@ ScenarioResult runScenario(const TempDir& tmp, const io::Recording& rec,
 }  // namespace
 
 TEST(CaptureReplay, EveryValueAndTimestampArrivesExactlyOnce) {
+  WHEELCHAIR_REQUIRE_PTYS();
   TempDir tmp;
   capture::ReplayOptions ro;
   ro.speed = 8;
@@ -117,6 +118,7 @@ TEST(CaptureReplay, EveryValueAndTimestampArrivesExactlyOnce) {
 }
 
 TEST(CaptureReplay, GarbageAndPartialLinesAreCountedAndSkipped) {
+  WHEELCHAIR_REQUIRE_PTYS();
   TempDir tmp;
   capture::ReplayOptions ro;
   ro.speed = 8;
@@ -132,6 +134,7 @@ TEST(CaptureReplay, GarbageAndPartialLinesAreCountedAndSkipped) {
 }
 
 TEST(CaptureReplay, DeviceAbsentAtStartIsPickedUpWhenItAppears) {
+  WHEELCHAIR_REQUIRE_PTYS();
   TempDir tmp;
   capture::ReplayOptions ro;
   ro.speed = 4;
@@ -159,6 +162,7 @@ TEST(CaptureReplay, DeviceAbsentAtStartIsPickedUpWhenItAppears) {
 }
 
 TEST(CaptureReplay, UnplugReplugLogsTheGapAndLeavesOtherSourcesAlone) {
+  WHEELCHAIR_REQUIRE_PTYS();
   TempDir tmp;
   capture::ReplayOptions ro;
   ro.speed = 4;
