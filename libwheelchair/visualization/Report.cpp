@@ -265,14 +265,19 @@ void figureObstacle(const DriveData& d, double t, const std::string& png, int w,
                         2.4, LineStyle::Solid, 0.15});
     p.shapes.push_back({"2-sigma", covarianceEllipse(px, py, P(0, 0), P(0, 1), P(1, 1), 2.0),
                         colors::cyan, 1.4, LineStyle::Dashed, 0.0});
+    // The numbers go in the legend (outside the axes), where they are never clipped.
     p.series.push_back(
-        {"estimated obstacle", {px}, {py}, colors::green, LineStyle::None, 2, Marker::Circle, 12});
-    p.annotations.push_back(
-        {px, py,
-         fmt::format("d = {:.2f} +- {:.3f} m, theta = {:.1f} +- {:.1f} deg", e->obstacle_distance_m,
-                     e->obstacle_distance_sd_m, e->obstacle_bearing_rad * 180 / M_PI,
-                     e->obstacle_bearing_sd_rad * 180 / M_PI),
-         Color{0, 110, 0}, 0.75});
+        {fmt::format("estimated obstacle: d = {:.2f} +- {:.3f} m, theta = {:.1f} "
+                     "+- {:.1f} deg",
+                     e->obstacle_distance_m, e->obstacle_distance_sd_m,
+                     e->obstacle_bearing_rad * 180 / M_PI, e->obstacle_bearing_sd_rad * 180 / M_PI),
+         {px},
+         {py},
+         colors::green,
+         LineStyle::None,
+         2,
+         Marker::Circle,
+         12});
     xmax = std::max(xmax, px + 2 * std::sqrt(P(0, 0)) + 0.3);
     ymax = std::max(ymax, std::fabs(py) + 2 * std::sqrt(P(1, 1)) + 0.3);
   } else {
