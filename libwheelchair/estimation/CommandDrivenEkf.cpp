@@ -1,5 +1,7 @@
 #include "libwheelchair/estimation/CommandDrivenEkf.h"
 
+#include <nlohmann/json.hpp>
+
 #include "libwheelchair/estimation/ChiSquare.h"
 
 #include <fmt/format.h>
@@ -38,6 +40,33 @@ model::CommandSignal commandSignal(const io::Recording& rec, const CommandDriven
 }
 }  // namespace
 
+bool CommandDrivenEkfOptions::hasUnmodeled() const {
+  for (const auto& ch : unmodeled)
+    for (double c : ch)
+      if (c != 0) return true;
+  return false;
+}
+
+Eigen::Vector2d CommandDrivenEkfOptions::unmodeledVelocity(const Eigen::Vector2d& cmd) const {
+  const double fe[5] = {1, cmd(0), cmd(1), std::abs(cmd(1)), cmd(0) * std::abs(cmd(1))};
+  Eigen::Vector2d d = Eigen::Vector2d::Zero();
+  for (int k = 0; k < 5; ++k) d(0) += unmodeled[0][k] * fe[k], d(1) += unmodeled[1][k] * fe[k];
+  return d;
+}
+
+namespace {
+// Pose increment of the unmodeled velocities over h (midpoint heading), and its heading
+// Jacobian for the covariance.
+void addUnmodeled(model::CommandState& x, const Eigen::Vector2d& dv, double h,
+                  Eigen::Matrix<double, 5, 5>* Phi = nullptr) {
+  const double ds = dv(0) * h, dphi = dv(1) * h, a = x(2) + dphi / 2;
+  x(0) += ds * std::cos(a);
+  x(1) += ds * std::sin(a);
+  x(2) += dphi;
+  if (Phi) (*Phi)(0, 2) += -ds * std::sin(a), (*Phi)(1, 2) += ds * std::cos(a);
+}
+}  // namespace
+
 CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const std::string& path) {
   if (!std::filesystem::exists(path)) throw std::runtime_error(path + ": no such file");
   const mrpt::config::CConfigFile ini(path);
@@ -62,6 +91,15 @@ std::string toIni(const CommandDrivenEkfOptions& o) {
   kv("omega_gain_arc", p.omega_gain[static_cast<int>(K::Arc)]);
   s += fmt::format("ignore_zero_runs = {}\n", o.ignore_zero_runs ? "true" : "false");
   kv("max_zero_run_s", o.max_zero_run_s);
+  static const std::array<const char*, 5> names = {"1", "v_cmd", "omega_cmd", "|omega_cmd|",
+                                                   "v_cmd*|omega_cmd|"};
+  for (int ch = 0; ch < 2; ++ch) {
+    nlohmann::json u = nlohmann::json::object();
+    for (int k = 0; k < 5; ++k)
+      if (o.unmodeled[ch][k] != 0) u[names[k]] = o.unmodeled[ch][k];
+    if (!u.empty())
+      s += fmt::format("{} = {}\n", ch == 0 ? "unmodeled_v" : "unmodeled_omega", u.dump());
+  }
   s += "\n[mrclam_filter]\n";
   kv("dt_s", o.dt_s);
   kv("output_every_s", o.output_every_s);
@@ -130,6 +168,31 @@ CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const mrpt::config::CConfigF
   o.init_sigma_xy_m = ini.read_double(f, "init_sigma_xy_m", o.init_sigma_xy_m);
   o.init_sigma_phi_rad = ini.read_double(f, "init_sigma_phi_rad", o.init_sigma_phi_rad);
   o.init_from_geometry = ini.read_bool(f, "init_from_geometry", o.init_from_geometry);
+  for (int ch = 0; ch < 2; ++ch) {
+    const char* key = ch == 0 ? "unmodeled_v" : "unmodeled_omega";
+    const std::string text = ini.read_string(r, key, "");
+    if (text.empty()) continue;
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(text);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(
+          fmt::format("[{}] {}: not a JSON object of feature -> "
+                      "coefficient ({})",
+                      r, key, e.what()));
+    }
+    static const std::array<const char*, 5> names = {"1", "v_cmd", "omega_cmd", "|omega_cmd|",
+                                                     "v_cmd*|omega_cmd|"};
+    for (auto it = j.begin(); it != j.end(); ++it) {
+      const auto at = std::find(names.begin(), names.end(), it.key());
+      if (at == names.end() || !it.value().is_number())
+        throw std::runtime_error(
+            fmt::format("[{}] {}: unknown feature '{}' (known: 1, v_cmd, omega_cmd, |omega_cmd|, "
+                        "v_cmd*|omega_cmd|) or non-numeric coefficient",
+                        r, key, it.key()));
+      o.unmodeled[ch][at - names.begin()] = it.value().get<double>();
+    }
+  }
   auto& p = o.response;
   p.v.delay_s = ini.read_double(r, "v_delay_s", 0);
   p.v.time_constant_s = ini.read_double(r, "v_time_constant_s", 0);
@@ -246,6 +309,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   res.dropped_zero_runs = sig.droppedZeroRuns();
   const model::CommandDrivenModel mdl(o.response);
   const bool lag_v = o.response.v.time_constant_s > 0, lag_w = o.response.omega.time_constant_s > 0;
+  const bool unmodeled = o.hasUnmodeled();
   // Velocity states: start at the model's response (integrated from the first command).
   {
     double yv = 0, yw = 0;
@@ -271,7 +335,8 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   const auto emit = [&] {
     CommandDrivenEstimate e{t, x(0), x(1), wrap(x(2)), P(0, 0), P(1, 1), P(0, 1), P(2, 2)};
     // With no lag the velocity state is unused: the velocities in effect are the targets.
-    const Eigen::Vector2d vel = mdl.effectiveVelocity(x, mdl.target(sig, t));
+    const Eigen::Vector2d vel =
+        mdl.effectiveVelocity(x, mdl.target(sig, t)) + o.unmodeledVelocity(sig.at(t));
     e.v_m_s = vel(0);
     e.omega_rad_s = vel(1);
     e.var_v = P(3, 3);
@@ -304,7 +369,9 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
       if (lag_w) Gw(4, 3) = 1;
       const Eigen::Matrix4d Qc = Eigen::Vector4d(o.q_v, o.q_omega, o.q_v, o.q_omega).asDiagonal();
       x = mdl.step(x, u, h);
-      P = Phi * P * Phi.transpose() + Gw * Qc * Gw.transpose() * h;
+      Eigen::Matrix<double, 5, 5> Phi_u = Phi;
+      if (unmodeled) addUnmodeled(x, o.unmodeledVelocity(sig.at(t + h / 2)), h, &Phi_u);
+      P = Phi_u * P * Phi_u.transpose() + Gw * Qc * Gw.transpose() * h;
       P = 0.5 * (P + P.transpose());
       t += h;
       if (t >= next_out - 1e-9) {
@@ -355,7 +422,8 @@ std::vector<CommandDrivenEstimate> deadReckoningCommands(const io::Recording& re
   const double t_end = sig.endTime();
   const auto emit = [&] {
     CommandDrivenEstimate e{t, x(0), x(1), wrap(x(2)), 0, 0, 0, 0};
-    const Eigen::Vector2d vel = mdl.effectiveVelocity(x, mdl.target(sig, t));
+    const Eigen::Vector2d vel =
+        mdl.effectiveVelocity(x, mdl.target(sig, t)) + o.unmodeledVelocity(sig.at(t));
     e.v_m_s = vel(0);
     e.omega_rad_s = vel(1);
     out.push_back(e);
@@ -365,6 +433,7 @@ std::vector<CommandDrivenEstimate> deadReckoningCommands(const io::Recording& re
   while (t < t_end - 1e-12) {
     const double h = std::min(o.dt_s, t_end - t);
     x = mdl.step(x, mdl.target(sig, t + h / 2), h);
+    if (o.hasUnmodeled()) addUnmodeled(x, o.unmodeledVelocity(sig.at(t + h / 2)), h);
     t += h;
     if (t >= next_out - 1e-9) emit();
   }

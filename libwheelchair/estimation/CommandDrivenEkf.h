@@ -36,6 +36,7 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <functional>
 #include <string>
 #include <vector>
@@ -62,6 +63,14 @@ struct CommandDrivenEkfOptions {
   double init_sigma_xy_m = 0.1;
   double init_sigma_phi_rad = 0.1;
   bool init_from_geometry = false;  ///< add the propagated sighting noise to the initial P
+  /// Terms outside the catalogue found by `wheelchair diagnose` ([mrclam_response]
+  /// unmodeled_v / unmodeled_omega, JSON {feature: coefficient}): added to the velocity in
+  /// effect, in m/s and rad/s, as coef . (1, v_cmd, omega_cmd, |omega_cmd|, v_cmd |omega_cmd|)
+  /// of the command at t (the feature library of docs/discovery.md). Zero: none.
+  std::array<std::array<double, 5>, 2> unmodeled{};
+  bool hasUnmodeled() const;
+  /// The extra (v, omega) for command `cmd`.
+  Eigen::Vector2d unmodeledVelocity(const Eigen::Vector2d& cmd) const;
 };
 
 /// [mrclam_filter] and [mrclam_response] sections of an INI (config/mrclam.ini). Absent keys

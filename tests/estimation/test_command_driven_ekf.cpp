@@ -5,6 +5,7 @@
 #include "libwheelchair/io/MrclamImport.h"
 
 #include <gtest/gtest.h>
+#include <mrpt/config/CConfigFileMemory.h>
 
 #include <algorithm>
 #include <cmath>
@@ -99,6 +100,48 @@ TEST(CommandDrivenEkf, FullDatasetReport) {
 TEST(CommandDrivenEkf, NeedsAMap) {
   io::Recording rec;
   EXPECT_THROW(runCommandDrivenEkf(rec, {}, {}), std::invalid_argument);
+}
+
+// The unmodeled terms written by `wheelchair diagnose` ([mrclam_response] unmodeled_v/_omega)
+// are read, written back, and move the dead reckoning exactly as their closed form says.
+TEST(CommandDrivenEkf, UnmodeledTermsRoundTripAndClosedForm) {
+  const std::string ini_text =
+      "[mrclam_response]\n"
+      "unmodeled_v = {\"v_cmd\": 0.2, \"1\": 0.01}\n"
+      "unmodeled_omega = {\"|omega_cmd|\": -0.1}\n";
+  mrpt::config::CConfigFileMemory ini(ini_text);
+  const CommandDrivenEkfOptions o = loadCommandDrivenEkfOptions(ini);
+  ASSERT_TRUE(o.hasUnmodeled());
+  EXPECT_DOUBLE_EQ(o.unmodeled[0][1], 0.2);
+  EXPECT_DOUBLE_EQ(o.unmodeled[0][0], 0.01);
+  EXPECT_DOUBLE_EQ(o.unmodeled[1][3], -0.1);
+  const Eigen::Vector2d d = o.unmodeledVelocity(Eigen::Vector2d(0.5, -0.4));
+  EXPECT_NEAR(d(0), 0.01 + 0.2 * 0.5, 1e-15);
+  EXPECT_NEAR(d(1), -0.1 * 0.4, 1e-15);
+  mrpt::config::CConfigFileMemory back(toIni(o));
+  const CommandDrivenEkfOptions o2 = loadCommandDrivenEkfOptions(back);
+  EXPECT_EQ(o2.unmodeled, o.unmodeled);
+
+  // A straight command v = 0.5 m/s for 4 s (nominal response: velocities = commands):
+  // v_e = 0.5 + 0.01 + 0.2 * 0.5 = 0.61 m/s, omega_e = 0 -> x = 2.44 m.
+  io::Recording rec;
+  for (int k = 0; k <= 400; ++k) rec.joystick.push_back({0.01 * k, 0.5, 0.0});
+  const auto dr =
+      deadReckoningCommands(rec, o, 0.0, Eigen::Vector3d::Zero(), Eigen::Vector2d(0.5, 0.0));
+  ASSERT_FALSE(dr.empty());
+  EXPECT_NEAR(dr.back().t_s, 4.0, 1e-9);
+  EXPECT_NEAR(dr.back().x_m, 0.61 * 4.0, 1e-9);
+  EXPECT_NEAR(dr.back().y_m, 0.0, 1e-12);
+  EXPECT_NEAR(dr.back().v_m_s, 0.61, 1e-12);
+
+  // Unknown feature names are an error that names the key.
+  mrpt::config::CConfigFileMemory bad("[mrclam_response]\nunmodeled_v = {\"v^3\": 1}\n");
+  try {
+    loadCommandDrivenEkfOptions(bad);
+    FAIL() << "expected an error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("unmodeled_v"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
