@@ -1,5 +1,7 @@
 #include "libwheelchair/diagnosis/CommandResponse.h"
 
+#include "libwheelchair/estimation/CommandDrivenEkf.h"
+
 #include "libwheelchair/diagnosis/Statistics.h"
 
 #include <Eigen/Dense>
@@ -392,10 +394,7 @@ nlohmann::json driftJson(const DriftMetrics& d) {
           {"n_windows_60s", d.n_60s}};
 }
 
-Eigen::Matrix<double, 5, 1> featuresAt(const Eigen::Vector2d& c) {
-  return (Eigen::Matrix<double, 5, 1>() << 1, c(0), c(1), std::abs(c(1)), c(0) * std::abs(c(1)))
-      .finished();
-}
+using model::commandFeatures;
 
 // Window means of command features for the unmodeled-term library.
 Eigen::MatrixXd libraryFeatures(const Prep& p, bool clean) {
@@ -407,7 +406,7 @@ Eigen::MatrixXd libraryFeatures(const Prep& p, bool clean) {
     for (int q = 0; q < K; ++q) {
       const double t = p.win[i].t0 + (q + 0.5) / K * (p.win[i].t1 - p.win[i].t0);
       const Eigen::Vector2d c = s.at(t);
-      acc += featuresAt(c);
+      acc += commandFeatures(c);
     }
     F.row(i) = acc.transpose() / K;
   }
@@ -490,9 +489,7 @@ Eigen::MatrixXd rssCovariance(const std::vector<Prep>& preps, int ch, const Full
 }  // namespace
 
 const std::array<const char*, 5>& commandLibraryNames() {
-  static const std::array<const char*, 5> n = {"1", "v_cmd", "omega_cmd", "|omega_cmd|",
-                                               "v_cmd*|omega_cmd|"};
-  return n;
+  return model::commandFeatureNames();
 }
 
 bool UnmodeledTerms::empty() const {
@@ -576,7 +573,7 @@ DriftMetrics openLoopDrift(const std::vector<io::Recording>& recs,
       yv = sv.y_next, yw = sw.y_next;
       ds[k] = sv.integral, dphi[k] = sw.integral;
       if (use_extra) {
-        const Eigen::Matrix<double, 5, 1> fe = featuresAt(cx.at(tm));
+        const Eigen::Matrix<double, 5, 1> fe = commandFeatures(cx.at(tm));
         for (int j = 0; j < 5; ++j) {
           ds[k] += extra->coef[0][j] * fe(j) * dt;
           dphi[k] += extra->coef[1][j] * fe(j) * dt;
@@ -1162,30 +1159,12 @@ void addCommandResponseFindings(const CommandResponseResult& r, DiagnosisReport&
 }
 
 std::map<std::string, std::string> commandResponseConfigKeys(const CommandResponseResult& r) {
-  std::map<std::string, std::string> k;
-  const auto& p = r.params;
-  auto num = [](double v) { return fmt::format("{:.6g}", v); };
-  using K = model::CommandKind;
-  k["v_delay_s"] = num(p.v.delay_s);
-  k["v_time_constant_s"] = num(p.v.time_constant_s);
-  k["v_deadband_m_s"] = num(p.v.deadband);
-  k["omega_delay_s"] = num(p.omega.delay_s);
-  k["omega_time_constant_s"] = num(p.omega.time_constant_s);
-  k["omega_deadband_rad_s"] = num(p.omega.deadband);
-  k["v_gain_straight"] = num(p.v_gain[static_cast<int>(K::Straight)]);
-  k["v_gain_arc"] = num(p.v_gain[static_cast<int>(K::Arc)]);
-  k["v_gain_backward"] = num(p.v_gain_backward);
-  k["omega_gain_turn_in_place"] = num(p.omega_gain[static_cast<int>(K::TurnInPlace)]);
-  k["omega_gain_arc"] = num(p.omega_gain[static_cast<int>(K::Arc)]);
-  k["ignore_zero_runs"] = r.ignore_zero_runs ? "true" : "false";
-  k["max_zero_run_s"] = num(r.max_zero_run_s);
-  for (int ch = 0; ch < 2; ++ch) {
-    nlohmann::json u = nlohmann::json::object();
-    for (int j = 0; j < 5; ++j)
-      if (r.unmodeled.coef[ch][j] != 0) u[commandLibraryNames()[j]] = r.unmodeled.coef[ch][j];
-    if (!u.empty()) k[ch == 0 ? "unmodeled_v" : "unmodeled_omega"] = u.dump();
-  }
-  return k;
+  estimation::CommandDrivenEkfOptions o;
+  o.response = r.params;
+  o.ignore_zero_runs = r.ignore_zero_runs;
+  o.max_zero_run_s = r.max_zero_run_s;
+  o.unmodeled = r.unmodeled.coef;
+  return estimation::responseConfigKeys(o);
 }
 
 void writeCommandResponseConfig(const CommandResponseResult& r, config::WheelchairConfig& cfg) {

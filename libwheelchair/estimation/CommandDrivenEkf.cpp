@@ -48,9 +48,10 @@ bool CommandDrivenEkfOptions::hasUnmodeled() const {
 }
 
 Eigen::Vector2d CommandDrivenEkfOptions::unmodeledVelocity(const Eigen::Vector2d& cmd) const {
-  const double fe[5] = {1, cmd(0), cmd(1), std::abs(cmd(1)), cmd(0) * std::abs(cmd(1))};
+  const auto fe = model::commandFeatures(cmd);
   Eigen::Vector2d d = Eigen::Vector2d::Zero();
-  for (int k = 0; k < 5; ++k) d(0) += unmodeled[0][k] * fe[k], d(1) += unmodeled[1][k] * fe[k];
+  for (int k = 0; k < model::kNumCommandFeatures; ++k)
+    d(0) += unmodeled[0][k] * fe(k), d(1) += unmodeled[1][k] * fe(k);
   return d;
 }
 
@@ -73,33 +74,38 @@ CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const std::string& path) {
   return loadCommandDrivenEkfOptions(ini);
 }
 
-std::string toIni(const CommandDrivenEkfOptions& o) {
+std::map<std::string, std::string> responseConfigKeys(const CommandDrivenEkfOptions& o) {
   using K = model::CommandKind;
   const auto& p = o.response;
-  std::string s = "[mrclam_response]\n";
-  const auto kv = [&s](const char* k, double v) { s += fmt::format("{} = {:.17g}\n", k, v); };
-  kv("v_delay_s", p.v.delay_s);
-  kv("v_time_constant_s", p.v.time_constant_s);
-  kv("v_deadband_m_s", p.v.deadband);
-  kv("omega_delay_s", p.omega.delay_s);
-  kv("omega_time_constant_s", p.omega.time_constant_s);
-  kv("omega_deadband_rad_s", p.omega.deadband);
-  kv("v_gain_straight", p.v_gain[static_cast<int>(K::Straight)]);
-  kv("v_gain_arc", p.v_gain[static_cast<int>(K::Arc)]);
-  kv("v_gain_backward", p.v_gain_backward);
-  kv("omega_gain_turn_in_place", p.omega_gain[static_cast<int>(K::TurnInPlace)]);
-  kv("omega_gain_arc", p.omega_gain[static_cast<int>(K::Arc)]);
-  s += fmt::format("ignore_zero_runs = {}\n", o.ignore_zero_runs ? "true" : "false");
-  kv("max_zero_run_s", o.max_zero_run_s);
-  static const std::array<const char*, 5> names = {"1", "v_cmd", "omega_cmd", "|omega_cmd|",
-                                                   "v_cmd*|omega_cmd|"};
+  std::map<std::string, std::string> k;
+  // Shortest text that reads back to the same double (fmt's default).
+  const auto num = [](double v) { return fmt::format("{}", v); };
+  k["v_delay_s"] = num(p.v.delay_s);
+  k["v_time_constant_s"] = num(p.v.time_constant_s);
+  k["v_deadband_m_s"] = num(p.v.deadband);
+  k["omega_delay_s"] = num(p.omega.delay_s);
+  k["omega_time_constant_s"] = num(p.omega.time_constant_s);
+  k["omega_deadband_rad_s"] = num(p.omega.deadband);
+  k["v_gain_straight"] = num(p.v_gain[static_cast<int>(K::Straight)]);
+  k["v_gain_arc"] = num(p.v_gain[static_cast<int>(K::Arc)]);
+  k["v_gain_backward"] = num(p.v_gain_backward);
+  k["omega_gain_turn_in_place"] = num(p.omega_gain[static_cast<int>(K::TurnInPlace)]);
+  k["omega_gain_arc"] = num(p.omega_gain[static_cast<int>(K::Arc)]);
+  k["ignore_zero_runs"] = o.ignore_zero_runs ? "true" : "false";
+  k["max_zero_run_s"] = num(o.max_zero_run_s);
   for (int ch = 0; ch < 2; ++ch) {
     nlohmann::json u = nlohmann::json::object();
-    for (int k = 0; k < 5; ++k)
-      if (o.unmodeled[ch][k] != 0) u[names[k]] = o.unmodeled[ch][k];
-    if (!u.empty())
-      s += fmt::format("{} = {}\n", ch == 0 ? "unmodeled_v" : "unmodeled_omega", u.dump());
+    for (int j = 0; j < model::kNumCommandFeatures; ++j)
+      if (o.unmodeled[ch][j] != 0) u[model::commandFeatureNames()[j]] = o.unmodeled[ch][j];
+    if (!u.empty()) k[ch == 0 ? "unmodeled_v" : "unmodeled_omega"] = u.dump();
   }
+  return k;
+}
+
+std::string toIni(const CommandDrivenEkfOptions& o) {
+  std::string s = "[mrclam_response]\n";
+  for (const auto& [key, value] : responseConfigKeys(o)) s += key + " = " + value + "\n";
+  const auto kv = [&s](const char* k, double v) { s += fmt::format("{} = {}\n", k, v); };
   s += "\n[mrclam_filter]\n";
   kv("dt_s", o.dt_s);
   kv("output_every_s", o.output_every_s);
@@ -181,8 +187,7 @@ CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const mrpt::config::CConfigF
                       "coefficient ({})",
                       r, key, e.what()));
     }
-    static const std::array<const char*, 5> names = {"1", "v_cmd", "omega_cmd", "|omega_cmd|",
-                                                     "v_cmd*|omega_cmd|"};
+    const auto& names = model::commandFeatureNames();
     for (auto it = j.begin(); it != j.end(); ++it) {
       const auto at = std::find(names.begin(), names.end(), it.key());
       if (at == names.end() || !it.value().is_number())
@@ -416,6 +421,7 @@ std::vector<CommandDrivenEstimate> deadReckoningCommands(const io::Recording& re
   const model::CommandSignal sig = commandSignal(rec, o);
   if (sig.samples().empty()) return out;
   const model::CommandDrivenModel mdl(o.response);
+  const bool unmodeled = o.hasUnmodeled();
   model::CommandState x;
   x << pose0(0), pose0(1), pose0(2), vel0(0), vel0(1);
   double t = t0_s, next_out = t0_s;
@@ -433,7 +439,7 @@ std::vector<CommandDrivenEstimate> deadReckoningCommands(const io::Recording& re
   while (t < t_end - 1e-12) {
     const double h = std::min(o.dt_s, t_end - t);
     x = mdl.step(x, mdl.target(sig, t + h / 2), h);
-    if (o.hasUnmodeled()) addUnmodeled(x, o.unmodeledVelocity(sig.at(t + h / 2)), h);
+    if (unmodeled) addUnmodeled(x, o.unmodeledVelocity(sig.at(t + h / 2)), h);
     t += h;
     if (t >= next_out - 1e-9) emit();
   }

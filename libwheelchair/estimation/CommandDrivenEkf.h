@@ -38,6 +38,7 @@
 
 #include <array>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -67,7 +68,7 @@ struct CommandDrivenEkfOptions {
   /// unmodeled_v / unmodeled_omega, JSON {feature: coefficient}): added to the velocity in
   /// effect, in m/s and rad/s, as coef . (1, v_cmd, omega_cmd, |omega_cmd|, v_cmd |omega_cmd|)
   /// of the command at t (the feature library of docs/discovery.md). Zero: none.
-  std::array<std::array<double, 5>, 2> unmodeled{};
+  std::array<std::array<double, model::kNumCommandFeatures>, 2> unmodeled{};
   bool hasUnmodeled() const;
   /// The extra (v, omega) for command `cmd`.
   Eigen::Vector2d unmodeledVelocity(const Eigen::Vector2d& cmd) const;
@@ -80,6 +81,9 @@ CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const mrpt::config::CConfigF
 /// The options as [mrclam_response] and [mrclam_filter] sections (read back by
 /// loadCommandDrivenEkfOptions to the same values): the configuration a result was made with.
 std::string toIni(const CommandDrivenEkfOptions& options);
+/// The [mrclam_response] keys of `options` (the response model and the unmodeled terms), as
+/// written by toIni and by `wheelchair diagnose --write-config`.
+std::map<std::string, std::string> responseConfigKeys(const CommandDrivenEkfOptions& options);
 /// Whether the INI has an [mrclam_filter] or [mrclam_response] section.
 bool hasCommandDrivenSections(const mrpt::config::CConfigFileBase& ini);
 

@@ -187,4 +187,16 @@ CommandState CommandDrivenModel::step(const CommandState& x, const Eigen::Vector
   return out;
 }
 
+const std::array<const char*, kNumCommandFeatures>& commandFeatureNames() {
+  static const std::array<const char*, kNumCommandFeatures> n = {
+      "1", "v_cmd", "omega_cmd", "|omega_cmd|", "v_cmd*|omega_cmd|"};
+  return n;
+}
+
+Eigen::Matrix<double, kNumCommandFeatures, 1> commandFeatures(const Eigen::Vector2d& c) {
+  return (Eigen::Matrix<double, kNumCommandFeatures, 1>() << 1, c(0), c(1), std::abs(c(1)),
+          c(0) * std::abs(c(1)))
+      .finished();
+}
+
 }  // namespace wheelchair::model

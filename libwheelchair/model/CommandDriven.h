@@ -144,4 +144,11 @@ struct LagStep {
 };
 LagStep lagStep(double y, double c, double dt_s, double tau_s);
 
+/// Library of command features for terms outside the catalogue (`unmodeled`, found by
+/// `wheelchair diagnose`, applied by the command-driven EKF): (1, v_cmd, omega_cmd,
+/// |omega_cmd|, v_cmd |omega_cmd|) of the current (undelayed) command (v_cmd, omega_cmd).
+constexpr int kNumCommandFeatures = 5;
+const std::array<const char*, kNumCommandFeatures>& commandFeatureNames();
+Eigen::Matrix<double, kNumCommandFeatures, 1> commandFeatures(const Eigen::Vector2d& cmd);
+
 }  // namespace wheelchair::model
