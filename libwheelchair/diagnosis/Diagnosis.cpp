@@ -920,16 +920,6 @@ config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
   return out;
 }
 
-std::vector<simulation::EffectSpec> readModelExtensions(const config::WheelchairConfig& cfg) {
-  std::vector<simulation::EffectSpec> out;
-  int n = cfg.ini().read_int("model_extensions", "count", 0);
-  for (int k = 1; k <= n; ++k) {
-    std::string s = cfg.ini().read_string("model_extensions", fmt::format("effect_{}", k), "");
-    if (!s.empty()) out.push_back(simulation::parseEffect(s));
-  }
-  return out;
-}
-
 io::Recording correctRecording(const io::Recording& rec, const config::WheelchairConfig& cfg,
                                const std::vector<simulation::EffectSpec>& effects) {
   io::Recording out = rec;

@@ -73,9 +73,6 @@ std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep
 config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
                                          const DiagnosisReport& rep);
 
-/// Reads [model_extensions] back (what a simulator or estimator needs to apply them).
-std::vector<simulation::EffectSpec> readModelExtensions(const config::WheelchairConfig& cfg);
-
 /// A copy of the recording with the sensor effects undone and the dynamic effects removed
 /// from the currents, so that the NOMINAL model and estimator see consistent data:
 /// ticks / encoder scale, (gyro - bias) / gyro scale, stream delays removed, and each motor

@@ -6,55 +6,25 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 
 namespace wheelchair::estimation {
 
 namespace {
-
-ModelExtension parseEntry(const std::string& text) {
-  ModelExtension e;
-  const auto colon = text.find(':');
-  e.id = text.substr(0, colon);
-  if (colon == std::string::npos) return e;
-  std::stringstream ss(text.substr(colon + 1));
-  std::string kv;
-  while (std::getline(ss, kv, ',')) {
-    const auto eq = kv.find('=');
-    if (eq == std::string::npos)
-      throw std::runtime_error(fmt::format("[model_extensions] '{}': '{}' is not key=value", text, kv));
-    e.params[kv.substr(0, eq)] = kv.substr(eq + 1);
-  }
-  return e;
-}
-
-int sideIndex(const ModelExtension& e) {
-  const auto it = e.params.find("side");
-  if (it == e.params.end()) return -1;
-  if (it->second == "right") return 0;
-  if (it->second == "left") return 1;
-  throw std::runtime_error(fmt::format("[model_extensions] {}: side '{}' is not right/left", e.id,
-                                       it->second));
-}
 
 // Mean rim speeds of each encoder interval, looked up by time (zero-order hold).
 struct RimSpeeds {
   std::vector<sensors::WheelSpeedInterval> iv;
   Eigen::Vector2d at(double t) const {
     if (iv.empty()) return Eigen::Vector2d::Zero();
-    auto it = std::lower_bound(iv.begin(), iv.end(), t,
-                               [](const sensors::WheelSpeedInterval& w, double x) { return w.t1_s < x; });
+    auto it =
+        std::lower_bound(iv.begin(), iv.end(), t,
+                         [](const sensors::WheelSpeedInterval& w, double x) { return w.t1_s < x; });
     if (it == iv.end()) --it;
     return {it->u_right_m_s, it->u_left_m_s};
   }
 };
 
 }  // namespace
-
-double ModelExtension::number(const std::string& key, double fallback) const {
-  const auto it = params.find(key);
-  return it == params.end() ? fallback : std::stod(it->second);
-}
 
 ModelExtensions ModelExtensions::fromConfig(const mrpt::config::CConfigFileBase& ini) {
   ModelExtensions m;
@@ -63,7 +33,12 @@ ModelExtensions ModelExtensions::fromConfig(const mrpt::config::CConfigFileBase&
   ini.getAllKeys("model_extensions", keys);
   for (const auto& k : keys) {
     if (k.rfind("effect_", 0) != 0) continue;
-    m.effects.push_back(parseEntry(ini.read_string("model_extensions", k, "")));
+    const std::string text = ini.read_string("model_extensions", k, "");
+    try {
+      m.effects.push_back(simulation::parseValidEffect(text));
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(fmt::format("[model_extensions] {}: {}", k, e.what()));
+    }
   }
   return m;
 }
@@ -75,32 +50,31 @@ io::Recording ModelExtensions::apply(const io::Recording& rec,
   // 1. Sensor effects.
   for (const auto& e : effects) {
     if (e.id == "encoder_scale") {
-      const int side = sideIndex(e);
-      const double scale = e.number("scale", 1.0);
-      if (side < 0 || !(scale > 0)) continue;
-      sensors::TickUnwrapper unwrap;
-      for (auto& s : out.encoders) {
-        int32_t& raw = side == 0 ? s.right_ticks : s.left_ticks;
-        raw = sensors::toHardwareCounter(std::llround(unwrap.unwrap(raw) / scale));
+      const double scale = e.number("scale");
+      if (!(scale > 0)) continue;
+      for (const int side : simulation::effectSides(e)) {
+        sensors::TickUnwrapper unwrap;
+        for (auto& s : out.encoders) {
+          int32_t& raw = side == 0 ? s.right_ticks : s.left_ticks;
+          raw = sensors::toHardwareCounter(std::llround(unwrap.unwrap(raw) / scale));
+        }
       }
     } else if (e.id == "gyro_bias") {
-      const double b = e.number("bias_rad_s", 0.0);
+      const double b = e.number("bias_rad_s");
       for (auto& s : out.imu) s.gyro_z_rad_s -= b;
     } else if (e.id == "gyro_scale") {
-      const double g = e.number("scale", 1.0);
+      const double g = e.number("scale");
       if (g > 0)
         for (auto& s : out.imu) s.gyro_z_rad_s /= g;
     } else if (e.id == "sensor_delay") {
-      const auto it = e.params.find("sensor");
-      const double d = e.number("delay_s", 0.0);
-      if (it == e.params.end()) continue;
-      const std::string& sn = it->second;
+      const std::string sn = e.text("sensor");
+      const double d = e.number("delay_s");
       auto shift = [&](auto& v) {
         for (auto& s : v) s.t_s -= d;
       };
       if (sn == "encoders") shift(out.encoders);
-      if (sn == "imu" || sn == "gyro") shift(out.imu);
-      if (sn == "motors" || sn == "currents") shift(out.motors);
+      if (sn == "imu") shift(out.imu);
+      if (sn == "motors") shift(out.motors);
       if (sn == "sonar") shift(out.sonar);
       if (sn == "pozyx") shift(out.pozyx);
       if (sn == "joystick") shift(out.joystick);
@@ -115,21 +89,19 @@ io::Recording ModelExtensions::apply(const io::Recording& rec,
                                    cfg.vehicle.geom.wheel_radius_m;
   for (const auto& e : effects) {
     if (e.id == "motor_asymmetry") {
-      const int side = sideIndex(e);
-      const double ratio = e.number("friction_ratio", 1.0);
-      if (side < 0) continue;
-      for (auto& s : out.motors) {
-        double& i = side == 0 ? s.current_right_A : s.current_left_A;
-        i -= (ratio - 1.0) * viscous_A_per_m_s * rims.at(s.t_s)(side);
-      }
+      const double ratio = e.number("friction_ratio");
+      for (const int side : simulation::effectSides(e))
+        for (auto& s : out.motors) {
+          double& i = side == 0 ? s.current_right_A : s.current_left_A;
+          i -= (ratio - 1.0) * viscous_A_per_m_s * rims.at(s.t_s)(side);
+        }
     } else if (e.id == "coulomb_friction") {
-      const int side = sideIndex(e);
-      const double c = e.number("current_A", 0.0);
-      for (auto& s : out.motors) {
-        const Eigen::Vector2d u = rims.at(s.t_s);
-        if (side != 1) s.current_right_A -= c * std::tanh(u(0) / 0.01);
-        if (side != 0) s.current_left_A -= c * std::tanh(u(1) / 0.01);
-      }
+      const double c = e.number("current_A");
+      for (const int side : simulation::effectSides(e))
+        for (auto& s : out.motors) {
+          double& i = side == 0 ? s.current_right_A : s.current_left_A;
+          i -= c * std::tanh(rims.at(s.t_s)(side) / 0.01);
+        }
     }
   }
   return out;
@@ -138,8 +110,7 @@ io::Recording ModelExtensions::apply(const io::Recording& rec,
 config::WheelchairConfig ModelExtensions::adjustConfig(const config::WheelchairConfig& cfg) const {
   config::WheelchairConfig c = cfg;
   for (const auto& e : effects)
-    if (e.id == "payload_mass" && e.params.count("body_mass_kg"))
-      c.set("vehicle", "body_mass_kg", e.params.at("body_mass_kg"));
+    if (e.id == "payload_mass") c.set("vehicle", "body_mass_kg", e.text("body_mass_kg"));
   return c;
 }
 

@@ -25,6 +25,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/io/Recording.h"
+#include "libwheelchair/simulation/Effects.h"
 
 #include <map>
 #include <string>
@@ -32,17 +33,14 @@
 
 namespace wheelchair::estimation {
 
-struct ModelExtension {
-  std::string id;
-  std::map<std::string, std::string> params;
-  double number(const std::string& key, double fallback) const;
-};
-
 class ModelExtensions {
  public:
-  std::vector<ModelExtension> effects;
+  /// In the effect grammar shared with `wheelchair simulate` (simulation/Effects.h): ids,
+  /// parameter names and catalogue defaults of docs/effects.md.
+  std::vector<simulation::EffectSpec> effects;
 
-  /// Reads [model_extensions]; empty when the section is absent. Throws on a malformed entry.
+  /// Reads [model_extensions] (`effect_N` keys); empty when the section is absent. Throws on a
+  /// malformed entry or one outside the catalogue.
   static ModelExtensions fromConfig(const mrpt::config::CConfigFileBase& ini);
   bool empty() const { return effects.empty(); }
   /// The recording with the sensor and drive-train effects removed (see the header comment).

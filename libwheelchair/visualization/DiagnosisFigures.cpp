@@ -404,8 +404,8 @@ RecordingFigures recordingFigures(const std::string& path, const std::string& su
   bool has_slope = false;
   for (const auto& e : estimation::ModelExtensions::fromConfig(corrected_cfg.ini()).effects)
     if (e.id == "ground_slope") {
-      slope = e.number("angle_deg", 0) / kDeg;
-      downhill = e.number("downhill_heading_deg", 0) / kDeg;
+      slope = e.number("angle_deg") / kDeg;
+      downhill = e.number("downhill_heading_deg") / kDeg;
       has_slope = true;
     }
 

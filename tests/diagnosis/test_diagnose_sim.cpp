@@ -3,6 +3,7 @@
 // the paper's case (unequal motors + faulty encoder on the three-task drive) is corrected.
 #include "libwheelchair/diagnosis/Campaign.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
+#include "libwheelchair/estimation/ModelExtensions.h"
 #include "libwheelchair/simulation/Simulator.h"
 
 #include <gtest/gtest.h>
@@ -94,9 +95,10 @@ TEST(Diagnose, PaperCaseUnequalMotorsAndFaultyEncoder) {
   double after = t["after"][0]["odometry_terminal_m"].get<double>();
   std::cout << "paper case odometry terminal error " << before << " m -> " << after << " m\n";
   EXPECT_GT(before, 4 * after);
-  // the corrected configuration round-trips through the simulator's effect parser
+  // the corrected configuration reads back (estimation::ModelExtensions, the filter's reader)
+  // as exactly the two named effects, each valid in the simulator's catalogue
   auto cfg2 = diagnosis::correctedConfig(config::WheelchairConfig(), r);
-  auto ext = diagnosis::readModelExtensions(cfg2);
+  auto ext = estimation::ModelExtensions::fromConfig(cfg2.ini()).effects;
   ASSERT_EQ(ext.size(), 2u);
   for (auto& e : ext) EXPECT_NO_THROW(simulation::validateEffect(e));
 }
