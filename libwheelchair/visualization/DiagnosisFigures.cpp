@@ -412,8 +412,9 @@ RecordingFigures recordingFigures(const std::string& path, const std::string& su
   evaluation::MetricOptions mo;
   mo.alignment = evaluation::Alignment::SE2FirstSeconds;
   mo.align_first_s = o.align_first_s;
-  const DriveData before = loadDrive(path, input_cfg, mo);
-  const DriveData after = loadDrive(path, corrected_cfg, mo);
+  // One read of the rawlog serves the residuals and both trajectory sets.
+  const DriveData before = loadDrive(raw, path, input_cfg, mo);
+  const DriveData after = loadDrive(raw, path, corrected_cfg, mo);
   const double t0 = before.t0_s;
   const double tb = raw.startTime(), te = raw.endTime();
   TimeFigure base;

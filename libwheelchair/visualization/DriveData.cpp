@@ -80,10 +80,16 @@ const estimation::EstimateSample* DriveData::ekfAt(double t) const {
 DriveData loadDrive(const std::string& path, const config::WheelchairConfig& cfg,
                     const evaluation::MetricOptions& metric_options,
                     const std::string& truth_path) {
+  return loadDrive(io::readRawlog(path), path, cfg, metric_options, truth_path);
+}
+
+DriveData loadDrive(io::Recording rec, const std::string& path, const config::WheelchairConfig& cfg,
+                    const evaluation::MetricOptions& metric_options,
+                    const std::string& truth_path) {
   DriveData d;
   d.path = path;
   d.cfg = cfg;
-  d.rec = io::readRawlog(path);
+  d.rec = std::move(rec);
   d.est = evaluation::estimateVariants(d.rec, cfg, true);
   d.gt = evaluation::groundTruthOf(d.rec, cfg);
   d.truth = readTruthJson(truth_path.empty() ? path + ".truth.json" : truth_path);

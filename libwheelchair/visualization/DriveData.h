@@ -63,6 +63,10 @@ struct DriveData {
 DriveData loadDrive(const std::string& path, const config::WheelchairConfig& cfg,
                     const evaluation::MetricOptions& metric_options,
                     const std::string& truth_path = "");
+/// The same for a recording already in memory (`path` names it and locates the truth file).
+DriveData loadDrive(io::Recording rec, const std::string& path, const config::WheelchairConfig& cfg,
+                    const evaluation::MetricOptions& metric_options,
+                    const std::string& truth_path = "");
 
 /// A default instant for Fig. 7 / the viewer: the middle of the first run of valid (non-zero)
 /// sonar readings; without any, 40 % into the span where the EKF has an obstacle estimate.
