@@ -268,17 +268,8 @@ void parseAlignment(const std::string& text, MetricOptions& o) {
 }
 
 std::string alignmentText(Alignment a, double first_s) {
-  switch (a) {
-    case Alignment::None:
-      return "none";
-    case Alignment::Origin:
-      return "origin";
-    case Alignment::SE2:
-      return "se2";
-    case Alignment::SE2FirstSeconds:
-      return "se2-first:" + num(first_s);
-  }
-  return "?";
+  // The command-line spelling: toString's, with the window for the first-seconds form.
+  return a == Alignment::SE2FirstSeconds ? "se2-first:" + num(first_s) : toString(a);
 }
 
 std::vector<BatchRow> evaluateRecording(const std::string& path,
