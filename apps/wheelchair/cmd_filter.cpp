@@ -403,6 +403,14 @@ int runFilter(const FilterCliOptions& o) {
   fmt::print(
       "(mean NIS over the accepted updates; 95% band of that mean for a consistent filter; "
       "'in band': share of single NIS values inside chi2(dof)'s two-sided 95% interval)\n");
+  if (res.cvode.intervals > 0) {
+    const auto& c = res.cvode;
+    fmt::print(
+        "CVODE: {} intervals ({} restarts), {:.2f} steps, {:.2f} f-evaluations and {:.2f} "
+        "error-test failures per interval\n",
+        c.intervals, c.restarts, double(c.steps) / c.intervals, double(c.rhs_evals) / c.intervals,
+        double(c.error_test_fails) / c.intervals);
+  }
   for (const auto& w : res.warnings) fmt::print("warning: {}\n", w);
   if (!res.estimates.empty()) {
     const auto& f = res.final();

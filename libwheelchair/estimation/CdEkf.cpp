@@ -452,6 +452,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
         check(CVodeSetLinearSolver(mem, cv_->ls, cv_->A), "CVodeSetLinearSolver");
       }
       check(CVodeSetMaxNumSteps(mem, opt_.max_num_steps), "CVodeSetMaxNumSteps");
+      check(CVodeSetNonlinConvCoef(mem, opt_.nonlin_conv_coef), "CVodeSetNonlinConvCoef");
       if (opt_.max_step_s > 0) check(CVodeSetMaxStep(mem, opt_.max_step_s), "CVodeSetMaxStep");
       if (opt_.max_order > 0) check(CVodeSetMaxOrd(mem, opt_.max_order), "CVodeSetMaxOrd");
       cv_->initialised = true;
@@ -493,8 +494,8 @@ double CdEkf::nis(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,
   return y.dot(S.ldlt().solve(y));
 }
 
-UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
-                          const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate) {
+UpdateResult josephUpdateLdlt(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
+                              const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate) {
   UpdateResult r;
   r.dof = static_cast<int>(y.size());
   r.innovation = y;
@@ -503,8 +504,7 @@ UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::V
   r.S = H.lazyProduct(PHt) + R;
   r.S = 0.5 * (r.S + r.S.transpose());
   const Eigen::LDLT<Eigen::MatrixXd> ldlt(r.S);
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0))
-  {
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0)) {
     // A degenerate measurement (zero or non-finite innovation covariance, e.g. from a
     // zero-length encoder interval) is rejected and counted like a gated one: one bad sample
     // must not end a whole replay.
@@ -529,6 +529,71 @@ UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::V
   Pn.noalias() -= AHt.lazyProduct(K.transpose());
   Pn.noalias() += KR.lazyProduct(K.transpose());
   P = 0.5 * (Pn + Pn.transpose());
+  r.accepted = true;
+  return r;
+}
+
+UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
+                          const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate) {
+  const int n = static_cast<int>(P.rows());
+  const int m = static_cast<int>(y.size());
+  // Every sensor of the chair gives m <= 2 (encoder pair, gyro, sonar, Pozyx x/y): S is
+  // inverted in closed form and the work matrices live on the stack (fixed capacity); the
+  // LDLT path's allocations and triangular-solve set-up were most of the update's cost.
+  constexpr int kMaxN = 16;
+  if (m > 2 || m < 1 || n > kMaxN) return josephUpdateLdlt(x, P, y, H, R, gate);
+  using MatNM = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxN, 2>;
+  using MatNN =
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxN, kMaxN>;
+  UpdateResult r;
+  r.dof = m;
+  r.innovation = y;
+  MatNM PHt(n, m);
+  PHt.noalias() = P.lazyProduct(H.transpose());
+  Eigen::Matrix2d S = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d Sinv = Eigen::Matrix2d::Zero();
+  bool positive = false;
+  if (m == 1) {
+    S(0, 0) = H.row(0).dot(PHt.col(0)) + R(0, 0);
+    positive = S(0, 0) > 0 && std::isfinite(S(0, 0));
+    if (positive) Sinv(0, 0) = 1.0 / S(0, 0);
+  } else {
+    S.noalias() = H.lazyProduct(PHt) + R;
+    S(0, 1) = S(1, 0) = 0.5 * (S(0, 1) + S(1, 0));
+    const double det = S(0, 0) * S(1, 1) - S(0, 1) * S(1, 0);
+    // Positive definite: leading minors > 0 (det relative to the diagonal product guards
+    // against a numerically singular S).
+    positive = S(0, 0) > 0 && S(1, 1) > 0 && det > 1e-14 * S(0, 0) * S(1, 1) && std::isfinite(det);
+    if (positive) Sinv << S(1, 1) / det, -S(0, 1) / det, -S(1, 0) / det, S(0, 0) / det;
+  }
+  r.S = S.topLeftCorner(m, m);
+  if (!positive) {
+    // A degenerate measurement (zero or non-finite innovation covariance, e.g. from a
+    // zero-length encoder interval) is rejected and counted like a gated one: one bad sample
+    // must not end a whole replay.
+    r.nis = std::numeric_limits<double>::infinity();
+    r.accepted = false;
+    return r;
+  }
+  const auto Si = Sinv.topLeftCorner(m, m);
+  r.nis = y.dot(Si * y);
+  if (gate > 0 && !(r.nis <= gate)) {
+    r.accepted = false;
+    return r;
+  }
+  MatNM K(n, m);
+  K.noalias() = PHt.lazyProduct(Si);  // P H' S^-1 (S^-1 symmetric)
+  x.noalias() += K * y;
+  // Joseph form, as in josephUpdateLdlt: A = P - K (P H')', P+ = A - (A H') K' + K R K'.
+  MatNN A = P;
+  A.noalias() -= K.lazyProduct(PHt.transpose());
+  MatNM AHt(n, m);
+  AHt.noalias() = A.lazyProduct(H.transpose());
+  MatNM KR(n, m);
+  KR.noalias() = K.lazyProduct(R);
+  A.noalias() -= AHt.lazyProduct(K.transpose());
+  A.noalias() += KR.lazyProduct(K.transpose());
+  P = 0.5 * (A + A.transpose());
   r.accepted = true;
   return r;
 }

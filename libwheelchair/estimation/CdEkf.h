@@ -77,12 +77,16 @@ class CdInput {
 struct CvodeOptions {
   enum class Method { Adams, Bdf };
   Method method = Method::Adams;  ///< Adams + fixed-point iteration, or BDF + dense Newton
-  double rel_tol = 1e-6;          ///< relative tolerance (-)
-  double abs_tol_state = 1e-8;    ///< absolute tolerance on the state (state units)
-  double abs_tol_cov = 1e-10;     ///< absolute tolerance on covariance entries (state units^2)
-  long max_num_steps = 50000;     ///< per interval
-  double max_step_s = 0.0;        ///< 0: no limit
-  int max_order = 0;              ///< 0: CVODE's default (12 Adams, 5 BDF)
+  double rel_tol = 1e-4;          ///< relative tolerance (-)
+  double abs_tol_state = 1e-5;    ///< absolute tolerance on the state (state units)
+  double abs_tol_cov = 1e-9;      ///< absolute tolerance on covariance entries (state units^2)
+  /// Safety factor of the nonlinear (corrector) convergence test (-): CVODE's default is 0.1;
+  /// the local error test still bounds the step, so a looser corrector only saves
+  /// f-evaluations (docs/estimation.md, "CVODE settings").
+  double nonlin_conv_coef = 0.5;
+  long max_num_steps = 50000;  ///< per interval
+  double max_step_s = 0.0;     ///< 0: no limit
+  int max_order = 0;           ///< 0: CVODE's default (12 Adams, 5 BDF)
   /// Re-initialise CVODE at every sample of a linearly interpolated input (its kinks), as
   /// before; false: integrate through the kinks under error control (docs/estimation.md).
   bool restart_at_input_samples = false;
@@ -173,10 +177,18 @@ class CdEkf {
 };
 
 /// Joseph-form measurement update of (x, P) with innovation y, gated at NIS <= gate (gate <= 0:
-/// always applied). Used by CdEkf::update and by the discrete baseline filter. Throws
-/// std::runtime_error when S = H P H' + R is not positive definite.
+/// always applied). Used by CdEkf::update and by the discrete baseline filter. When
+/// S = H P H' + R is not positive definite the measurement is rejected (nis = inf,
+/// accepted = false) and (x, P) are left unchanged. For m <= 2 and n <= 16 (every sensor of
+/// the chair) S is inverted in closed form with stack work space; otherwise
+/// josephUpdateLdlt is used.
 UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
                           const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate);
+
+/// The same update for any dimension, through an LDLT factorisation of S (the reference the
+/// closed-form path is tested against).
+UpdateResult josephUpdateLdlt(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
+                              const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate);
 
 /// Packed lower triangle (column-major) size of an n x n symmetric matrix.
 inline int packedSize(int n) {

@@ -129,6 +129,7 @@ std::vector<Key> keys(EkfOptions& o) {
       dblKey("cvode_rel_tol", o.cvode.rel_tol),
       dblKey("cvode_abs_tol_state", o.cvode.abs_tol_state),
       dblKey("cvode_abs_tol_cov", o.cvode.abs_tol_cov),
+      dblKey("cvode_nonlin_conv_coef", o.cvode.nonlin_conv_coef),
       intKey("cvode_max_num_steps", o.cvode.max_num_steps),
       dblKey("cvode_max_step_s", o.cvode.max_step_s),
       intKey("cvode_max_order", o.cvode.max_order),
@@ -213,6 +214,7 @@ void EkfOptions::validate() const {
   pos(cvode.rel_tol, "cvode_rel_tol");
   pos(cvode.abs_tol_state, "cvode_abs_tol_state");
   pos(cvode.abs_tol_cov, "cvode_abs_tol_cov");
+  pos(cvode.nonlin_conv_coef, "cvode_nonlin_conv_coef");
   if (cvode.max_num_steps <= 0) throw std::invalid_argument("cvode_max_num_steps must be > 0");
   nonneg(cvode.max_step_s, "cvode_max_step_s");
   if (cvode.max_order < 0) throw std::invalid_argument("cvode_max_order must be >= 0");

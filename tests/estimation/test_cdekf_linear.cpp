@@ -8,6 +8,7 @@
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include <cmath>
+#include <cstdlib>
 
 using namespace wheelchair::estimation;
 
@@ -146,6 +147,52 @@ TEST(CdEkfLinear, JosephUpdateMatchesTextbookAndGates) {
   EXPECT_FALSE(g.accepted);
   EXPECT_GT(g.nis, 1000);
   EXPECT_EQ(ekf.x(), x1);
+}
+
+// The closed-form path (m <= 2) against the LDLT path and the textbook form, on random SPD
+// problems of every state size the filters use, with suboptimal (non-symmetric-looking) H.
+TEST(CdEkfLinear, ClosedFormJosephMatchesLdltPath) {
+  std::srand(4711);
+  for (int trial = 0; trial < 200; ++trial) {
+    const int n = 2 + trial % 14;
+    const int m = 1 + trial % 2;
+    const Eigen::MatrixXd L = Eigen::MatrixXd::Random(n, n);
+    const Eigen::MatrixXd P = L * L.transpose() + 0.1 * Eigen::MatrixXd::Identity(n, n);
+    const Eigen::MatrixXd H = Eigen::MatrixXd::Random(m, n);
+    const Eigen::MatrixXd LR = Eigen::MatrixXd::Random(m, m);
+    const Eigen::MatrixXd R = LR * LR.transpose() + 0.01 * Eigen::MatrixXd::Identity(m, m);
+    const Eigen::VectorXd y = Eigen::VectorXd::Random(m);
+    const Eigen::VectorXd x0 = Eigen::VectorXd::Random(n);
+    Eigen::VectorXd xa = x0, xb = x0;
+    Eigen::MatrixXd Pa = P, Pb = P;
+    const UpdateResult a = josephUpdate(xa, Pa, y, H, R, 0);
+    const UpdateResult b = josephUpdateLdlt(xb, Pb, y, H, R, 0);
+    ASSERT_TRUE(a.accepted && b.accepted);
+    EXPECT_NEAR(a.nis, b.nis, 1e-9 * (1 + b.nis));
+    EXPECT_LT((a.S - b.S).norm(), 1e-12 * (1 + b.S.norm()));
+    EXPECT_LT((xa - xb).norm(), 1e-9 * (1 + xb.norm()));
+    EXPECT_LT((Pa - Pb).norm(), 1e-9 * (1 + Pb.norm()));
+    // Textbook short form for the optimal gain.
+    const Eigen::MatrixXd S = H * P * H.transpose() + R;
+    const Eigen::MatrixXd K = P * H.transpose() * S.inverse();
+    EXPECT_LT((Pa - (P - K * H * P)).norm(), 1e-8 * (1 + P.norm()));
+    EXPECT_LT((xa - (x0 + K * y)).norm(), 1e-9 * (1 + xa.norm()));
+  }
+  // Degenerate S (zero prior variance seen, zero noise) is rejected, state untouched, by both.
+  Eigen::VectorXd x = Eigen::VectorXd::Ones(3);
+  Eigen::MatrixXd P = Eigen::MatrixXd::Identity(3, 3);
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, 3);
+  H(0, 0) = 1;
+  H(1, 0) = 1;  // two rows measuring the same state, no noise: S singular
+  const Eigen::MatrixXd R = Eigen::MatrixXd::Zero(2, 2);
+  const Eigen::VectorXd y = Eigen::Vector2d(0.1, 0.1);
+  const UpdateResult r = josephUpdate(x, P, y, H, R, 0);
+  EXPECT_FALSE(r.accepted);
+  EXPECT_TRUE(std::isinf(r.nis));
+  EXPECT_EQ(x, Eigen::VectorXd::Ones(3));
+  EXPECT_EQ(P, Eigen::MatrixXd::Identity(3, 3));
+  const UpdateResult rl = josephUpdateLdlt(x, P, y, H, R, 0);
+  EXPECT_FALSE(rl.accepted);
 }
 
 TEST(ChiSquare, QuantilesMatchTables) {
