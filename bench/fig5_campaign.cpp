@@ -8,7 +8,11 @@
 // standard errors and win counts (docs/estimation.md, "Fig. 5 campaign").
 //
 //   build/bench/fig5_campaign [--runs N] [--seed S] [--config F] [--effects a;b;...]
-//                             [--reference truth|pozyx] [--json OUT]
+//                             [--reference truth|pozyx] [--check] [--json OUT]
+//
+// --check: exit 1 unless the EKF's trajectory error is lower than that of both raw variants
+// (encoders only; encoder v + gyro omega) and of the baseline filter, each with a paired
+// t < -2 (the CTest `fig5_campaign_smoke` runs it on 6 drives).
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Metrics.h"
@@ -97,6 +101,7 @@ Summary summarise(const std::vector<double>& v) {
 int main(int argc, char** argv) {
   int runs = 40;
   bool against_truth = true;
+  bool check = false;
   uint64_t seed = 20200612;
   std::string cfg_path, json_path;
   std::string effects_text =
@@ -116,6 +121,8 @@ int main(int argc, char** argv) {
       cfg_path = next();
     else if (a == "--effects")
       effects_text = next();
+    else if (a == "--check")
+      check = true;
     else if (a == "--reference") {
       const std::string r = next();
       if (r != "truth" && r != "pozyx") throw std::runtime_error("--reference: truth | pozyx");
@@ -124,7 +131,7 @@ int main(int argc, char** argv) {
       json_path = next();
     else {
       std::cerr << "usage: fig5_campaign [--runs N] [--seed S] [--config F] [--effects a;b] "
-                   "[--reference truth|pozyx] [--json OUT]\n";
+                   "[--reference truth|pozyx] [--check] [--json OUT]\n";
       return 2;
     }
   }
@@ -199,5 +206,20 @@ int main(int argc, char** argv) {
                          {"terminal_se_m", t.se},       {"terminal_ekf_wins", wins_term[v]}};
   }
   if (!json_path.empty()) std::ofstream(json_path) << j.dump(1) << "\n";
-  return failed == 0 ? 0 : 1;
+  if (failed) return 1;
+  if (check) {
+    bool ok_all = true;
+    for (const auto& v : names) {
+      if (v == "ekf") continue;
+      const auto a = summarise(d_ate[v]);
+      const bool better = a.mean < 0 && (a.se == 0 || a.mean / a.se < -2);
+      if (!better) {
+        fmt::print("check FAILED: the EKF's ATE is not significantly below {}'s\n", v);
+        ok_all = false;
+      }
+    }
+    if (!ok_all) return 1;
+    fmt::print("check passed: EKF ATE below every other variant's (paired t < -2)\n");
+  }
+  return 0;
 }
