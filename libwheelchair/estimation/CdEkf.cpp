@@ -533,40 +533,56 @@ UpdateResult josephUpdateLdlt(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eige
   return r;
 }
 
-UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
-                          const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate) {
+namespace {
+
+// The closed-form path, with fixed sizes where the caller knows them (N, M) so that Eigen
+// unrolls the tiny products; Eigen::Dynamic gives the same code with stack storage of fixed
+// capacity (kMaxN x 2).
+constexpr int kMaxN = 16;
+
+template <int N, int M>
+UpdateResult josephSmall(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
+                         const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate) {
+  constexpr int kN = N == Eigen::Dynamic ? kMaxN : N;
+  constexpr int kM = M == Eigen::Dynamic ? 2 : M;
+  using MatNN = Eigen::Matrix<double, N, N, Eigen::ColMajor, kN, kN>;
+  using MatNM = Eigen::Matrix<double, N, M, Eigen::ColMajor, kN, kM>;
+  using MatMN = Eigen::Matrix<double, M, N, Eigen::RowMajor, kM, kN>;
+  using MatMM = Eigen::Matrix<double, M, M, Eigen::ColMajor, kM, kM>;
+  using VecM = Eigen::Matrix<double, M, 1, Eigen::ColMajor, kM, 1>;
   const int n = static_cast<int>(P.rows());
   const int m = static_cast<int>(y.size());
-  // Every sensor of the chair gives m <= 2 (encoder pair, gyro, sonar, Pozyx x/y): S is
-  // inverted in closed form and the work matrices live on the stack (fixed capacity); the
-  // LDLT path's allocations and triangular-solve set-up were most of the update's cost.
-  constexpr int kMaxN = 16;
-  if (m > 2 || m < 1 || n > kMaxN) return josephUpdateLdlt(x, P, y, H, R, gate);
-  using MatNM = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxN, 2>;
-  using MatNN =
-      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::ColMajor, kMaxN, kMaxN>;
   UpdateResult r;
   r.dof = m;
   r.innovation = y;
+  const MatNN Pf = P;
+  const MatMN Hf = H;
+  const MatMM Rf = R;
+  const VecM yf = y;
   MatNM PHt(n, m);
-  PHt.noalias() = P.lazyProduct(H.transpose());
-  Eigen::Matrix2d S = Eigen::Matrix2d::Zero();
-  Eigen::Matrix2d Sinv = Eigen::Matrix2d::Zero();
+  PHt.noalias() = Pf.lazyProduct(Hf.transpose());
+  MatMM S(m, m);
+  S.noalias() = Hf.lazyProduct(PHt);
+  S += Rf;
+  MatMM Sinv(m, m);
   bool positive = false;
   if (m == 1) {
-    S(0, 0) = H.row(0).dot(PHt.col(0)) + R(0, 0);
     positive = S(0, 0) > 0 && std::isfinite(S(0, 0));
     if (positive) Sinv(0, 0) = 1.0 / S(0, 0);
   } else {
-    S.noalias() = H.lazyProduct(PHt) + R;
-    S(0, 1) = S(1, 0) = 0.5 * (S(0, 1) + S(1, 0));
-    const double det = S(0, 0) * S(1, 1) - S(0, 1) * S(1, 0);
+    const double s01 = 0.5 * (S(0, 1) + S(1, 0));
+    S(0, 1) = S(1, 0) = s01;
+    const double det = S(0, 0) * S(1, 1) - s01 * s01;
     // Positive definite: leading minors > 0 (det relative to the diagonal product guards
     // against a numerically singular S).
     positive = S(0, 0) > 0 && S(1, 1) > 0 && det > 1e-14 * S(0, 0) * S(1, 1) && std::isfinite(det);
-    if (positive) Sinv << S(1, 1) / det, -S(0, 1) / det, -S(1, 0) / det, S(0, 0) / det;
+    if (positive) {
+      Sinv(0, 0) = S(1, 1) / det;
+      Sinv(1, 1) = S(0, 0) / det;
+      Sinv(0, 1) = Sinv(1, 0) = -s01 / det;
+    }
   }
-  r.S = S.topLeftCorner(m, m);
+  r.S = S;
   if (!positive) {
     // A degenerate measurement (zero or non-finite innovation covariance, e.g. from a
     // zero-length encoder interval) is rejected and counted like a gated one: one bad sample
@@ -575,27 +591,43 @@ UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::V
     r.accepted = false;
     return r;
   }
-  const auto Si = Sinv.topLeftCorner(m, m);
-  r.nis = y.dot(Si * y);
+  r.nis = yf.dot(Sinv * yf);
   if (gate > 0 && !(r.nis <= gate)) {
     r.accepted = false;
     return r;
   }
   MatNM K(n, m);
-  K.noalias() = PHt.lazyProduct(Si);  // P H' S^-1 (S^-1 symmetric)
-  x.noalias() += K * y;
+  K.noalias() = PHt.lazyProduct(Sinv);  // P H' S^-1 (S^-1 symmetric)
+  x.noalias() += K * yf;
   // Joseph form, as in josephUpdateLdlt: A = P - K (P H')', P+ = A - (A H') K' + K R K'.
-  MatNN A = P;
+  MatNN A = Pf;
   A.noalias() -= K.lazyProduct(PHt.transpose());
   MatNM AHt(n, m);
-  AHt.noalias() = A.lazyProduct(H.transpose());
+  AHt.noalias() = A.lazyProduct(Hf.transpose());
   MatNM KR(n, m);
-  KR.noalias() = K.lazyProduct(R);
+  KR.noalias() = K.lazyProduct(Rf);
   A.noalias() -= AHt.lazyProduct(K.transpose());
   A.noalias() += KR.lazyProduct(K.transpose());
   P = 0.5 * (A + A.transpose());
   r.accepted = true;
   return r;
+}
+
+}  // namespace
+
+UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::VectorXd& y,
+                          const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, double gate) {
+  const int n = static_cast<int>(P.rows());
+  const int m = static_cast<int>(y.size());
+  // Every sensor of the chair gives m <= 2 (encoder pair, gyro, sonar, Pozyx x/y): S is
+  // inverted in closed form and the work matrices live on the stack; the LDLT path's
+  // allocations and triangular-solve set-up were most of the update's cost. The physics
+  // filter's n = 9 gets fully fixed sizes.
+  if (n == 9 && m == 1) return josephSmall<9, 1>(x, P, y, H, R, gate);
+  if (n == 9 && m == 2) return josephSmall<9, 2>(x, P, y, H, R, gate);
+  if (m >= 1 && m <= 2 && n <= kMaxN)
+    return josephSmall<Eigen::Dynamic, Eigen::Dynamic>(x, P, y, H, R, gate);
+  return josephUpdateLdlt(x, P, y, H, R, gate);
 }
 
 UpdateResult CdEkf::update(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,

@@ -5,8 +5,11 @@
 #include "libwheelchair/estimation/ChiSquare.h"
 #include "libwheelchair/estimation/WheelchairEkf.h"
 
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <stdexcept>
 #include <tuple>
@@ -15,6 +18,25 @@ namespace wheelchair::estimation {
 
 // ---------------------------------------------------------------------------------------------
 // Result types
+
+void* allocateLargeBuffer(std::size_t bytes) {
+  constexpr std::size_t kHuge = std::size_t(2) << 20;  // one x86-64 transparent huge page
+  void* p = nullptr;
+  if (bytes >= 2 * kHuge) {
+    const std::size_t size = (bytes + kHuge - 1) / kHuge * kHuge;
+    p = std::aligned_alloc(kHuge, size);
+    // Advice only: where THP is off ("never") the pages are simply 4 KiB ones.
+    if (p) ::madvise(p, size, MADV_HUGEPAGE);
+  } else {
+    p = std::malloc(bytes ? bytes : 1);
+  }
+  if (!p) throw std::bad_alloc();
+  return p;
+}
+
+void freeLargeBuffer(void* p) noexcept {
+  std::free(p);
+}
 
 const char* sensorName(Sensor s) {
   switch (s) {
@@ -81,9 +103,17 @@ Eigen::Vector2d InputSignal::at(double t) const {
   if (t_.empty()) return Eigen::Vector2d::Zero();
   if (t <= t_.front()) return u_.front();
   if (t >= t_.back()) return u_.back();
-  // First sample strictly after t.
-  const auto it = std::upper_bound(t_.begin(), t_.end(), t);
-  const std::size_t j = static_cast<std::size_t>(it - t_.begin()), i = j - 1;
+  // First sample strictly after t: t_[j - 1] <= t < t_[j]. Try the last interval and its
+  // successor before a binary search.
+  std::size_t j = hint_ + 1;
+  if (!(j < t_.size() && t_[j - 1] <= t && t < t_[j])) {
+    if (j + 1 < t_.size() && t_[j] <= t && t < t_[j + 1])
+      ++j;
+    else
+      j = static_cast<std::size_t>(std::upper_bound(t_.begin(), t_.end(), t) - t_.begin());
+  }
+  hint_ = j - 1;
+  const std::size_t i = j - 1;
   if (mode_ == InputInterpolation::Hold) return u_[i];
   const double a = (t - t_[i]) / (t_[j] - t_[i]);
   return (1.0 - a) * u_[i] + a * u_[j];

@@ -62,6 +62,9 @@ class InputSignal {
   InputInterpolation mode_;
   std::vector<double> t_;
   std::vector<Eigen::Vector2d> u_;
+  /// Index of the sample interval of the last at() call: CVODE asks for nearby times in
+  /// sequence, so the search starts there (one object per filter run; not shared by threads).
+  mutable std::size_t hint_ = 0;
 };
 
 /// What every filter implements (physics CD-EKF and the kinematic baseline). Calls must come

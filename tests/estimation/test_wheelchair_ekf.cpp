@@ -12,6 +12,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <random>
 
@@ -323,4 +324,31 @@ TEST(EkfOptions, TheShippedConfigurationLoads) {
   o.loadFromConfig(cfg.ini());
   EXPECT_EQ(o.filter, FilterKind::Physics);
   EXPECT_FALSE(o.use_pozyx);
+}
+
+// The estimates' allocator: big blocks 2 MiB-aligned (huge-page candidates), small ones
+// ordinary; both usable to their last byte and released (ASan/valgrind would flag misuse).
+TEST(LargeBufferAllocator, BigBlocksAreHugePageAlignedAndSmallOnesOrdinary) {
+  const std::size_t big = (std::size_t(9) << 20) + 123;
+  auto* p = static_cast<unsigned char*>(allocateLargeBuffer(big));
+  ASSERT_NE(p, nullptr);
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(p) % (std::size_t(2) << 20), 0u);
+  p[0] = 1;
+  p[big - 1] = 2;
+  EXPECT_EQ(p[0] + p[big - 1], 3);
+  freeLargeBuffer(p);
+  auto* q = static_cast<unsigned char*>(allocateLargeBuffer(100));
+  ASSERT_NE(q, nullptr);
+  q[99] = 7;
+  freeLargeBuffer(q);
+  // A result vector grows through it like any std::vector.
+  EstimateSeries v;
+  for (int i = 0; i < 20000; ++i) {
+    EstimateSample s;
+    s.t_s = i;
+    v.push_back(s);
+  }
+  EXPECT_EQ(v.size(), 20000u);
+  EXPECT_EQ(v.back().t_s, 19999);
+  EXPECT_GE(v.capacity() * sizeof(EstimateSample), std::size_t(4) << 20);
 }
