@@ -33,6 +33,11 @@ struct CdEkf::Cvode {
   double t_live = 0;
   long nst = 0, nfe = 0, netf = 0, nni = 0;  // CVODE counters at the end of the last call
   std::vector<double> ycheck;                // packed (x, P) to compare with y
+  /// Adaptive initial step (CvodeOptions::adaptive_initial_step): the hint for the next
+  /// restart (s; 0 = let CVODE estimate it) and whether this integration started with a
+  /// restart whose first step is still to be scored.
+  double h0_hint_s = 0;
+  bool scoring_h0 = false;
 
   ~Cvode() {
     if (mem) CVodeFree(&mem);
@@ -362,8 +367,7 @@ void CdEkf::evalRhs(double t, const double* y, double* ydot) {
   const int n = n_;
   for (int i = 0; i < n; ++i) wx_(i) = y[i];
   u_->eval(t, wu_);
-  model_.f(wx_, wu_, wxd_);
-  model_.F(wx_, wu_, wF_);
+  model_.fAndF(wx_, wu_, wxd_, wF_);
   if (qPacked_.empty() || !model_.constantQ()) {
     model_.Q(wx_, wu_, wQ_);
     qPacked_.resize(packedSize(n));
@@ -461,6 +465,11 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
     }
     cv_->nst = cv_->nfe = cv_->netf = cv_->nni = 0;  // (Re)Init resets CVODE's counters
     ++stats_.restarts;
+    if (opt_.adaptive_initial_step) {
+      // 0 asks CVODE for its own estimate (CVHin), as on the first restart.
+      check(CVodeSetInitStep(mem, std::min(cv_->h0_hint_s, dt)), "CVodeSetInitStep");
+      cv_->scoring_h0 = true;
+    }
   }
   // Never step past t1: u(t) is only defined on [t0, t1].
   check(CVodeSetStopTime(mem, t1_s), "CVodeSetStopTime");
@@ -477,6 +486,17 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   stats_.rhs_evals += nfe - cv_->nfe;
   stats_.error_test_fails += netf - cv_->netf;
   stats_.nonlin_iters += nni - cv_->nni;
+  if (cv_->scoring_h0) {
+    // Restarts come every few ms in similar conditions, so the first step that worked last
+    // time is a better guess than CVHin's conservative estimate (which also costs
+    // f-evaluations): grow it by 10 % after a restart interval without error-test failure,
+    // halve it after one with failures. The error test still decides every step.
+    double h0 = 0;
+    CVodeGetActualInitStep(mem, &h0);
+    const double next = netf == cv_->netf ? std::min(1.1 * h0, 1.1 * dt) : 0.5 * h0;
+    cv_->h0_hint_s = next > 1e-12 * scale ? next : 0.0;
+    cv_->scoring_h0 = false;
+  }
   cv_->nst = nst;
   cv_->nfe = nfe;
   cv_->netf = netf;

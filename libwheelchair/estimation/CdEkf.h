@@ -56,6 +56,13 @@ class CdModel {
                  Eigen::VectorXd& xdot) const = 0;
   /// F = df/dx (stateDim x stateDim).
   virtual void F(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& F) const = 0;
+  /// f and F in one call (what every right-hand side evaluation needs); override when the
+  /// two share work (e.g. trigonometry).
+  virtual void fAndF(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::VectorXd& xdot,
+                     Eigen::MatrixXd& Fx) const {
+    f(x, u, xdot);
+    F(x, u, Fx);
+  }
   /// Q: continuous-time process-noise spectral density (stateDim x stateDim, symmetric PSD).
   virtual void Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& Q) const = 0;
   /// True when Q depends on neither x nor u: CdEkf then evaluates it once.
@@ -84,6 +91,10 @@ struct CvodeOptions {
   /// the local error test still bounds the step, so a looser corrector only saves
   /// f-evaluations (docs/estimation.md, "CVODE settings").
   double nonlin_conv_coef = 0.5;
+  /// Initial step after a restart: true = the previous restart's first step, grown by 10 %
+  /// after an interval without error-test failure and halved after one with failures;
+  /// false = CVODE's own estimate (CVHin) at every restart (docs/estimation.md).
+  bool adaptive_initial_step = true;
   long max_num_steps = 50000;  ///< per interval
   double max_step_s = 0.0;     ///< 0: no limit
   int max_order = 0;           ///< 0: CVODE's default (12 Adams, 5 BDF)

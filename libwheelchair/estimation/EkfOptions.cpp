@@ -130,6 +130,7 @@ std::vector<Key> keys(EkfOptions& o) {
       dblKey("cvode_abs_tol_state", o.cvode.abs_tol_state),
       dblKey("cvode_abs_tol_cov", o.cvode.abs_tol_cov),
       dblKey("cvode_nonlin_conv_coef", o.cvode.nonlin_conv_coef),
+      boolKey("cvode_adaptive_initial_step", o.cvode.adaptive_initial_step),
       intKey("cvode_max_num_steps", o.cvode.max_num_steps),
       dblKey("cvode_max_step_s", o.cvode.max_step_s),
       intKey("cvode_max_order", o.cvode.max_order),

@@ -42,6 +42,21 @@ void WheelchairProcessModel::F(const Eigen::VectorXd& x, const Eigen::VectorXd& 
   F(kIdxSomega, model::kIdxOmega) = 1.0;
 }
 
+void WheelchairProcessModel::fAndF(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
+                                   Eigen::VectorXd& xdot, Eigen::MatrixXd& F) const {
+  FilterState xd7;
+  model::FilterStateJacobian F7;
+  fm_.fAndF(x.head<7>(), model::FilterInput(u(0), u(1)), xd7, F7);
+  xdot.resize(kPhysicsStateDim);
+  xdot.head<7>() = xd7;
+  xdot(kIdxSv) = x(model::kIdxV);
+  xdot(kIdxSomega) = x(model::kIdxOmega);
+  F.setZero(kPhysicsStateDim, kPhysicsStateDim);
+  F.topLeftCorner<7, 7>() = F7;
+  F(kIdxSv, model::kIdxV) = 1.0;
+  F(kIdxSomega, model::kIdxOmega) = 1.0;
+}
+
 void WheelchairProcessModel::Q(const Eigen::VectorXd&, const Eigen::VectorXd&,
                                Eigen::MatrixXd& Q) const {
   Q = Q_;
@@ -55,18 +70,21 @@ EstimateSample canonicalFromFilterState(double t, const Eigen::VectorXd& x,
   EstimateSample s;
   s.t_s = t;
   s.obstacle_initialised = init;
-  Eigen::Matrix<double, 7, 7> T = Eigen::Matrix<double, 7, 7>::Identity();
   s.x = x.head<7>();
+  CanonicalCov Pc = P.topLeftCorner<7, 7>();
   if (form == ObstacleForm::Polar) {
+    // T P T' with T = identity but for the 2x2 Jacobian J of (d, beta) -> (px, py) on the
+    // obstacle rows/columns: rows 5-6 become J P, then columns 5-6 (. ) J'.
     const double d = x(model::kIdxO1), b = x(model::kIdxO2), c = std::cos(b), sn = std::sin(b);
     s.x(model::kIdxO1) = d * c;
     s.x(model::kIdxO2) = d * sn;
-    T(5, 5) = c;
-    T(5, 6) = -d * sn;
-    T(6, 5) = sn;
-    T(6, 6) = d * c;
+    Eigen::Matrix2d J;
+    J << c, -d * sn, sn, d * c;
+    const Eigen::Matrix<double, 2, 7> rows = J * Pc.middleRows<2>(5);
+    Pc.middleRows<2>(5) = rows;
+    const Eigen::Matrix<double, 7, 2> cols = Pc.middleCols<2>(5) * J.transpose();
+    Pc.middleCols<2>(5) = cols;
   }
-  const CanonicalCov Pc = T * P.topLeftCorner<7, 7>() * T.transpose();
   s.P = 0.5 * (Pc + Pc.transpose());
   s.sd = s.P.diagonal().cwiseMax(0.0).cwiseSqrt();
   // d_o^M and theta_o^M with first-order standard deviations.

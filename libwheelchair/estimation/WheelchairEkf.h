@@ -38,6 +38,8 @@ class WheelchairProcessModel : public CdModel {
   int stateDim() const override { return kPhysicsStateDim; }
   void f(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::VectorXd& xdot) const override;
   void F(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& F) const override;
+  void fAndF(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::VectorXd& xdot,
+             Eigen::MatrixXd& F) const override;
   void Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& Q) const override;
   bool constantQ() const override { return true; }
   const model::FilterModel& filterModel() const { return fm_; }

@@ -46,6 +46,35 @@ FilterStateJacobian FilterModel::F(const FilterState& x, const FilterInput& /*u*
   return J;
 }
 
+void FilterModel::fAndF(const FilterState& x, const FilterInput& u, FilterState& xd,
+                        FilterStateJacobian& J) const {
+  const double v = x(kIdxV), om = x(kIdxOmega), phi = x(kIdxPhi);
+  const double c = std::cos(phi), s = std::sin(phi);
+  xd.segment<2>(kIdxV) = odeAcceleration(p_.ode, v, om, u(0), u(1));
+  // (1) with its Jacobians (poseRate, poseRateJacobianVel, poseRateJacobianPose).
+  xd(kIdxX) = v * c;
+  xd(kIdxY) = v * s;
+  xd(kIdxPhi) = om;
+  J.setZero();
+  J(kIdxV, kIdxV) = p_.ode.a3;
+  J(kIdxOmega, kIdxOmega) = p_.ode.a4;
+  J(kIdxX, kIdxV) = c;
+  J(kIdxY, kIdxV) = s;
+  J(kIdxPhi, kIdxOmega) = 1.0;
+  J(kIdxX, kIdxPhi) = -v * s;
+  J(kIdxY, kIdxPhi) = v * c;
+  const Eigen::Vector2d o = obstacleOf(x);
+  if (p_.form == ObstacleForm::Cartesian) {
+    xd.segment<2>(kIdxO1) = obstacleCartesianRate(o, v, om);
+    J.block<2, 2>(kIdxO1, kIdxV) = obstacleCartesianJacobianVel(o);
+    J.block<2, 2>(kIdxO1, kIdxO1) = obstacleCartesianJacobianP(om);
+  } else {
+    xd.segment<2>(kIdxO1) = obstaclePolarRate(o, v, om);
+    J.block<2, 2>(kIdxO1, kIdxV) = obstaclePolarJacobianVel(o);
+    J.block<2, 2>(kIdxO1, kIdxO1) = obstaclePolarJacobianQ(o, v);
+  }
+}
+
 FilterInputJacobian FilterModel::G(const FilterState& /*x*/) const {
   FilterInputJacobian J = FilterInputJacobian::Zero();
   J(kIdxV, 0) = p_.ode.a1;

@@ -81,6 +81,10 @@ class FilterModel {
   FilterState f(const FilterState& x, const FilterInput& u) const;
   /// F = df/dx. It does not depend on u (f is affine in u), the argument is for symmetry.
   FilterStateJacobian F(const FilterState& x, const FilterInput& u = FilterInput::Zero()) const;
+  /// f and F together, cos/sin of phi (and of beta in polar form) computed once: what the
+  /// CVODE right-hand side needs at every evaluation. Equal to f(x, u) and F(x) (tested).
+  void fAndF(const FilterState& x, const FilterInput& u, FilterState& xdot,
+             FilterStateJacobian& J) const;
   /// G = df/du (constant: only the velocity rows, [a1 a1; a2 -a2]).
   FilterInputJacobian G(const FilterState& x = FilterState::Zero()) const;
   /// One classical Runge-Kutta 4 step of xdot = f(x, u) with u held constant over dt.

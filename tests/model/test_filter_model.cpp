@@ -62,6 +62,23 @@ TEST_P(FilterModelForms, ProcessJacobiansMatchNumerical) {
   }
 }
 
+// The fused right-hand side the CD-EKF evaluates is exactly f and F.
+TEST_P(FilterModelForms, FusedFAndFEqualsFAndF) {
+  const ObstacleForm form = GetParam();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const FilterModel m(nominalParams(form));
+  for (int k = 0; k < 200; ++k) {
+    const FilterState x = randomState(rng, form);
+    const FilterInput in(20 * u(rng), 20 * u(rng));
+    FilterState xd;
+    FilterStateJacobian J;
+    m.fAndF(x, in, xd, J);
+    EXPECT_EQ(xd, m.f(x, in));
+    EXPECT_EQ(J, m.F(x, in));
+  }
+}
+
 TEST_P(FilterModelForms, MeasurementJacobiansMatchNumerical) {
   const ObstacleForm form = GetParam();
   std::mt19937 rng(22);
