@@ -25,21 +25,34 @@ WheelchairProcessModel::WheelchairProcessModel(const model::FilterModel& fm,
   Q_.topLeftCorner<7, 7>() += current_density * G * G.transpose();
 }
 
-void WheelchairProcessModel::f(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
-                               Eigen::VectorXd& xdot) const {
-  const FilterState x7 = x.head<7>();
+namespace {
+
+// The accumulators s_v, s_omega on top of the 7-state model: sdot = (v, omega), no other
+// dependence.
+void augmentRate(const Eigen::VectorXd& x, const FilterState& xd7, Eigen::VectorXd& xdot) {
   xdot.resize(kPhysicsStateDim);
-  xdot.head<7>() = fm_.f(x7, model::FilterInput(u(0), u(1)));
+  xdot.head<7>() = xd7;
   xdot(kIdxSv) = x(model::kIdxV);
   xdot(kIdxSomega) = x(model::kIdxOmega);
 }
 
-void WheelchairProcessModel::F(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
-                               Eigen::MatrixXd& F) const {
+void augmentJacobian(const model::FilterStateJacobian& F7, Eigen::MatrixXd& F) {
   F.setZero(kPhysicsStateDim, kPhysicsStateDim);
-  F.topLeftCorner<7, 7>() = fm_.F(x.head<7>());
+  F.topLeftCorner<7, 7>() = F7;
   F(kIdxSv, model::kIdxV) = 1.0;
   F(kIdxSomega, model::kIdxOmega) = 1.0;
+}
+
+}  // namespace
+
+void WheelchairProcessModel::f(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
+                               Eigen::VectorXd& xdot) const {
+  augmentRate(x, fm_.f(x.head<7>(), model::FilterInput(u(0), u(1))), xdot);
+}
+
+void WheelchairProcessModel::F(const Eigen::VectorXd& x, const Eigen::VectorXd& /*u*/,
+                               Eigen::MatrixXd& F) const {
+  augmentJacobian(fm_.F(x.head<7>()), F);
 }
 
 void WheelchairProcessModel::fAndF(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
@@ -47,14 +60,8 @@ void WheelchairProcessModel::fAndF(const Eigen::VectorXd& x, const Eigen::Vector
   FilterState xd7;
   model::FilterStateJacobian F7;
   fm_.fAndF(x.head<7>(), model::FilterInput(u(0), u(1)), xd7, F7);
-  xdot.resize(kPhysicsStateDim);
-  xdot.head<7>() = xd7;
-  xdot(kIdxSv) = x(model::kIdxV);
-  xdot(kIdxSomega) = x(model::kIdxOmega);
-  F.setZero(kPhysicsStateDim, kPhysicsStateDim);
-  F.topLeftCorner<7, 7>() = F7;
-  F(kIdxSv, model::kIdxV) = 1.0;
-  F(kIdxSomega, model::kIdxOmega) = 1.0;
+  augmentRate(x, xd7, xdot);
+  augmentJacobian(F7, F);
 }
 
 void WheelchairProcessModel::Q(const Eigen::VectorXd&, const Eigen::VectorXd&,

@@ -14,65 +14,60 @@ Eigen::Vector2d obstacleOf(const FilterState& x) {
 
 }  // namespace
 
-FilterState FilterModel::f(const FilterState& x, const FilterInput& u) const {
-  const double v = x(kIdxV), om = x(kIdxOmega), phi = x(kIdxPhi);
-  FilterState xd;
-  xd.segment<2>(kIdxV) = odeAcceleration(p_.ode, v, om, u(0), u(1));
-  xd.segment<3>(kIdxX) = poseRate(phi, v, om);
-  xd.segment<2>(kIdxO1) = (p_.form == ObstacleForm::Cartesian)
+namespace {
+
+// f and F take cos/sin of the heading from the caller, so that fAndF evaluates it once.
+
+void rate(const FilterModelParams& p, const FilterState& x, const FilterInput& u,
+          const HeadingTrig& h, FilterState& xd) {
+  const double v = x(kIdxV), om = x(kIdxOmega);
+  xd.segment<2>(kIdxV) = odeAcceleration(p.ode, v, om, u(0), u(1));
+  xd.segment<3>(kIdxX) = poseRate(h, v, om);
+  xd.segment<2>(kIdxO1) = (p.form == ObstacleForm::Cartesian)
                               ? obstacleCartesianRate(obstacleOf(x), v, om)
                               : obstaclePolarRate(obstacleOf(x), v, om);
-  return xd;
 }
 
-FilterStateJacobian FilterModel::F(const FilterState& x, const FilterInput& /*u*/) const {
-  const double v = x(kIdxV), phi = x(kIdxPhi);
-  FilterStateJacobian J = FilterStateJacobian::Zero();
+void jacobian(const FilterModelParams& p, const FilterState& x, const HeadingTrig& h,
+              FilterStateJacobian& J) {
+  const double v = x(kIdxV);
+  J.setZero();
   // (6): velocities are decoupled first-order lags.
-  J(kIdxV, kIdxV) = p_.ode.a3;
-  J(kIdxOmega, kIdxOmega) = p_.ode.a4;
+  J(kIdxV, kIdxV) = p.ode.a3;
+  J(kIdxOmega, kIdxOmega) = p.ode.a4;
   // (1): pose rates.
-  J.block<3, 2>(kIdxX, kIdxV) = poseRateJacobianVel(phi);
-  J.block<3, 3>(kIdxX, kIdxX) = poseRateJacobianPose(phi, v);
+  J.block<3, 2>(kIdxX, kIdxV) = poseRateJacobianVel(h);
+  J.block<3, 3>(kIdxX, kIdxX) = poseRateJacobianPose(h, v);
   // (7) or (8): the obstacle depends on itself and on (v, omega), never on the pose.
   const Eigen::Vector2d o = obstacleOf(x);
-  if (p_.form == ObstacleForm::Cartesian) {
+  if (p.form == ObstacleForm::Cartesian) {
     J.block<2, 2>(kIdxO1, kIdxV) = obstacleCartesianJacobianVel(o);
     J.block<2, 2>(kIdxO1, kIdxO1) = obstacleCartesianJacobianP(x(kIdxOmega));
   } else {
     J.block<2, 2>(kIdxO1, kIdxV) = obstaclePolarJacobianVel(o);
     J.block<2, 2>(kIdxO1, kIdxO1) = obstaclePolarJacobianQ(o, v);
   }
+}
+
+}  // namespace
+
+FilterState FilterModel::f(const FilterState& x, const FilterInput& u) const {
+  FilterState xd;
+  rate(p_, x, u, HeadingTrig(x(kIdxPhi)), xd);
+  return xd;
+}
+
+FilterStateJacobian FilterModel::F(const FilterState& x, const FilterInput& /*u*/) const {
+  FilterStateJacobian J;
+  jacobian(p_, x, HeadingTrig(x(kIdxPhi)), J);
   return J;
 }
 
 void FilterModel::fAndF(const FilterState& x, const FilterInput& u, FilterState& xd,
                         FilterStateJacobian& J) const {
-  const double v = x(kIdxV), om = x(kIdxOmega), phi = x(kIdxPhi);
-  const double c = std::cos(phi), s = std::sin(phi);
-  xd.segment<2>(kIdxV) = odeAcceleration(p_.ode, v, om, u(0), u(1));
-  // (1) with its Jacobians (poseRate, poseRateJacobianVel, poseRateJacobianPose).
-  xd(kIdxX) = v * c;
-  xd(kIdxY) = v * s;
-  xd(kIdxPhi) = om;
-  J.setZero();
-  J(kIdxV, kIdxV) = p_.ode.a3;
-  J(kIdxOmega, kIdxOmega) = p_.ode.a4;
-  J(kIdxX, kIdxV) = c;
-  J(kIdxY, kIdxV) = s;
-  J(kIdxPhi, kIdxOmega) = 1.0;
-  J(kIdxX, kIdxPhi) = -v * s;
-  J(kIdxY, kIdxPhi) = v * c;
-  const Eigen::Vector2d o = obstacleOf(x);
-  if (p_.form == ObstacleForm::Cartesian) {
-    xd.segment<2>(kIdxO1) = obstacleCartesianRate(o, v, om);
-    J.block<2, 2>(kIdxO1, kIdxV) = obstacleCartesianJacobianVel(o);
-    J.block<2, 2>(kIdxO1, kIdxO1) = obstacleCartesianJacobianP(om);
-  } else {
-    xd.segment<2>(kIdxO1) = obstaclePolarRate(o, v, om);
-    J.block<2, 2>(kIdxO1, kIdxV) = obstaclePolarJacobianVel(o);
-    J.block<2, 2>(kIdxO1, kIdxO1) = obstaclePolarJacobianQ(o, v);
-  }
+  const HeadingTrig h(x(kIdxPhi));
+  rate(p_, x, u, h, xd);
+  jacobian(p_, x, h, J);
 }
 
 FilterInputJacobian FilterModel::G(const FilterState& /*x*/) const {

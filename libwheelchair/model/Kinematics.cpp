@@ -5,22 +5,15 @@
 namespace wheelchair::model {
 
 Eigen::Vector3d poseRate(double phi, double v, double omega) {
-  return {v * std::cos(phi), v * std::sin(phi), omega};
+  return poseRate(HeadingTrig(phi), v, omega);
 }
 
 Eigen::Matrix3d poseRateJacobianPose(double phi, double v) {
-  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
-  J(0, 2) = -v * std::sin(phi);
-  J(1, 2) = v * std::cos(phi);
-  return J;
+  return poseRateJacobianPose(HeadingTrig(phi), v);
 }
 
 Eigen::Matrix<double, 3, 2> poseRateJacobianVel(double phi) {
-  Eigen::Matrix<double, 3, 2> J = Eigen::Matrix<double, 3, 2>::Zero();
-  J(0, 0) = std::cos(phi);
-  J(1, 0) = std::sin(phi);
-  J(2, 1) = 1.0;
-  return J;
+  return poseRateJacobianVel(HeadingTrig(phi));
 }
 
 Eigen::Vector2d obstacleCartesianRate(const Eigen::Vector2d& p, double v, double omega) {

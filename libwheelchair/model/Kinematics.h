@@ -14,12 +14,38 @@
 
 #include <Eigen/Core>
 
+#include <cmath>
+
 namespace wheelchair::model {
 
+/// cos and sin of the heading phi, for callers that evaluate (1) and its Jacobians together
+/// (the CD-EKF's right-hand side) and want the trigonometry once.
+/// Inline: they sit on the filter's right-hand side path.
+struct HeadingTrig {
+  double cos_phi, sin_phi;
+  explicit HeadingTrig(double phi_rad) : cos_phi(std::cos(phi_rad)), sin_phi(std::sin(phi_rad)) {}
+};
+
 /// (xdot, ydot, phidot) of (1).
+inline Eigen::Vector3d poseRate(const HeadingTrig& h, double v_m_s, double omega_rad_s) {
+  return {v_m_s * h.cos_phi, v_m_s * h.sin_phi, omega_rad_s};
+}
 Eigen::Vector3d poseRate(double phi_rad, double v_m_s, double omega_rad_s);
 /// d poseRate / d (x, y, phi), d poseRate / d (v, omega).
+inline Eigen::Matrix3d poseRateJacobianPose(const HeadingTrig& h, double v_m_s) {
+  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+  J(0, 2) = -v_m_s * h.sin_phi;
+  J(1, 2) = v_m_s * h.cos_phi;
+  return J;
+}
 Eigen::Matrix3d poseRateJacobianPose(double phi_rad, double v_m_s);
+inline Eigen::Matrix<double, 3, 2> poseRateJacobianVel(const HeadingTrig& h) {
+  Eigen::Matrix<double, 3, 2> J = Eigen::Matrix<double, 3, 2>::Zero();
+  J(0, 0) = h.cos_phi;
+  J(1, 0) = h.sin_phi;
+  J(2, 1) = 1.0;
+  return J;
+}
 Eigen::Matrix<double, 3, 2> poseRateJacobianVel(double phi_rad);
 
 /// (pxdot, pydot) of (7).
