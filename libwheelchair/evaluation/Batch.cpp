@@ -22,13 +22,15 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// Strictly increasing times: of equal timestamps the last sample wins.
-template <class T, class TimeOf>
-void keepLastOfEqualTimes(std::vector<T>& v, TimeOf t) {
+// Sorted by t_s (stable), then strictly increasing times: of equal timestamps the last
+// sample wins.
+template <class T>
+void sortByTimeKeepLast(std::vector<T>& v) {
+  std::stable_sort(v.begin(), v.end(), [](const T& a, const T& b) { return a.t_s < b.t_s; });
   std::vector<T> out;
   out.reserve(v.size());
   for (auto& s : v) {
-    if (!out.empty() && t(out.back()) == t(s))
+    if (!out.empty() && out.back().t_s == s.t_s)
       out.back() = s;
     else
       out.push_back(s);
@@ -91,10 +93,7 @@ GroundTruth groundTruthOf(const io::Recording& rec, const config::WheelchairConf
     g.lever_arm_m = {cfg.pozyx.lever_x_m, cfg.pozyx.lever_y_m};
     for (const auto& s : rec.pozyx) g.samples.push_back({s.t_s, s.x_m, s.y_m});
   }
-  std::stable_sort(
-      g.samples.begin(), g.samples.end(),
-      [](const Position2DStamped& a, const Position2DStamped& b) { return a.t_s < b.t_s; });
-  keepLastOfEqualTimes(g.samples, [](const Position2DStamped& s) { return s.t_s; });
+  sortByTimeKeepLast(g.samples);
   return g;
 }
 
@@ -102,9 +101,7 @@ Trajectory toTrajectory(const estimation::EstimationResult& res) {
   Trajectory t;
   t.reserve(res.estimates.size());
   for (const auto& e : res.estimates) t.push_back({e.t_s, e.x(2), e.x(3), e.x(4)});
-  std::stable_sort(t.begin(), t.end(),
-                   [](const Pose2DStamped& a, const Pose2DStamped& b) { return a.t_s < b.t_s; });
-  keepLastOfEqualTimes(t, [](const Pose2DStamped& p) { return p.t_s; });
+  sortByTimeKeepLast(t);
   return t;
 }
 
@@ -112,9 +109,7 @@ Trajectory toTrajectory(const std::vector<estimation::DeadReckoningSample>& dr) 
   Trajectory t;
   t.reserve(dr.size());
   for (const auto& s : dr) t.push_back({s.t_s, s.x_m, s.y_m, s.phi_rad});
-  std::stable_sort(t.begin(), t.end(),
-                   [](const Pose2DStamped& a, const Pose2DStamped& b) { return a.t_s < b.t_s; });
-  keepLastOfEqualTimes(t, [](const Pose2DStamped& p) { return p.t_s; });
+  sortByTimeKeepLast(t);
   return t;
 }
 
@@ -122,9 +117,7 @@ Trajectory toTrajectory(const std::vector<estimation::CommandDrivenEstimate>& es
   Trajectory t;
   t.reserve(est.size());
   for (const auto& e : est) t.push_back({e.t_s, e.x_m, e.y_m, e.phi_rad});
-  std::stable_sort(t.begin(), t.end(),
-                   [](const Pose2DStamped& a, const Pose2DStamped& b) { return a.t_s < b.t_s; });
-  keepLastOfEqualTimes(t, [](const Pose2DStamped& p) { return p.t_s; });
+  sortByTimeKeepLast(t);
   return t;
 }
 
