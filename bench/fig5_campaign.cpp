@@ -39,6 +39,8 @@ namespace {
 struct RunMetrics {
   uint64_t seed = 0;
   std::map<std::string, double> ate_m, terminal_m;
+  /// EKF speed error relative to the true speed, mean over estimates while |v_true| > 0.3 m/s.
+  double ekf_speed_error_rel = 0;
   std::string error;
 };
 
@@ -66,6 +68,21 @@ RunMetrics runOne(const config::WheelchairConfig& cfg, uint64_t seed,
       mo.lever_arm_m = gt.lever_arm_m;
       reference = gt.samples;
     }
+    // The true speed at each EKF output time: the last truth sample at or before it
+    // ([simulation] truth_rate_hz, 100 Hz by default).
+    double sum = 0;
+    long n = 0;
+    std::size_t j = 0;
+    const auto& truth = sim.truth.samples;
+    for (const auto& e : est.ekf.estimates) {
+      while (j + 1 < truth.size() && truth[j + 1].t_s <= e.t_s) ++j;
+      const double v_true = truth[j].v_m_s;
+      if (std::fabs(v_true) > 0.3) {
+        sum += (e.x(0) - v_true) / v_true;
+        ++n;
+      }
+    }
+    out.ekf_speed_error_rel = n ? sum / n : 0.0;
     for (const auto& v : evaluation::variantNames()) {
       const auto m = evaluation::computeMetrics(est.trajectory(v), reference, mo);
       out.ate_m[v] = m.ate_rmse_m;
@@ -156,6 +173,7 @@ int main(int argc, char** argv) {
   const auto& names = evaluation::variantNames();
   std::map<std::string, std::vector<double>> ate, term, d_ate, d_term;
   std::map<std::string, int> wins_ate, wins_term;
+  std::vector<double> speed_error;
   int failed = 0;
   for (const auto& r : results) {
     if (!r.error.empty()) {
@@ -163,6 +181,7 @@ int main(int argc, char** argv) {
       std::cerr << "seed " << r.seed << ": " << r.error << "\n";
       continue;
     }
+    speed_error.push_back(r.ekf_speed_error_rel);
     for (const auto& v : names) {
       ate[v].push_back(r.ate_m.at(v));
       term[v].push_back(r.terminal_m.at(v));
@@ -192,6 +211,12 @@ int main(int argc, char** argv) {
                         {"terminal_mean_m", t.mean},
                         {"terminal_se_m", t.se}};
   }
+  const auto sp = summarise(speed_error);
+  fmt::print(
+      "EKF speed error while moving (|v| > 0.3 m/s): {:+.2f} % +- {:.2f} % of the true "
+      "speed\n",
+      100 * sp.mean, 100 * sp.se);
+  j["ekf_speed_error_rel"] = {{"mean", sp.mean}, {"se", sp.se}};
   fmt::print("EKF minus variant (paired; negative = EKF better; t = mean / se; wins of {}):\n", ok);
   for (const auto& v : names) {
     if (v == "ekf") continue;
