@@ -1,0 +1,180 @@
+// AtomicFile: complete or absent, on success, on a write failure at any point, and for
+// targets that are not regular files.
+#include "libwheelchair/util/AtomicFile.h"
+
+#include <gtest/gtest.h>
+
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace fs = std::filesystem;
+using wheelchair::util::AtomicFile;
+
+namespace {
+
+fs::path freshDir(const std::string& name) {
+  const fs::path d =
+      fs::temp_directory_path() / ("wc_atomic_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+std::size_t entries(const fs::path& d) {
+  return static_cast<std::size_t>(
+      std::distance(fs::directory_iterator(d), fs::directory_iterator()));
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+/// Limits the size of files this process may write (a full disk at `bytes`, as far as write(2)
+/// is concerned: it fails with EFBIG once the limit is reached) until destruction.
+struct FileSizeLimit {
+  rlimit old{};
+  explicit FileSizeLimit(rlim_t bytes) {
+    std::signal(SIGXFSZ, SIG_IGN);
+    ::getrlimit(RLIMIT_FSIZE, &old);
+    rlimit r = old;
+    r.rlim_cur = bytes;
+    ::setrlimit(RLIMIT_FSIZE, &r);
+  }
+  ~FileSizeLimit() { ::setrlimit(RLIMIT_FSIZE, &old); }
+};
+
+}  // namespace
+
+TEST(AtomicFile, CommitsCompleteContentAndLeavesNoTemporary) {
+  const fs::path d = freshDir("ok");
+  const std::string target = (d / "out.txt").string();
+  {
+    AtomicFile f(target);
+    EXPECT_FALSE(fs::exists(target));
+    for (int i = 0; i < 100000; ++i) f.stream() << i << '\n';
+    f.commit();
+  }
+  EXPECT_EQ(entries(d), 1u);
+  const std::string s = slurp(target);
+  EXPECT_EQ(s.substr(0, 4), "0\n1\n");
+  EXPECT_EQ(s.substr(s.size() - 6), "99999\n");
+}
+
+TEST(AtomicFile, ReplacesAnExistingRegularFileOnlyOnCommit) {
+  const fs::path d = freshDir("replace");
+  const std::string target = (d / "out.txt").string();
+  { std::ofstream(target) << "old\n"; }
+  {
+    AtomicFile f(target);
+    f.stream() << "new\n";
+    EXPECT_EQ(slurp(target), "old\n");  // untouched until commit
+  }                                     // not committed: the old file stays, the temporary goes
+  EXPECT_EQ(slurp(target), "old\n");
+  EXPECT_EQ(entries(d), 1u);
+  wheelchair::util::writeFileAtomically(target, [](std::ostream& os) { os << "new\n"; });
+  EXPECT_EQ(slurp(target), "new\n");
+}
+
+TEST(AtomicFile, FullDiskThrowsOneLineAndLeavesNothing) {
+  const fs::path d = freshDir("full");
+  const std::string target = (d / "big.txt").string();
+  std::string what;
+  {
+    FileSizeLimit limit(200000);  // the file needs ~590 kB
+    try {
+      AtomicFile f(target);
+      for (int i = 0; i < 100000; ++i) f.stream() << i << '\n';
+      f.commit();
+    } catch (const std::runtime_error& e) {
+      what = e.what();
+    }
+  }
+  EXPECT_NE(what.find(target), std::string::npos) << what;
+  EXPECT_NE(what.find("cannot write"), std::string::npos) << what;
+  EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  EXPECT_FALSE(fs::exists(target));
+  EXPECT_EQ(entries(d), 0u);
+}
+
+TEST(AtomicFile, FailureOnlyAtTheFinalFlushIsStillAFailure) {
+  // Small enough to sit in the stream's buffer until commit(): the write fails only there.
+  const fs::path d = freshDir("flush");
+  const std::string target = (d / "small.txt").string();
+  FileSizeLimit limit(10);
+  AtomicFile f(target);
+  f.stream() << std::string(1000, 'x');
+  EXPECT_NO_THROW(f.check());
+  EXPECT_THROW(f.commit(), std::runtime_error);
+  EXPECT_FALSE(fs::exists(target));
+  EXPECT_EQ(entries(d), 0u);
+}
+
+TEST(AtomicFile, CheckStopsALongWriterEarly) {
+  const fs::path d = freshDir("early");
+  const std::string target = (d / "long.txt").string();
+  FileSizeLimit limit(100000);
+  AtomicFile f(target);
+  int written = 0;
+  bool threw = false;
+  try {
+    for (; written < 10000000; ++written) {
+      f.stream() << "0123456789\n";
+      if (written % 1000 == 0) f.check();
+    }
+  } catch (const std::runtime_error&) {
+    threw = true;
+  }
+  EXPECT_TRUE(threw);
+  EXPECT_LT(written, 20000);
+  EXPECT_EQ(entries(d), 0u);
+}
+
+TEST(AtomicFile, RefusesTargetsThatAreNotRegularFiles) {
+  const fs::path d = freshDir("kinds");
+  const fs::path real = d / "real.txt";
+  { std::ofstream(real) << "keep\n"; }
+  const fs::path link = d / "link.txt";
+  fs::create_symlink(real, link);
+  const fs::path fifo = d / "fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0644), 0);
+  for (const std::string& p :
+       {link.string(), fifo.string(), std::string("/dev/null"), d.string()}) {
+    try {
+      AtomicFile f(p);
+      ADD_FAILURE() << p << " accepted";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("refusing"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_EQ(slurp(real), "keep\n");
+  EXPECT_EQ(entries(d), 3u);
+}
+
+TEST(AtomicFile, ByNameWritersCommitWhatTheyWrote) {
+  const fs::path d = freshDir("byname");
+  const std::string target = (d / "lib.bin").string();
+  AtomicFile f(target);
+  { std::ofstream(f.tempPath(), std::ios::binary) << "written by a library"; }
+  f.commit();
+  EXPECT_EQ(slurp(target), "written by a library");
+  EXPECT_EQ(entries(d), 1u);
+}
+
+TEST(AtomicFile, MissingDirectoryIsAOneLineError) {
+  try {
+    AtomicFile f("/nonexistent_dir_wc/x.txt");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent_dir_wc/x.txt"), std::string::npos);
+  }
+}
