@@ -378,8 +378,14 @@ int runFilter(const FilterCliOptions& o) {
     fmt::print("model extensions applied: {}\n", ext.summary());
   }
   const auto t0 = std::chrono::steady_clock::now();
-  const estimation::EstimationResult res =
-      estimation::runEstimator(rec, cfg, opt, [&](double f) { progress.update(f, "filtering"); });
+  const estimation::EstimationResult res = [&] {
+    try {  // name the file: runEstimator names the sample and time of a failure
+      return estimation::runEstimator(rec, cfg, opt,
+                                      [&](double f) { progress.update(f, "filtering"); });
+    } catch (const std::exception& e) {
+      throw std::runtime_error(o.input + ": " + e.what());
+    }
+  }();
   progress.stop();
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -8,11 +8,14 @@
 #include <sys/mman.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <stdexcept>
 #include <tuple>
+
+#include <fmt/core.h>
 
 namespace wheelchair::estimation {
 
@@ -322,11 +325,33 @@ struct Event {
   std::size_t index;
 };
 
+/// v sorted by `less` (stable), and in `order` the index in v of each sorted element (to name
+/// a sample as stored when something fails).
 template <typename T, typename Less>
-std::vector<T> sortedCopy(const std::vector<T>& v, Less less) {
-  std::vector<T> s = v;
-  std::sort(s.begin(), s.end(), less);
+std::vector<T> sortedCopy(const std::vector<T>& v, Less less, std::vector<std::size_t>& order) {
+  order.resize(v.size());
+  for (std::size_t i = 0; i < v.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return less(v[a], v[b]); });
+  std::vector<T> s;
+  s.reserve(v.size());
+  for (const std::size_t i : order) s.push_back(v[i]);
   return s;
+}
+
+/// Stream label (as in the rawlog) of an event kind.
+const char* eventStream(int kind) {
+  switch (kind) {
+    case kEncStart:
+    case kEncInterval:
+      return "ENCODERS";
+    case kGyro:
+      return "IMU";
+    case kSonar:
+      return "SONAR";
+    default:
+      return "POZYX";
+  }
 }
 
 }  // namespace
@@ -344,20 +369,33 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
   EstimationResult& res = est->result();
 
   // Every stream sorted by (time, value): the same multiset of samples gives the same order.
-  const auto enc =
-      sortedCopy(rec.encoders, [](const io::EncoderSample& a, const io::EncoderSample& b) {
+  // order[k][i]: index in the recording's stream of the i-th sorted sample (error messages).
+  std::array<std::vector<std::size_t>, 5> order;
+  const auto enc = sortedCopy(
+      rec.encoders,
+      [](const io::EncoderSample& a, const io::EncoderSample& b) {
         return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
                std::tie(b.t_s, b.right_ticks, b.left_ticks);
-      });
-  const auto imu = sortedCopy(rec.imu, [](const io::ImuSample& a, const io::ImuSample& b) {
-    return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);
-  });
-  const auto son = sortedCopy(rec.sonar, [](const io::SonarSample& a, const io::SonarSample& b) {
-    return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
-  });
-  const auto poz = sortedCopy(rec.pozyx, [](const io::PozyxSample& a, const io::PozyxSample& b) {
-    return std::tie(a.t_s, a.x_m, a.y_m) < std::tie(b.t_s, b.x_m, b.y_m);
-  });
+      },
+      order[kEncStart]);
+  const auto imu = sortedCopy(
+      rec.imu,
+      [](const io::ImuSample& a, const io::ImuSample& b) {
+        return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);
+      },
+      order[kGyro]);
+  const auto son = sortedCopy(
+      rec.sonar,
+      [](const io::SonarSample& a, const io::SonarSample& b) {
+        return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
+      },
+      order[kSonar]);
+  const auto poz = sortedCopy(
+      rec.pozyx,
+      [](const io::PozyxSample& a, const io::PozyxSample& b) {
+        return std::tie(a.t_s, a.x_m, a.y_m) < std::tie(b.t_s, b.x_m, b.y_m);
+      },
+      order[kPozyx]);
 
   std::vector<Event> ev;
   std::vector<sensors::WheelSpeedInterval> iv;
@@ -403,9 +441,8 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
   long k_out = 0;
   auto nextOut = [&] { return t0 + static_cast<double>(k_out) / opt.output_rate_hz; };
   const std::size_t progress_every = std::max<std::size_t>(1, ev.size() / 100);
-  for (std::size_t e = 0; e < ev.size(); ++e) {
+  const auto processEvent = [&](std::size_t e) {
     const Event& E = ev[e];
-    if (progress && e % progress_every == 0) progress(static_cast<double>(e) / ev.size());
     if (fixed_rate) {
       while (nextOut() <= E.t) {
         est->predictTo(nextOut());
@@ -436,6 +473,32 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
     // One output per measurement time (after all measurements of that time).
     if (!fixed_rate && (e + 1 == ev.size() || ev[e + 1].t != E.t))
       res.estimates.push_back(est->estimate());
+  };
+  // Names the measurement being processed when a filter fails (e.g. CVODE after a clock jump):
+  // stream, sample index as stored in the recording (0-based) and time.
+  const auto describe = [&](const Event& E) {
+    std::size_t sorted = E.index;
+    if (E.kind == kEncInterval) {
+      // The interval ends at an encoder sample: find it among the sorted samples.
+      const auto it =
+          std::lower_bound(enc.begin(), enc.end(), iv[E.index].t1_s,
+                           [](const io::EncoderSample& a, double t) { return a.t_s < t; });
+      sorted = static_cast<std::size_t>(it - enc.begin());
+    } else if (E.kind == kEncStart) {
+      sorted = 0;
+    }
+    const auto& ord = order[E.kind == kEncInterval ? kEncStart : E.kind];
+    const std::size_t stored = sorted < ord.size() ? ord[sorted] : sorted;
+    return fmt::format("{} sample {} (t = {:.6f} s)", eventStream(E.kind), stored, E.t);
+  };
+  for (std::size_t e = 0; e < ev.size(); ++e) {
+    const Event& E = ev[e];
+    if (progress && e % progress_every == 0) progress(static_cast<double>(e) / ev.size());
+    try {
+      processEvent(e);
+    } catch (const std::exception& ex) {
+      throw std::runtime_error(fmt::format("{}: {}", describe(E), ex.what()));
+    }
   }
   if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) res.cvode = w->filter().stats();
   return std::move(res);
