@@ -456,6 +456,11 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
       check(CVodeInit(mem, &CdEkfAccess::rhs, tau0, cv_->y), "CVodeInit");
       check(CVodeSVtolerances(mem, opt_.rel_tol, cv_->abstol), "CVodeSVtolerances");
       check(CVodeSetUserData(mem, this), "CVodeSetUserData");
+      // Failures are reported by the exception of integrate() (one line naming the interval),
+      // not by CVODE's own print to stderr.
+      check(CVodeSetErrHandlerFn(
+                mem, [](int, const char*, const char*, char*, void*) {}, nullptr),
+            "CVodeSetErrHandlerFn");
       if (opt_.method == CvodeOptions::Method::Adams) {
         cv_->nls = SUNNonlinSol_FixedPoint(cv_->y, 0, cv_->ctx);
         if (!cv_->nls) throw std::runtime_error("CdEkf: SUNNonlinSol_FixedPoint failed");
