@@ -58,8 +58,9 @@ std::pair<double, double> SensorStats::meanNisBand95() const {
 }
 
 const EstimateSample& EstimationResult::final() const {
-  if (estimates.empty()) throw std::logic_error("EstimationResult: no estimate");
-  return estimates.back();
+  if (!estimates.empty()) return estimates.back();
+  if (n_estimates > 0) return last;
+  throw std::logic_error("EstimationResult: no estimate");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -177,7 +178,7 @@ double Estimator::gate(int dof) const {
 void Estimator::record(Sensor s, double t, const UpdateResult& r, double g) {
   SensorStats& st = stats(s);
   st.dof = r.dof;
-  res_.nis.push_back({t, s, r.nis, r.dof, r.accepted});
+  if (keep_nis_records_) res_.nis.push_back({t, s, r.nis, r.dof, r.accepted});
   if (r.accepted) {
     ++st.used;
     ++st.nis_count;
@@ -322,18 +323,20 @@ struct Event {
   std::size_t index;
 };
 
+// The stream itself when it is already in `less` order (the usual, time-ordered recording:
+// no copy), else a sorted copy kept in `store`. Elements that compare equal are equal in every
+// field the filters read, so both give the same events.
 template <typename T, typename Less>
-std::vector<T> sortedCopy(const std::vector<T>& v, Less less) {
-  std::vector<T> s = v;
-  std::sort(s.begin(), s.end(), less);
-  return s;
+const std::vector<T>& sortedView(const std::vector<T>& v, std::vector<T>& store, Less less) {
+  if (std::is_sorted(v.begin(), v.end(), less)) return v;
+  store = v;
+  std::sort(store.begin(), store.end(), less);
+  return store;
 }
 
-}  // namespace
-
-EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                              const EkfOptions& options,
-                              const std::function<void(double)>& progress) {
+EstimationResult runEstimatorImpl(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                                  const EkfOptions& options, EstimateSink* sink,
+                                  const std::function<void(double)>& progress) {
   EkfOptions opt = options;
   opt.resolveSensorDefaults(cfg);
   opt.validate();
@@ -341,23 +344,31 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
   InputSignal input(opt.input_interpolation);
   input.setSamples(rec.motors);
   auto est = makeEstimator(cfg, opt, &input);
+  est->keepNisRecords(sink == nullptr);
   EstimationResult& res = est->result();
 
   // Every stream sorted by (time, value): the same multiset of samples gives the same order.
-  const auto enc =
-      sortedCopy(rec.encoders, [](const io::EncoderSample& a, const io::EncoderSample& b) {
-        return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
-               std::tie(b.t_s, b.right_ticks, b.left_ticks);
+  std::vector<io::EncoderSample> enc_store;
+  std::vector<io::ImuSample> imu_store;
+  std::vector<io::SonarSample> son_store;
+  std::vector<io::PozyxSample> poz_store;
+  const auto& enc = sortedView(rec.encoders, enc_store,
+                               [](const io::EncoderSample& a, const io::EncoderSample& b) {
+                                 return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
+                                        std::tie(b.t_s, b.right_ticks, b.left_ticks);
+                               });
+  const auto& imu =
+      sortedView(rec.imu, imu_store, [](const io::ImuSample& a, const io::ImuSample& b) {
+        return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);
       });
-  const auto imu = sortedCopy(rec.imu, [](const io::ImuSample& a, const io::ImuSample& b) {
-    return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);
-  });
-  const auto son = sortedCopy(rec.sonar, [](const io::SonarSample& a, const io::SonarSample& b) {
-    return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
-  });
-  const auto poz = sortedCopy(rec.pozyx, [](const io::PozyxSample& a, const io::PozyxSample& b) {
-    return std::tie(a.t_s, a.x_m, a.y_m) < std::tie(b.t_s, b.x_m, b.y_m);
-  });
+  const auto& son =
+      sortedView(rec.sonar, son_store, [](const io::SonarSample& a, const io::SonarSample& b) {
+        return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
+      });
+  const auto& poz =
+      sortedView(rec.pozyx, poz_store, [](const io::PozyxSample& a, const io::PozyxSample& b) {
+        return std::tie(a.t_s, a.x_m, a.y_m) < std::tie(b.t_s, b.x_m, b.y_m);
+      });
 
   std::vector<Event> ev;
   std::vector<sensors::WheelSpeedInterval> iv;
@@ -395,11 +406,23 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
   est->start(t0);
   const bool fixed_rate = opt.output_rate_hz > 0;
   // Sized once: growing a vector of ~0.5 kB samples by doubling was a third of the baseline
-  // filter's time (copies and first-touch page faults; docs/benchmarks.md).
-  res.estimates.reserve(fixed_rate
-                            ? static_cast<std::size_t>((ev.back().t - t0) * opt.output_rate_hz) + 2
-                            : ev.size());
-  res.nis.reserve(ev.size());
+  // filter's time (copies and first-touch page faults; docs/benchmarks.md). A sink keeps
+  // nothing: memory stays flat however long the drive.
+  if (!sink) {
+    res.estimates.reserve(
+        fixed_rate ? static_cast<std::size_t>((ev.back().t - t0) * opt.output_rate_hz) + 2
+                   : ev.size());
+    res.nis.reserve(ev.size());
+  }
+  const auto emit = [&](const EstimateSample& s) {
+    ++res.n_estimates;
+    if (sink) {
+      sink->add(s);
+      res.last = s;
+    } else {
+      res.estimates.push_back(s);
+    }
+  };
   long k_out = 0;
   auto nextOut = [&] { return t0 + static_cast<double>(k_out) / opt.output_rate_hz; };
   const std::size_t progress_every = std::max<std::size_t>(1, ev.size() / 100);
@@ -411,7 +434,7 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
         est->predictTo(nextOut());
         EstimateSample s = est->estimate();
         s.t_s = nextOut();
-        res.estimates.push_back(s);
+        emit(s);
         ++k_out;
       }
     }
@@ -434,11 +457,25 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
         break;
     }
     // One output per measurement time (after all measurements of that time).
-    if (!fixed_rate && (e + 1 == ev.size() || ev[e + 1].t != E.t))
-      res.estimates.push_back(est->estimate());
+    if (!fixed_rate && (e + 1 == ev.size() || ev[e + 1].t != E.t)) emit(est->estimate());
   }
+  if (!res.estimates.empty()) res.last = res.estimates.back();
   if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) res.cvode = w->filter().stats();
   return std::move(res);
+}
+
+}  // namespace
+
+EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                              const EkfOptions& options,
+                              const std::function<void(double)>& progress) {
+  return runEstimatorImpl(rec, cfg, options, nullptr, progress);
+}
+
+EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                              const EkfOptions& options, EstimateSink& sink,
+                              const std::function<void(double)>& progress) {
+  return runEstimatorImpl(rec, cfg, options, &sink, progress);
 }
 
 }  // namespace wheelchair::estimation
