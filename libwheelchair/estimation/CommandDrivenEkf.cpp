@@ -331,7 +331,11 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   Eigen::Matrix2d R =
       Eigen::Vector2d(o.range_sigma_m * o.range_sigma_m, o.bearing_sigma_rad * o.bearing_sigma_rad)
           .asDiagonal();
-  double t = res.t_start_s, next_out = t;
+  // The grid runs in time relative to the start (tau = t - t_ref): steps accumulated in UNIX
+  // time (MRCLAM: 1.25e9 s) would round each to 2.4e-7 s and make the grid depend on the
+  // clock offset (docs/estimation.md, "Clock offset"). t = t_ref + tau is for u(t) and outputs.
+  const double t_ref = res.t_start_s;
+  double tau = 0, next_out_tau = 0, t = t_ref;
   const double t_end = std::max(sig.endTime(), z.empty() ? t : z.back().t_s);
   double nis_sum = 0, nis_sum_all = 0;
   const double band_lo = chi2Quantile(0.025, 2), band_hi = chi2Quantile(0.975, 2);
@@ -353,12 +357,14 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
     }
   };
   emit();
-  next_out += o.output_every_s;
+  next_out_tau += o.output_every_s;
   std::size_t k = start;
   const auto propagateTo = [&](double t1) {
-    while (t < t1 - 1e-12) {
-      const double h = std::min(o.dt_s, t1 - t);
-      const Eigen::Vector2d u = mdl.target(sig, t + h / 2);
+    const double tau1 = t1 - t_ref;
+    while (tau < tau1 - 1e-12) {
+      const double h = std::min(o.dt_s, tau1 - tau);
+      const double t_mid = t_ref + (tau + h / 2);
+      const Eigen::Vector2d u = mdl.target(sig, t_mid);
       const auto Fc = mdl.F(x, u);
       const Eigen::Matrix<double, 5, 5> A = Fc * h;
       const Eigen::Matrix<double, 5, 5> Phi =
@@ -375,13 +381,14 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
       const Eigen::Matrix4d Qc = Eigen::Vector4d(o.q_v, o.q_omega, o.q_v, o.q_omega).asDiagonal();
       x = mdl.step(x, u, h);
       Eigen::Matrix<double, 5, 5> Phi_u = Phi;
-      if (unmodeled) addUnmodeled(x, o.unmodeledVelocity(sig.at(t + h / 2)), h, &Phi_u);
+      if (unmodeled) addUnmodeled(x, o.unmodeledVelocity(sig.at(t_mid)), h, &Phi_u);
       P = Phi_u * P * Phi_u.transpose() + Gw * Qc * Gw.transpose() * h;
       P = 0.5 * (P + P.transpose());
-      t += h;
-      if (t >= next_out - 1e-9) {
+      tau += h;
+      t = t_ref + tau;
+      if (tau >= next_out_tau - 1e-9) {
         emit();
-        next_out += o.output_every_s;
+        next_out_tau += o.output_every_s;
       }
     }
   };
@@ -424,8 +431,9 @@ std::vector<CommandDrivenEstimate> deadReckoningCommands(const io::Recording& re
   const bool unmodeled = o.hasUnmodeled();
   model::CommandState x;
   x << pose0(0), pose0(1), pose0(2), vel0(0), vel0(1);
-  double t = t0_s, next_out = t0_s;
-  const double t_end = sig.endTime();
+  // Relative time on the grid, as in runCommandDrivenEkf.
+  double tau = 0, next_out_tau = 0, t = t0_s;
+  const double t_end = sig.endTime(), tau_end = t_end - t0_s;
   const auto emit = [&] {
     CommandDrivenEstimate e{t, x(0), x(1), wrap(x(2)), 0, 0, 0, 0};
     const Eigen::Vector2d vel =
@@ -433,15 +441,17 @@ std::vector<CommandDrivenEstimate> deadReckoningCommands(const io::Recording& re
     e.v_m_s = vel(0);
     e.omega_rad_s = vel(1);
     out.push_back(e);
-    next_out += o.output_every_s;
+    next_out_tau += o.output_every_s;
   };
   emit();
-  while (t < t_end - 1e-12) {
-    const double h = std::min(o.dt_s, t_end - t);
-    x = mdl.step(x, mdl.target(sig, t + h / 2), h);
-    if (unmodeled) addUnmodeled(x, o.unmodeledVelocity(sig.at(t + h / 2)), h);
-    t += h;
-    if (t >= next_out - 1e-9) emit();
+  while (tau < tau_end - 1e-12) {
+    const double h = std::min(o.dt_s, tau_end - tau);
+    const double t_mid = t0_s + (tau + h / 2);
+    x = mdl.step(x, mdl.target(sig, t_mid), h);
+    if (unmodeled) addUnmodeled(x, o.unmodeledVelocity(sig.at(t_mid)), h);
+    tau += h;
+    t = t0_s + tau;
+    if (tau >= next_out_tau - 1e-9) emit();
   }
   if (out.back().t_s < t) emit();
   return out;

@@ -146,6 +146,10 @@ std::unique_ptr<Estimator> makeEstimator(const config::WheelchairConfig& cfg, co
 
 /// Runs the selected filter over a whole recording (see the header comment). `progress`, when
 /// set, is called with the fraction of measurements processed (0..1) about every 1 %.
+/// Times may be on any clock (0 or UNIX time; results do not depend on the offset, see
+/// docs/estimation.md "Clock offset"). A failure of the filter (e.g. CVODE after a clock jump)
+/// throws std::runtime_error naming the stream, the sample index as stored and its time:
+/// "IMU sample 2000 (t = 1701000020.007752 s): CVODE failed (CV_TOO_MUCH_WORK) ...".
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
                               const EkfOptions& opt,
                               const std::function<void(double)>& progress = {});

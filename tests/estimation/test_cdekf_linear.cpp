@@ -206,3 +206,41 @@ TEST(ChiSquare, QuantilesMatchTables) {
   EXPECT_NEAR(lo, chi2Quantile(0.025, 140) / 20, 1e-12);
   EXPECT_NEAR(hi, chi2Quantile(0.975, 140) / 20, 1e-12);
 }
+
+// The integration runs in time relative to reset(): the same intervals at t0 = 0 and at a
+// UNIX-like t0 = 2^30 s (~1.07e9; stamps k * 2^-10 s, exactly representable at both offsets)
+// give the same state and covariance to the bit, and the closed form to CVODE's tolerance.
+// Before, a tolerance relative to |t| turned every interval into one Euler step there.
+TEST(CdEkfLinear, ResultIsIndependentOfTheClockOffset) {
+  const LinearModel m = makeModel();
+  Eigen::VectorXd x0(4);
+  x0 << 0.3, -0.1, 0.2, 0.0;
+  const Eigen::MatrixXd P0 = 0.01 * Eigen::MatrixXd::Identity(4, 4);
+  Eigen::VectorXd u(2);
+  u << 0.4, -0.2;
+  const auto run = [&](double t0, Eigen::MatrixXd* P) {
+    CvodeOptions o;  // tight, so that the closed-form comparison below is sharp
+    o.rel_tol = 1e-10;
+    o.abs_tol_state = 1e-12;
+    o.abs_tol_cov = 1e-12;
+    CdEkf ekf(m, o);
+    ekf.reset(t0, x0, P0);
+    for (int k = 1; k <= 2048; ++k) {  // 2 s in ~1 ms intervals, some of them 1/8 of that
+      const double t1 = t0 + std::ldexp(k, -10) + (k % 7 == 0 ? std::ldexp(1, -13) : 0.0);
+      ekf.propagate(t1, [&](double) { return u; });
+    }
+    EXPECT_EQ(ekf.stats().short_intervals, 0);
+    *P = ekf.P();
+    return Eigen::VectorXd(ekf.x());
+  };
+  Eigen::MatrixXd Pa, Pb;
+  const Eigen::VectorXd xa = run(0.0, &Pa);
+  const Eigen::VectorXd xb = run(std::ldexp(1.0, 30), &Pb);
+  EXPECT_EQ(xa, xb);
+  EXPECT_EQ(Pa, Pb);
+  const double T = 2.0;  // the last stamp, k = 2048
+  const Eigen::VectorXd exact = exactState(m, x0, u, u, T);
+  EXPECT_LT((xb - exact).cwiseAbs().maxCoeff(), 1e-6) << xb.transpose() << "\n"
+                                                      << exact.transpose();
+  EXPECT_LT((Pb - exactCov(m, P0, T)).cwiseAbs().maxCoeff(), 1e-6);
+}
