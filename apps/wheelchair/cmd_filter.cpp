@@ -398,7 +398,9 @@ int runFilter(const FilterCliOptions& o) {
     // One variant at a time: written, measured, dropped.
     auto writeVariant = [](const std::string& path,
                            const std::vector<estimation::DeadReckoningSample>& dr) {
-      evaluation::writeTum(path, evaluation::toTrajectory(dr));
+      evaluation::TumWriter tum(path);  // time-ordered already: no trajectory copy
+      for (const auto& p : dr) tum.add({p.t_s, p.x_m, p.y_m, p.phi_rad});
+      tum.commit();
       return estimation::pathLength(dr);
     };
     const double d_enc = writeVariant(

@@ -416,35 +416,42 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
     for (size_t a = 0; a < sel.accepted.size(); ++a)
       if (cands[sel.accepted[a]].name == "sensor_delay/imu") di = static_cast<int>(a);
     double delay = 0;
-    KinRows kf2 = kf, kv2 = kv;
+    // Re-built rows with the re-estimated delay; without a delay kf, kv themselves (no copy).
+    KinRows kf2n, kv2n;
+    const KinRows* pkf2 = &kf;
+    const KinRows* pkv2 = &kv;
     if (di >= 0) {
       for (int it = 0; it < 4; ++it) {
         delay += sel.fit.beta(sel.ranges[di].first);
         Corrections c2;
         c2.delay_imu = delay;
-        kf2 = kinematicRows(fitS, c2, cfg, opt);
-        Eigen::MatrixXd D = acceptedDesign(kf2.X, cands, sel.accepted);
-        sel.fit = fitLinear(D, kf2.y, kf2.groups, lags1);
+        kf2n = kinematicRows(fitS, c2, cfg, opt);
+        Eigen::MatrixXd D = acceptedDesign(kf2n.X, cands, sel.accepted);
+        sel.fit = fitLinear(D, kf2n.y, kf2n.groups, lags1);
       }
       delay += sel.fit.beta(sel.ranges[di].first);
       Corrections c2;
       c2.delay_imu = delay;
-      kf2 = kinematicRows(fitS, c2, cfg, opt);
-      kv2 = kinematicRows(valS, c2, cfg, opt);
+      kf2n = kinematicRows(fitS, c2, cfg, opt);
+      kv2n = kinematicRows(valS, c2, cfg, opt);
       // re-select the other terms on the delay-corrected rows (the linearised delay leaves
       // second-order structure that other terms may have absorbed)
       SelectionStep dstep = sel.steps[di];
       int dcand = sel.accepted[di];
-      SelectionData sd2{kf2.y,      kv2.y,      kf2.X, kv2.X,
-                        kf2.groups, kv2.groups, lags1, sd.min_contribution_rms};
+      SelectionData sd2{kf2n.y,      kv2n.y,      kf2n.X, kv2n.X,
+                        kf2n.groups, kv2n.groups, lags1,  sd.min_contribution_rms};
       sel = forwardSelect(sd2, cands, opt, {dcand});
       sel.steps.insert(sel.steps.begin(), dstep);
       delay += sel.fit.beta(sel.ranges[0].first);
       c2.delay_imu = delay;
-      kf2 = kinematicRows(fitS, c2, cfg, opt);
-      kv2 = kinematicRows(valS, c2, cfg, opt);
-      sel.fit = fitLinear(acceptedDesign(kf2.X, cands, sel.accepted), kf2.y, kf2.groups, lags1);
+      kf2n = kinematicRows(fitS, c2, cfg, opt);
+      kv2n = kinematicRows(valS, c2, cfg, opt);
+      sel.fit = fitLinear(acceptedDesign(kf2n.X, cands, sel.accepted), kf2n.y, kf2n.groups, lags1);
+      pkf2 = &kf2n;
+      pkv2 = &kv2n;
     }
+    const KinRows& kf2 = *pkf2;
+    const KinRows& kv2 = *pkv2;
     // coefficients
     double bg = 0, bR = 0, bL = 0, b0 = 0;
     double sb0 = 0, sbg = 0, sbR = 0, sbL = 0, sdel = 0;

@@ -99,10 +99,11 @@ struct Selection {
   std::vector<std::string> log;             ///< why candidates were rejected (last round)
 };
 
+/// Views of the caller's rows (no copy of the regression matrices; they must outlive it).
 struct SelectionData {
-  Eigen::VectorXd y_fit, y_val;
-  Eigen::MatrixXd X_fit, X_val;
-  Groups g_fit, g_val;
+  const Eigen::VectorXd &y_fit, &y_val;
+  const Eigen::MatrixXd &X_fit, &X_val;
+  const Groups &g_fit, &g_val;
   int lags = 5;
   /// Relevance: the RMS of a term's contribution over the fit rows must reach this (units of
   /// y), i.e. min_relevance x the configured noise of one sensor sample; below it a term is

@@ -36,6 +36,7 @@ std::vector<DeadReckoningSample> deadReckoningEncoders(const std::vector<io::Enc
   const auto iv = sensors::wheelSpeedsFromTicks(sortedEncoders(enc), p, g);
   std::vector<DeadReckoningSample> out;
   if (iv.empty()) return out;
+  out.reserve(iv.size() + 1);  // sized once: no doubling slack on a long drive
   DeadReckoningSample s;
   s.t_s = iv.front().t0_s;
   out.push_back(s);
@@ -59,6 +60,7 @@ std::vector<DeadReckoningSample> deadReckoningEncoderGyro(const std::vector<io::
   for (const auto& m : imu)
     if (std::isfinite(m.gyro_z_rad_s)) gy.emplace_back(m.t_s, m.gyro_z_rad_s);
   std::sort(gy.begin(), gy.end());
+  out.reserve(iv.size() + 1 + gy.size());  // at most one sample per interval and gyro time
   // Gyro omega at t: linear interpolation, held beyond the ends (0 without gyro samples).
   auto omegaAt = [&](double t) {
     if (gy.empty()) return 0.0;
