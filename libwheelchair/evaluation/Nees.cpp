@@ -12,12 +12,8 @@
 
 namespace wheelchair::evaluation {
 
-namespace {
-using stats::normalQuantile;
-}  // namespace
-
 double chi2QuantileApprox(double p, double k) {
-  const double z = normalQuantile(p);
+  const double z = stats::normalQuantile(p);
   const double h = 2.0 / (9.0 * k);
   const double v = 1.0 - h + z * std::sqrt(h);
   return k * v * v * v;
