@@ -1,6 +1,7 @@
 #include "libwheelchair/diagnosis/Campaign.h"
 
 #include "libwheelchair/simulation/Simulator.h"
+#include "libwheelchair/stats/Descriptive.h"
 
 #include <fmt/format.h>
 
@@ -23,18 +24,8 @@ double sgn(std::mt19937_64& rng) {
 std::string side(std::mt19937_64& rng) {
   return U(rng, 0, 1) < 0.5 ? "right" : "left";
 }
-double median(std::vector<double> v) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-double quantile(std::vector<double> v, double q) {
-  v.erase(std::remove_if(v.begin(), v.end(), [](double x) { return !std::isfinite(x); }), v.end());
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
-}
+using stats::median;
+using stats::quantile;
 }  // namespace
 
 simulation::EffectSpec randomEffect(const std::string& id, std::mt19937_64& rng) {

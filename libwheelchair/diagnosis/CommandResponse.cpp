@@ -2,7 +2,10 @@
 
 #include "libwheelchair/estimation/CommandDrivenEkf.h"
 
-#include "libwheelchair/diagnosis/Statistics.h"
+#include "libwheelchair/model/Kinematics.h"
+#include "libwheelchair/stats/Descriptive.h"
+#include "libwheelchair/stats/Selection.h"
+#include "libwheelchair/stats/Statistics.h"
 
 #include <Eigen/Dense>
 
@@ -20,13 +23,19 @@ namespace wheelchair::diagnosis {
 using model::CommandKind;
 using model::CommandResponseParams;
 using model::CommandSignal;
+using model::wrapAngle;
+using stats::chi2Sf;
+using stats::compareNestedWithFloor;
+using stats::effectiveSampleSize;
+using stats::Evidence;
+using stats::fitLinear;
+using stats::Groups;
+using stats::LinearFit;
+using stats::median;
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-double wrap(double a) {
-  return std::remainder(a, 2 * kPi);
-}
 
 struct Window {
   double t0, t1, v, w;
@@ -68,7 +77,7 @@ std::vector<Window> velocityWindows(const std::vector<io::GroundTruthPoseSample>
     if (j >= gt.size()) break;
     const double dt = gt[j].t_s - gt[i].t_s;
     if (dt <= 2 * T && gt[i].t_s >= c0 && gt[j].t_s <= c1) {
-      const double dphi = wrap(gt[j].phi_rad - gt[i].phi_rad);
+      const double dphi = wrapAngle(gt[j].phi_rad - gt[i].phi_rad);
       const double dx = gt[j].x_m - gt[i].x_m, dy = gt[j].y_m - gt[i].y_m;
       const double d = std::hypot(dx, dy);
       const double arc = std::abs(dphi) > 1e-9 ? d * (dphi / 2) / std::sin(dphi / 2) : d;
@@ -97,7 +106,7 @@ Prep prepare(const io::Recording& rec, const CommandResponseOptions& o) {
     std::vector<double> t, x, y, ph;
     double unw = 0;
     for (std::size_t k = 0; k < gt.size(); ++k) {
-      if (k > 0) unw += wrap(gt[k].phi_rad - gt[k - 1].phi_rad);
+      if (k > 0) unw += wrapAngle(gt[k].phi_rad - gt[k - 1].phi_rad);
       t.push_back(gt[k].t_s), x.push_back(gt[k].x_m), y.push_back(gt[k].y_m), ph.push_back(unw);
     }
     p.pose_noise_m =
@@ -374,15 +383,8 @@ bool gtAt(const std::vector<io::GroundTruthPoseSample>& gt, double t, double max
   const double u = (t - a.t_s) / (b.t_s - a.t_s);
   x = a.x_m + u * (b.x_m - a.x_m);
   y = a.y_m + u * (b.y_m - a.y_m);
-  phi = a.phi_rad + u * wrap(b.phi_rad - a.phi_rad);
+  phi = a.phi_rad + u * wrapAngle(b.phi_rad - a.phi_rad);
   return true;
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 nlohmann::json driftJson(const DriftMetrics& d) {
@@ -595,7 +597,7 @@ DriftMetrics openLoopDrift(const std::vector<io::Recording>& recs,
           phi += dphi[k];
         }
         const double ep = std::hypot(x - xe, y - ye);
-        const double eh = std::abs(wrap(phi - phie)) * 180 / kPi;
+        const double eh = std::abs(wrapAngle(phi - phie)) * 180 / kPi;
         (W == 10.0 ? e10 : e60).push_back(ep);
         (W == 10.0 ? h10 : h60).push_back(eh);
       }
@@ -664,30 +666,36 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
     (ch == 0 ? res.validation_v : res.validation_omega).rms_before =
         std::sqrt(f.rss / std::max<double>(1, f.resid.size()));
   }
-  std::size_t tried = 0;
+  // Forward selection over the catalogue (stats::selectTerms: Bonferroni over its terms).
+  const stats::SelectionRule rule{o.alpha, static_cast<int>(cat.size()), o.min_delta_bic};
   std::vector<Candidate> accepted;
   std::vector<CommandResponseFinding> acc_findings;
-  while (true) {
+  {
     double neff[2];
-    for (int ch = 0; ch < 2; ++ch) neff[ch] = effectiveSampleSize(cur[ch].resid, gF, o.hac_lags);
     struct Trial {
-      Candidate c;
       FullModel M;
       ChannelFit fit[2];
       Evidence ev;
     };
-    std::optional<Trial> best;
-    for (const auto& c : cat) {
-      if (isActive(M, c)) continue;
+    std::vector<Trial> trials(cat.size());
+    stats::SelectionHooks h;
+    h.step = [&](const std::vector<int>&) {
+      for (int ch = 0; ch < 2; ++ch) neff[ch] = effectiveSampleSize(cur[ch].resid, gF, o.hac_lags);
+    };
+    h.evaluate = [&](int ci, const std::vector<int>&) {
+      stats::Trial t;
+      const Candidate& c = cat[ci];
+      t.skip = isActive(M, c);
+      if (t.skip) return t;
       FullModel T = M;
       setActive(T, c, true);
-      Trial tr{c, T, {cur[0], cur[1]}, {}};
+      Trial& tr = trials[ci];
+      tr = Trial{T, {cur[0], cur[1]}, {}};
       const bool coarse = c.effect == "actuator_lag";
       for (int ch = 0; ch < 2; ++ch) {
         if (c.ch >= 0 && c.ch != ch) continue;
         tr.fit[ch] = optimiseChannel(F, ch, tr.M.ch[ch], tr.M.zero, o, coarse);
       }
-      ++tried;
       if (c.ch >= 0) {
         tr.ev = compare(c.ch, cur[c.ch].rss, tr.fit[c.ch].rss, c.k, neff[c.ch]);
       } else {
@@ -699,6 +707,7 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
         tr.ev.p_value = chi2Sf(std::max(0.0, tr.ev.lr), c.k);
         tr.ev.delta_bic = -tr.ev.lr + c.k * std::log(std::max(1.0, tr.ev.n_eff));
       }
+      t.evidence = tr.ev;
       // Plausibility.
       bool plausible = true;
       if (c.effect == "command_gain") {
@@ -706,28 +715,28 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
         plausible = g >= o.min_gain && g <= o.max_gain;
       }
       if (c.effect == "actuator_lag") plausible = tr.M.ch[c.ch].delay > 0 || tr.M.ch[c.ch].tau > 0;
-      if (!plausible) continue;
-      if (!best || tr.ev.delta_bic < best->ev.delta_bic) best = tr;
-    }
-    if (!best) break;
-    const double alpha_b = o.alpha / std::max<std::size_t>(1, tried);
-    if (!(best->ev.delta_bic < -o.min_delta_bic && best->ev.p_value < alpha_b)) break;
-    const double accepted_level = alpha_b;
-    M = best->M;
-    cur[0] = best->fit[0];
-    cur[1] = best->fit[1];
-    accepted.push_back(best->c);
-    CommandResponseFinding fd;
-    fd.effect = best->c.effect;
-    fd.channel = channelName(best->c.ch);
-    if (best->c.kind >= 0) fd.kind = model::toString(static_cast<CommandKind>(best->c.kind));
-    fd.delta_bic = best->ev.delta_bic;
-    fd.lr = best->ev.lr;
-    fd.p_value = best->ev.p_value;
-    fd.n_eff = best->ev.n_eff;
-    fd.k = best->c.k;
-    fd.bonferroni_level = accepted_level;
-    acc_findings.push_back(fd);
+      if (!plausible) t.reject = "physically implausible parameters";
+      return t;
+    };
+    h.accepted = [&](int ci) {
+      const Trial& best = trials[ci];
+      M = best.M;
+      cur[0] = best.fit[0];
+      cur[1] = best.fit[1];
+      accepted.push_back(cat[ci]);
+      CommandResponseFinding fd;
+      fd.effect = cat[ci].effect;
+      fd.channel = channelName(cat[ci].ch);
+      if (cat[ci].kind >= 0) fd.kind = model::toString(static_cast<CommandKind>(cat[ci].kind));
+      fd.delta_bic = best.ev.delta_bic;
+      fd.lr = best.ev.lr;
+      fd.p_value = best.ev.p_value;
+      fd.n_eff = best.ev.n_eff;
+      fd.k = cat[ci].k;
+      fd.bonferroni_level = rule.level();
+      acc_findings.push_back(fd);
+    };
+    stats::selectTerms(static_cast<int>(cat.size()), rule, h);
   }
 
   // Final parameters of every accepted term; validation of each (removed, others fixed).
@@ -815,7 +824,9 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
     }
   }
 
-  // Unmodeled: residual structure explained by command features, per channel.
+  // Unmodeled: residual structure explained by command features, per channel; Bonferroni
+  // over the library terms of both channels (5 x 2).
+  const stats::SelectionRule lib_rule{o.alpha, 2 * 5, o.min_delta_bic};
   for (int ch = 0; ch < 2; ++ch) {
     std::size_t n = cur[ch].resid.size();
     Eigen::MatrixXd L(n, 5);
@@ -829,40 +840,42 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
     Eigen::VectorXd resid = cur[ch].resid;
     double rss = resid.squaredNorm();
     Eigen::VectorXd beta;
-    while (true) {
-      const double ne = effectiveSampleSize(resid, gF, o.hac_lags);
-      int bj = -1;
-      Evidence bev;
-      Eigen::VectorXd bbeta, bres;
-      for (int j = 0; j < 5; ++j) {
-        if (std::find(chosen.begin(), chosen.end(), j) != chosen.end()) continue;
-        if (L.col(j).squaredNorm() < 1e-12) continue;
-        std::vector<int> cols = chosen;
-        cols.push_back(j);
-        Eigen::MatrixXd A(n, cols.size());
-        for (std::size_t q = 0; q < cols.size(); ++q) A.col(q) = L.col(cols[q]);
-        const Eigen::VectorXd b = A.colPivHouseholderQr().solve(cur[ch].resid);
-        const Eigen::VectorXd e = cur[ch].resid - A * b;
-        const Evidence ev = compare(ch, rss, e.squaredNorm(), 1, ne);
-        if (bj < 0 || ev.delta_bic < bev.delta_bic) bj = j, bev = ev, bbeta = b, bres = e;
-      }
-      // Bonferroni over the library terms of both channels.
-      if (bj < 0 || !(bev.delta_bic < -o.min_delta_bic && bev.p_value < o.alpha / 10)) break;
-      chosen.push_back(bj);
-      resid = bres;
+    double ne = 0;
+    std::vector<Eigen::VectorXd> tbeta(5), tres(5);
+    std::vector<Evidence> tev(5);
+    stats::SelectionHooks h;
+    h.step = [&](const std::vector<int>&) { ne = effectiveSampleSize(resid, gF, o.hac_lags); };
+    h.evaluate = [&](int j, const std::vector<int>& acc) {
+      stats::Trial t;
+      t.skip = L.col(j).squaredNorm() < 1e-12;
+      if (t.skip) return t;
+      std::vector<int> cols = acc;
+      cols.push_back(j);
+      Eigen::MatrixXd A(n, cols.size());
+      for (std::size_t q = 0; q < cols.size(); ++q) A.col(q) = L.col(cols[q]);
+      tbeta[j] = A.colPivHouseholderQr().solve(cur[ch].resid);
+      tres[j] = cur[ch].resid - A * tbeta[j];
+      tev[j] = t.evidence = compare(ch, rss, tres[j].squaredNorm(), 1, ne);
+      return t;
+    };
+    h.accepted = [&](int j) {
+      chosen.push_back(j);
+      resid = tres[j];
       rss = resid.squaredNorm();
-      beta = bbeta;
+      beta = tbeta[j];
       CommandResponseFinding fd;
       fd.effect = "unmodeled";
       fd.channel = channelName(ch);
-      fd.kind = kLibraryNames[bj];
-      fd.delta_bic = bev.delta_bic;
-      fd.lr = bev.lr;
-      fd.p_value = bev.p_value;
-      fd.n_eff = bev.n_eff;
+      fd.kind = kLibraryNames[j];
+      fd.delta_bic = tev[j].delta_bic;
+      fd.lr = tev[j].lr;
+      fd.p_value = tev[j].p_value;
+      fd.n_eff = tev[j].n_eff;
       fd.k = 1;
+      fd.bonferroni_level = lib_rule.level();
       res.findings.push_back(fd);
-    }
+    };
+    stats::selectTerms(5, lib_rule, h);
     // Coefficients (joint) and validation of the unmodeled terms as a group.
     if (!chosen.empty()) {
       Eigen::VectorXd vres;

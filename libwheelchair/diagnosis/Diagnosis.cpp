@@ -2,10 +2,10 @@
 
 #include "libwheelchair/diagnosis/SensorFaults.h"
 #include "libwheelchair/diagnosis/Stages.h"
-#include "libwheelchair/estimation/ChiSquare.h"
 #include "libwheelchair/model/DriveDynamics.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/sensors/Filtering.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include <Eigen/LU>
 
@@ -125,7 +125,7 @@ nlohmann::json channelMetrics(const Eigen::VectorXd& r, const Groups& g, int lag
   j["rho1"] = w.rho1;
   if (noise_var > 0) {
     double nis = b.rms * b.rms / noise_var;
-    auto band = estimation::chi2MeanBand(0.95, 1, std::max(1.0, b.n_eff));
+    auto band = stats::chi2MeanBand(0.95, 1, std::max(1.0, b.n_eff));
     j["mean_nis"] = nis;
     j["nis_band95"] = {band.first, band.second};
   }
@@ -299,8 +299,7 @@ SparseResult stlsq(const Eigen::MatrixXd& L, const Eigen::VectorXd& y, const Gro
     act.erase(act.begin() + worst_k);  // sequential thresholding: drop the weakest term
   }
   if (res.terms.empty()) return res;
-  const double alpha_b = opt.alpha / std::max<int>(1, static_cast<int>(L.cols()));
-  if (!(res.ev.p_value < alpha_b) || !(res.ev.delta_bic < -opt.min_bic_drop)) return res;
+  if (!selectionRule(opt, L.cols()).reject(res.ev).empty()) return res;
   {
     Eigen::MatrixXd A(L.rows(), res.terms.size());
     for (size_t k = 0; k < res.terms.size(); ++k) A.col(k) = L.col(res.terms[k]);
@@ -410,7 +409,7 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
         kf.y,      kv.y,      kf.X,  kv.X,
         kf.groups, kv.groups, lags1, opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s};
     Selection sel = forwardSelect(sd, cands, opt);
-    double alpha_b = opt.alpha / cands.size();
+    double alpha_b = selectionRule(opt, cands.size()).level();
     // nonlinear refinement of a delay: shift the gyro and refit
     int di = -1;
     for (size_t a = 0; a < sel.accepted.size(); ++a)
@@ -609,7 +608,7 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   if (any_mot) {
     const double mb = cfg.vehicle.geom.body_mass_kg;
     auto cands = dynamicCandidates(mb, opt.enable_delay);
-    double alpha_b = opt.alpha / cands.size();
+    double alpha_b = selectionRule(opt, cands.size()).level();
     DynRows df = dynamicRows(fitS, corr, cfg, opt), dv = dynamicRows(valS, corr, cfg, opt);
     int lags2 = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
     if (df.y.size() > 50) {

@@ -1,6 +1,7 @@
 #include "libwheelchair/diagnosis/SensorFaults.h"
 
-#include "libwheelchair/estimation/ChiSquare.h"
+#include "libwheelchair/stats/Descriptive.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include <Eigen/Dense>
 
@@ -14,12 +15,7 @@ namespace wheelchair::diagnosis {
 
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const std::size_t m = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + m, v.end());
-  return v[m];
-}
+using stats::median;
 
 /// Merges time points / intervals into segments (gaps < 1 s joined); at most 20 (longest).
 std::vector<std::pair<double, double>> mergeSegments(std::vector<std::pair<double, double>> iv) {
@@ -70,7 +66,7 @@ void sonarRecording(const io::Recording& rec, const config::WheelchairConfig& cf
   // A non-zero reading beyond the band by more than the Bonferroni quantile of the noise is
   // impossible for a healthy sensor.
   const double n_all = std::max<double>(1, s.size());
-  const double z = std::sqrt(estimation::chi2Quantile(1 - o.alpha / n_all, 1));
+  const double z = std::sqrt(stats::chi2Quantile(1 - o.alpha / n_all, 1));
   const double lo = sp.min_range_m - z * sig, hi = sp.max_range_m + z * sig;
   enum Kind { kZero, kValid, kBad };
   std::vector<Kind> kind(s.size());
@@ -152,7 +148,7 @@ void sonarRecording(const io::Recording& rec, const config::WheelchairConfig& cf
     const Eigen::VectorXd yw = w.cwiseSqrt().cwiseProduct(y);
     const Eigen::Vector2d b = Aw.colPivHouseholderQr().solve(yw);
     const double chi2 = (yw - Aw * b).squaredNorm();
-    if (chi2 > estimation::chi2Quantile(1 - o.alpha, n - 2)) continue;  // target changed
+    if (chi2 > stats::chi2Quantile(1 - o.alpha, n - 2)) continue;  // target changed
     ++st.dropout_runs;
     const std::size_t len = run.b - run.a + 1;
     st.dropout_readings += len;

@@ -371,120 +371,124 @@ Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candi
   return D;
 }
 
+stats::SelectionRule selectionRule(const DiagnosisOptions& opt, std::size_t m) {
+  return {opt.alpha, static_cast<int>(m), opt.min_bic_drop};
+}
+
 Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& cands,
                         const DiagnosisOptions& opt, const std::vector<int>& forced) {
   Selection sel;
-  sel.accepted = forced;
-  const int m = std::max<int>(1, static_cast<int>(cands.size()));
-  const double alpha_b = opt.alpha / m;
+  const stats::SelectionRule rule = selectionRule(opt, cands.size());
   const bool have_val = d.y_val.size() > 10;
-  while (true) {
-    Eigen::MatrixXd D0f = acceptedDesign(d.X_fit, cands, sel.accepted);
-    LinearFit f0 = fitLinear(D0f, d.y_fit, d.g_fit, d.lags);
-    Eigen::MatrixXd D0v =
-        have_val ? acceptedDesign(d.X_val, cands, sel.accepted) : Eigen::MatrixXd();
-    double rss0v = have_val ? (d.y_val - D0v * f0.beta).squaredNorm() : 0;
-    int best = -1;
-    SelectionStep best_step;
-    double best_bic = 0;
-    sel.log.clear();
-    for (int ci = 0; ci < static_cast<int>(cands.size()); ++ci) {
-      const Candidate& c = cands[ci];
-      if (std::find(sel.accepted.begin(), sel.accepted.end(), ci) != sel.accepted.end()) continue;
-      bool conflict = false;
-      for (int a : sel.accepted) {
-        for (auto& n : c.conflicts)
-          if (cands[a].name == n) conflict = true;
-        for (auto& n : cands[a].conflicts)
-          if (c.name == n) conflict = true;
-      }
-      if (conflict) continue;
-      std::vector<int> trial = sel.accepted;
-      trial.push_back(ci);
-      Eigen::MatrixXd D1f = acceptedDesign(d.X_fit, cands, trial);
-      LinearFit f1 = fitLinear(D1f, d.y_fit, d.g_fit, d.lags);
-      if (!f1.ok) {
-        sel.log.push_back(c.name + ": not identifiable on this data");
-        continue;
-      }
-      double ne = effectiveSampleSize(f1.residual, d.g_fit, d.lags);
-      int k = static_cast<int>(c.S.cols());
-      Evidence ev = compareNested(f0.rss, f1.rss, k, ne);
-      Eigen::VectorXd coef = f1.beta.tail(k);
-      SelectionStep st;
-      st.candidate = ci;
-      st.evidence = ev;
-      st.rss0_fit = f0.rss, st.rss1_fit = f1.rss;
-      st.coef = coef;
-      std::string why;
-      if (!(ev.p_value < alpha_b))
-        why = "not significant (p = " + std::to_string(ev.p_value) + ")";
-      else if (!(ev.delta_bic < -opt.min_bic_drop))
-        why = "BIC drop too small";
-      else if (c.plausible && !c.plausible(coef))
-        why = "physically implausible parameters";
-      else {
-        double crms =
-            (d.X_fit * c.S * coef).norm() / std::sqrt(std::max<double>(1, d.y_fit.size()));
-        if (crms < d.min_contribution_rms)
-          why = "irrelevant: contribution rms " + std::to_string(crms) + " below " +
-                std::to_string(d.min_contribution_rms);
-      }
-      if (why.empty() && have_val) {
-        Eigen::MatrixXd D1v = acceptedDesign(d.X_val, cands, trial);
-        Eigen::VectorXd r1 = d.y_val - D1v * f1.beta;
-        double rss1v = r1.squaredNorm();
-        double nev = effectiveSampleSize(r1, d.g_val, d.lags);
-        Eigen::VectorXd delta = D1v * f1.beta - D0v * f0.beta;
-        st.rss0_val = rss0v, st.rss1_val = rss1v, st.n_eff_val = nev;
-        st.lr_val = nev * std::log(rss0v / std::max(1e-300, rss1v));
-        st.lr_val_expected = nev * std::log(1.0 + delta.squaredNorm() / std::max(1e-300, rss1v));
-        st.val_tested = st.lr_val_expected >= opt.validation_min_expected_lr;
-        if (st.val_tested && st.lr_val < opt.validation_fraction_of_expected * st.lr_val_expected)
-          why = "does not improve the held-out data as predicted";
-      }
-      if (!why.empty()) {
-        sel.log.push_back(c.name + ": " + why);
-        continue;
-      }
-      if (best < 0 || ev.delta_bic < best_bic) best = ci, best_bic = ev.delta_bic, best_step = st;
+  auto contributionRms = [&](const Candidate& c, const Eigen::VectorXd& coef) {
+    return (d.X_fit * c.S * coef).norm() / std::sqrt(std::max<double>(1, d.y_fit.size()));
+  };
+  // Forward steps: the fit of the accepted terms (f0) and each candidate's trial.
+  LinearFit f0;
+  Eigen::MatrixXd D0v;
+  double rss0v = 0;
+  std::vector<SelectionStep> trial_step(cands.size());
+  std::vector<LinearFit> trial_fit(cands.size());
+  stats::SelectionHooks h;
+  h.step = [&](const std::vector<int>& acc) {
+    f0 = fitLinear(acceptedDesign(d.X_fit, cands, acc), d.y_fit, d.g_fit, d.lags);
+    D0v = have_val ? acceptedDesign(d.X_val, cands, acc) : Eigen::MatrixXd();
+    rss0v = have_val ? (d.y_val - D0v * f0.beta).squaredNorm() : 0;
+  };
+  h.evaluate = [&](int ci, const std::vector<int>& acc) {
+    stats::Trial t;
+    const Candidate& c = cands[ci];
+    for (int a : acc) {
+      for (auto& n : c.conflicts)
+        if (cands[a].name == n) t.skip = true;
+      for (auto& n : cands[a].conflicts)
+        if (c.name == n) t.skip = true;
     }
-    if (best < 0) break;
-    sel.accepted.push_back(best);
-    sel.steps.push_back(best_step);
-  }
-  // Backward elimination: a term accepted early may be made redundant by a later one.
-  while (sel.accepted.size() > forced.size()) {
-    Eigen::MatrixXd D1 = acceptedDesign(d.X_fit, cands, sel.accepted);
-    LinearFit f1 = fitLinear(D1, d.y_fit, d.g_fit, d.lags);
+    if (t.skip) return t;
+    std::vector<int> trial = acc;
+    trial.push_back(ci);
+    LinearFit& f1 = trial_fit[ci];
+    f1 = fitLinear(acceptedDesign(d.X_fit, cands, trial), d.y_fit, d.g_fit, d.lags);
+    if (!f1.ok) {
+      t.reject = "not identifiable on this data";
+      return t;
+    }
     double ne = effectiveSampleSize(f1.residual, d.g_fit, d.lags);
-    int worst = -1;
-    double worst_lr = 1e300;
-    int col = 0;
-    for (size_t a = 0; a < sel.accepted.size(); ++a) {
-      const Candidate& c = cands[sel.accepted[a]];
-      int k = static_cast<int>(c.S.cols());
-      bool is_forced = a < forced.size();
-      if (!is_forced) {
-        std::vector<int> rest = sel.accepted;
-        rest.erase(rest.begin() + a);
-        LinearFit f0 = fitLinear(acceptedDesign(d.X_fit, cands, rest), d.y_fit, d.g_fit, d.lags);
-        Evidence ev = compareNested(f0.rss, f1.rss, k, ne);
-        Eigen::VectorXd coef = f1.beta.segment(col, k);
-        double crms =
-            (d.X_fit * c.S * coef).norm() / std::sqrt(std::max<double>(1, d.y_fit.size()));
-        bool fails = !(ev.p_value < alpha_b) || !(ev.delta_bic < -opt.min_bic_drop) ||
-                     crms < d.min_contribution_rms || (c.plausible && !c.plausible(coef));
-        if (fails && ev.lr < worst_lr) worst_lr = ev.lr, worst = static_cast<int>(a);
-      }
-      col += k;
+    int k = static_cast<int>(c.S.cols());
+    t.evidence = compareNested(f0.rss, f1.rss, k, ne);
+    SelectionStep& st = trial_step[ci];
+    st = SelectionStep{};
+    st.candidate = ci;
+    st.evidence = t.evidence;
+    st.rss0_fit = f0.rss, st.rss1_fit = f1.rss;
+    st.coef = f1.beta.tail(k);
+    return t;
+  };
+  h.confirm = [&](int ci) -> std::string {
+    const Candidate& c = cands[ci];
+    SelectionStep& st = trial_step[ci];
+    if (c.plausible && !c.plausible(st.coef)) return "physically implausible parameters";
+    double crms = contributionRms(c, st.coef);
+    if (crms < d.min_contribution_rms)
+      return "irrelevant: contribution rms " + std::to_string(crms) + " below " +
+             std::to_string(d.min_contribution_rms);
+    if (!have_val) return {};
+    const LinearFit& f1 = trial_fit[ci];
+    std::vector<int> trial = sel.accepted;
+    trial.push_back(ci);
+    Eigen::MatrixXd D1v = acceptedDesign(d.X_val, cands, trial);
+    Eigen::VectorXd r1 = d.y_val - D1v * f1.beta;
+    double rss1v = r1.squaredNorm();
+    double nev = effectiveSampleSize(r1, d.g_val, d.lags);
+    Eigen::VectorXd delta = D1v * f1.beta - D0v * f0.beta;
+    st.rss0_val = rss0v, st.rss1_val = rss1v, st.n_eff_val = nev;
+    st.lr_val = nev * std::log(rss0v / std::max(1e-300, rss1v));
+    st.lr_val_expected = nev * std::log(1.0 + delta.squaredNorm() / std::max(1e-300, rss1v));
+    st.val_tested = st.lr_val_expected >= opt.validation_min_expected_lr;
+    if (st.val_tested && st.lr_val < opt.validation_fraction_of_expected * st.lr_val_expected)
+      return "does not improve the held-out data as predicted";
+    return {};
+  };
+  h.accepted = [&](int ci) {
+    sel.accepted.push_back(ci);
+    sel.steps.push_back(trial_step[ci]);
+  };
+  // Backward elimination: a term accepted early may be made redundant by a later one.
+  std::vector<int> f1_of;  // the accepted set the cached joint fit belongs to
+  LinearFit f1;
+  double ne1 = 0;
+  h.removal = [&](int a, const std::vector<int>& acc) {
+    stats::Trial t;
+    if (a < static_cast<int>(forced.size())) {
+      t.skip = true;
+      return t;
     }
-    if (worst < 0) break;
-    sel.log.push_back(cands[sel.accepted[worst]].name +
-                      ": removed, redundant given the other terms");
-    sel.accepted.erase(sel.accepted.begin() + worst);
-    sel.steps.erase(sel.steps.begin() + (worst - static_cast<int>(forced.size())));
-  }
+    if (f1_of != acc) {
+      f1 = fitLinear(acceptedDesign(d.X_fit, cands, acc), d.y_fit, d.g_fit, d.lags);
+      ne1 = effectiveSampleSize(f1.residual, d.g_fit, d.lags);
+      f1_of = acc;
+    }
+    int col = 0;
+    for (int q = 0; q < a; ++q) col += static_cast<int>(cands[acc[q]].S.cols());
+    const Candidate& c = cands[acc[a]];
+    int k = static_cast<int>(c.S.cols());
+    std::vector<int> rest = acc;
+    rest.erase(rest.begin() + a);
+    LinearFit r0 = fitLinear(acceptedDesign(d.X_fit, cands, rest), d.y_fit, d.g_fit, d.lags);
+    t.evidence = compareNested(r0.rss, f1.rss, k, ne1);
+    Eigen::VectorXd coef = f1.beta.segment(col, k);
+    if (contributionRms(c, coef) < d.min_contribution_rms || (c.plausible && !c.plausible(coef)))
+      t.reject = "irrelevant or implausible given the others";
+    return t;
+  };
+  h.removed = [&](int a) {
+    sel.accepted.erase(sel.accepted.begin() + a);
+    sel.steps.erase(sel.steps.begin() + (a - static_cast<int>(forced.size())));
+  };
+  sel.accepted = forced;
+  std::vector<std::pair<int, std::string>> log;
+  stats::selectTerms(static_cast<int>(cands.size()), rule, h, forced, &log);
+  for (auto& [ci, why] : log) sel.log.push_back(cands[ci].name + ": " + why);
   Eigen::MatrixXd Df = acceptedDesign(d.X_fit, cands, sel.accepted);
   sel.fit = fitLinear(Df, d.y_fit, d.g_fit, d.lags);
   int c = 0;

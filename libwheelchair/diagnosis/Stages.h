@@ -4,8 +4,9 @@
 #pragma once
 
 #include "libwheelchair/config/WheelchairConfig.h"
-#include "libwheelchair/diagnosis/Statistics.h"
 #include "libwheelchair/io/Recording.h"
+#include "libwheelchair/stats/Selection.h"
+#include "libwheelchair/stats/Statistics.h"
 
 #include <Eigen/Core>
 
@@ -14,6 +15,19 @@
 #include <vector>
 
 namespace wheelchair::diagnosis {
+
+// The statistics of the stages are those of libwheelchair/stats.
+using stats::BiasTest;
+using stats::biasTest;
+using stats::compareNested;
+using stats::effectiveSampleSize;
+using stats::Evidence;
+using stats::fitLinear;
+using stats::Groups;
+using stats::LinearFit;
+using stats::ljungBox;
+using stats::singleGroup;
+using stats::Whiteness;
 
 struct DiagnosisOptions;
 
@@ -111,6 +125,11 @@ struct SelectionData {
   double min_contribution_rms = 0;
 };
 
+/// The diagnosis' multiple-testing rule over a catalogue of m terms: alpha, min_bic_drop of
+/// the options, Bonferroni level alpha / m (stats/Selection.h).
+stats::SelectionRule selectionRule(const DiagnosisOptions& opt, std::size_t m);
+
+/// stats::selectTerms over the candidates with selectionRule(opt, cands.size()).
 Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& cands,
                         const DiagnosisOptions& opt, const std::vector<int>& forced = {});
 

@@ -1,25 +1,14 @@
-// Chi-square distribution functions for innovation gating and consistency bands.
-//
-// chi2Cdf uses the regularised lower incomplete gamma function P(k/2, x/2) (series for
-// x < a + 1, Lentz continued fraction otherwise, Numerical Recipes 6.2); chi2Quantile inverts
-// it by bracketed bisection/Newton to ~1e-12 relative accuracy. Exact for every k >= 1
-// (including k = 1, where the Wilson-Hilferty approximation is poor).
-//
-// Example:
-//   double gate = chi2Quantile(0.999, 1);   // 10.83: NIS gate for a scalar measurement
-//   auto [lo, hi] = chi2MeanBand(0.95, 2, 100);   // 95 % band of the mean of 100 chi2(2)
+// The chi-square functions of the estimator's gates and consistency bands live in
+// libwheelchair/stats/Distributions.h (one definition for the estimator and the diagnosis);
+// this header keeps their estimation:: names.
 #pragma once
 
-#include <utility>
+#include "libwheelchair/stats/Distributions.h"
 
 namespace wheelchair::estimation {
 
-/// P(X <= x) for X ~ chi2(k), k > 0.
-double chi2Cdf(double x, double k);
-/// x such that chi2Cdf(x, k) = p, 0 < p < 1.
-double chi2Quantile(double p, double k);
-/// Two-sided band of probability `prob` for the MEAN of n independent chi2(k) values:
-/// [chi2Quantile((1-prob)/2, n k) / n, chi2Quantile((1+prob)/2, n k) / n].
-std::pair<double, double> chi2MeanBand(double prob, double k, double n);
+using stats::chi2Cdf;
+using stats::chi2MeanBand;
+using stats::chi2Quantile;
 
 }  // namespace wheelchair::estimation

@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "libwheelchair/estimation/ChiSquare.h"
+#include "libwheelchair/model/Kinematics.h"
 
 #include <fmt/format.h>
 #include <mrpt/config/CConfigFile.h>
@@ -19,10 +20,7 @@
 namespace wheelchair::estimation {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
-double wrap(double a) {
-  return std::remainder(a, 2 * kPi);
-}
+using model::wrapAngle;
 
 model::CommandSignal commandSignal(const io::Recording& rec, const CommandDrivenEkfOptions& o) {
   std::vector<model::CommandSample> rows;
@@ -229,7 +227,7 @@ Eigen::Vector2d rangeBearing(const model::CommandState& x, const Eigen::Vector2d
     (*H)(1, 1) = -dx / q;
     (*H)(1, 2) = -1;
   }
-  return {r, wrap(std::atan2(dy, dx) - x(2))};
+  return {r, wrapAngle(std::atan2(dy, dx) - x(2))};
 }
 
 CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
@@ -263,8 +261,8 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
                            const Eigen::Vector4d& m) {
     const Eigen::Vector2d bi = m(0) * Eigen::Vector2d(std::cos(m(1)), std::sin(m(1)));
     const Eigen::Vector2d bj = m(2) * Eigen::Vector2d(std::cos(m(3)), std::sin(m(3)));
-    const double phi =
-        wrap(std::atan2(Lj(1) - Li(1), Lj(0) - Li(0)) - std::atan2(bj(1) - bi(1), bj(0) - bi(0)));
+    const double phi = wrapAngle(std::atan2(Lj(1) - Li(1), Lj(0) - Li(0)) -
+                                 std::atan2(bj(1) - bi(1), bj(0) - bi(0)));
     const Eigen::Vector2d p = Lj - Eigen::Vector2d(std::cos(phi) * bj(0) - std::sin(phi) * bj(1),
                                                    std::sin(phi) * bj(0) + std::cos(phi) * bj(1));
     return Eigen::Vector3d(p(0), p(1), phi);
@@ -283,7 +281,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
         a(k) += h;
         b(k) -= h;
         Eigen::Vector3d d = initPose(Li, Lj, a) - initPose(Li, Lj, b);
-        d(2) = wrap(d(2));
+        d(2) = wrapAngle(d(2));
         J.col(k) = d / (2 * h);
       }
       const Eigen::Vector4d r_var(
@@ -342,7 +340,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   const double t_first = t, span = std::max(t_end - t_first, 1e-9);
   double next_progress = t_first;
   const auto emit = [&] {
-    CommandDrivenEstimate e{t, x(0), x(1), wrap(x(2)), P(0, 0), P(1, 1), P(0, 1), P(2, 2)};
+    CommandDrivenEstimate e{t, x(0), x(1), wrapAngle(x(2)), P(0, 0), P(1, 1), P(0, 1), P(2, 2)};
     // With no lag the velocity state is unused: the velocities in effect are the targets.
     const Eigen::Vector2d vel =
         mdl.effectiveVelocity(x, mdl.target(sig, t)) + o.unmodeledVelocity(sig.at(t));
@@ -396,7 +394,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
     propagateTo(z[k].t_s);
     Eigen::Matrix<double, 2, 5> H;
     const Eigen::Vector2d h = rangeBearing(x, L[z[k].landmark_id], &H);
-    Eigen::Vector2d y(z[k].range_m - h(0), wrap(z[k].bearing_rad - h(1)));
+    Eigen::Vector2d y(z[k].range_m - h(0), wrapAngle(z[k].bearing_rad - h(1)));
     const Eigen::Matrix2d S = H * P * H.transpose() + R;
     const double nis = y.dot(S.ldlt().solve(y));
     nis_sum_all += nis;
@@ -435,7 +433,7 @@ std::vector<CommandDrivenEstimate> deadReckoningCommands(const io::Recording& re
   double tau = 0, next_out_tau = 0, t = t0_s;
   const double t_end = sig.endTime(), tau_end = t_end - t0_s;
   const auto emit = [&] {
-    CommandDrivenEstimate e{t, x(0), x(1), wrap(x(2)), 0, 0, 0, 0};
+    CommandDrivenEstimate e{t, x(0), x(1), wrapAngle(x(2)), 0, 0, 0, 0};
     const Eigen::Vector2d vel =
         mdl.effectiveVelocity(x, mdl.target(sig, t)) + o.unmodeledVelocity(sig.at(t));
     e.v_m_s = vel(0);

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "libwheelchair/model/Kinematics.h"
+#include "libwheelchair/stats/Descriptive.h"
 
 namespace wheelchair::evaluation {
 
@@ -63,10 +64,7 @@ ErrorStats errorStats(const std::vector<double>& e) {
   s.std = std::sqrt(var / n);  // numpy.std (ddof = 0), as evo
   s.max = *std::max_element(e.begin(), e.end());
   s.min = *std::min_element(e.begin(), e.end());
-  std::vector<double> v = e;
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  s.median = v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+  s.median = stats::median(e);
   return s;
 }
 

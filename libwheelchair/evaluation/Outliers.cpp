@@ -1,5 +1,7 @@
 #include "libwheelchair/evaluation/Outliers.h"
 
+#include "libwheelchair/stats/Descriptive.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -8,15 +10,7 @@ namespace wheelchair::evaluation {
 
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const std::size_t m = v.size() / 2;
-  std::nth_element(v.begin(), v.begin() + m, v.end());
-  const double hi = v[m];
-  if (v.size() % 2 == 1) return hi;
-  const double lo = *std::max_element(v.begin(), v.begin() + m);
-  return 0.5 * (lo + hi);
-}
+using stats::median;
 
 bool finitePos(const Position2DStamped& g) {
   return std::isfinite(g.x_m) && std::isfinite(g.y_m);

@@ -1,4 +1,5 @@
 #include "libwheelchair/identification/Identification.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include "libwheelchair/model/VehicleParams.h"
 #include "libwheelchair/sensors/Encoders.h"
@@ -124,15 +125,6 @@ std::vector<double> centralDiff(const std::vector<double>& x, double dt) {
   d[0] = (x[1] - x[0]) / dt;
   d[n - 1] = (x[n - 1] - x[n - 2]) / dt;
   return d;
-}
-
-double normalQuantile(double p) {  // inverse of Phi by bisection on erfc (p in (0.5, 1))
-  double lo = 0, hi = 10;
-  for (int i = 0; i < 200; ++i) {
-    const double m = 0.5 * (lo + hi);
-    (0.5 * std::erfc(-m / std::sqrt(2.0)) < p ? lo : hi) = m;
-  }
-  return 0.5 * (lo + hi);
 }
 
 nlohmann::json num(double x) {
@@ -537,7 +529,7 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
   res.config_origin = cfg.origin();
   res.sources = sources;
   res.hac_lags = o.hacLags();
-  res.z = normalQuantile(0.5 + o.confidence / 2);
+  res.z = stats::normalQuantile(0.5 + o.confidence / 2);
   const auto& g = cfg.vehicle.geom;
   const double r = g.wheel_radius_m, rG = g.gear_ratio, lw = g.track_width_m;
 

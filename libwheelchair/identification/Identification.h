@@ -19,8 +19,8 @@
 #pragma once
 
 #include "libwheelchair/config/WheelchairConfig.h"
-#include "libwheelchair/identification/LeastSquares.h"
 #include "libwheelchair/io/Recording.h"
+#include "libwheelchair/stats/LeastSquares.h"
 
 #include <nlohmann/json.hpp>
 
@@ -30,6 +30,13 @@
 #include <vector>
 
 namespace wheelchair::identification {
+
+// The HAC least squares of the identification is the library's one (stats/LeastSquares.h).
+using stats::LsInput;
+using stats::LsOptions;
+using stats::LsSolution;
+using stats::ResidualStats;
+using stats::solveLeastSquares;
 
 /// Section [identification] of the configuration (config/wheelchair.ini documents each key).
 struct IdentificationOptions {

@@ -1,5 +1,7 @@
 #include "libwheelchair/sensors/Filtering.h"
 
+#include "libwheelchair/stats/Descriptive.h"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -81,13 +83,7 @@ double medianSpacing(const std::vector<double>& t_s) {
   d.reserve(t_s.size());
   for (std::size_t i = 1; i < t_s.size(); ++i)
     if (t_s[i] - t_s[i - 1] > 0) d.push_back(t_s[i] - t_s[i - 1]);
-  if (d.empty()) return 0.0;
-  const std::size_t m = d.size() / 2;
-  std::nth_element(d.begin(), d.begin() + m, d.end());
-  if (d.size() % 2 == 1) return d[m];
-  const double hi = d[m];
-  const double lo = *std::max_element(d.begin(), d.begin() + m);
-  return 0.5 * (lo + hi);
+  return d.empty() ? 0.0 : stats::median(std::move(d));
 }
 
 std::vector<double> filtfiltButter2(const std::vector<double>& t_s, const std::vector<double>& x,

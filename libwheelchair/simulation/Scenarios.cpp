@@ -1,5 +1,6 @@
 #include "libwheelchair/simulation/Scenarios.h"
 
+#include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/simulation/Random.h"
 
 #include <algorithm>
@@ -10,11 +11,7 @@ namespace wheelchair::simulation {
 
 namespace {
 
-double wrap(double a) {
-  a = std::fmod(a + M_PI, 2 * M_PI);
-  if (a <= 0) a += 2 * M_PI;
-  return a - M_PI;
-}
+using model::wrapAngle;
 
 double clampAbs(double x, double m) {
   return std::max(-m, std::min(m, x));
@@ -35,7 +32,7 @@ class WaypointPilot : public Driver {
     const Waypoint& g = wps_[idx_];
     const double dx = g.x - w.x_m, dy = g.y - w.y_m;
     const double dist = std::hypot(dx, dy);
-    double err = wrap(std::atan2(dy, dx) - w.phi_rad);
+    double err = wrapAngle(std::atan2(dy, dx) - w.phi_rad);
     if (std::abs(err) > M_PI - 0.05) err = std::abs(err);  // a U-turn goes to the left
     const double along = dx * std::cos(w.phi_rad) + dy * std::sin(w.phi_rad);
     switch (phase_) {

@@ -1,6 +1,7 @@
 #include "libwheelchair/visualization/DriveData.h"
 
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/model/Kinematics.h"
 
 #include <nlohmann/json.hpp>
 
@@ -26,7 +27,7 @@ bool TruthInfo::poseAt(double t, double& x, double& y, double& phi) const {
   const double a = (t - t_s[k - 1]) / (t_s[k] - t_s[k - 1]);
   x = x_m[k - 1] + a * (x_m[k] - x_m[k - 1]);
   y = y_m[k - 1] + a * (y_m[k] - y_m[k - 1]);
-  phi = phi_rad[k - 1] + a * std::remainder(phi_rad[k] - phi_rad[k - 1], 2 * M_PI);
+  phi = phi_rad[k - 1] + a * model::wrapAngle(phi_rad[k] - phi_rad[k - 1]);
   return true;
 }
 

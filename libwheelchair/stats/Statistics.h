@@ -1,8 +1,8 @@
-// Statistics shared by the diagnosis stages (docs/diagnosis-design.md, docs/discovery.md):
-// least squares with a heteroscedasticity- and autocorrelation-consistent (Newey-West)
-// covariance, the effective sample size of autocorrelated residuals, Ljung-Box whiteness,
-// and the evidence comparison of two nested linear models (likelihood ratio on the effective
-// sample size, BIC difference).
+// Evidence statistics of autocorrelated residual series (docs/diagnosis-design.md,
+// docs/discovery.md): the effective sample size, Ljung-Box whiteness, the bias t-test and the
+// evidence comparison of two nested models (likelihood ratio on the effective sample size,
+// BIC difference). The HAC least squares they go with is in LeastSquares.h, the distribution
+// functions in Distributions.h, the selection rule and engine in Selection.h.
 //
 // Residual series are organised in GROUPS (e.g. the right-motor and the left-motor equation
 // errors, or one recording each): lags never cross a group boundary.
@@ -13,33 +13,12 @@
 //   Evidence e = compareNested(rss0, rss1, k_added, ne);
 #pragma once
 
+#include "libwheelchair/stats/Distributions.h"
+#include "libwheelchair/stats/LeastSquares.h"
+
 #include <Eigen/Core>
 
-#include <string>
-#include <utility>
-#include <vector>
-
-namespace wheelchair::diagnosis {
-
-/// Half-open index ranges [begin, end) of contiguous series in a stacked vector.
-using Groups = std::vector<std::pair<int, int>>;
-
-/// One group covering all n samples.
-Groups singleGroup(int n);
-
-struct LinearFit {
-  Eigen::VectorXd beta;
-  Eigen::MatrixXd cov;  ///< Newey-West (Bartlett) sandwich covariance of beta
-  Eigen::VectorXd residual;
-  double rss = 0;
-  int rank = 0;
-  bool ok = false;  ///< false when the design is rank deficient
-};
-
-/// Ordinary least squares y ~ X beta (column-pivoted QR; rank tolerance relative 1e-10 on
-/// equilibrated columns) with the HAC covariance over `lags` (Bartlett weights) within groups.
-LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
-                    int lags);
+namespace wheelchair::stats {
 
 /// Effective number of independent samples of a residual series: n * gamma0 / LRV, with the
 /// long-run variance LRV = gamma0 + 2 sum_{k<=lags} (1 - k/(lags+1)) gamma_k (Bartlett), summed
@@ -78,11 +57,6 @@ Evidence compareNested(double rss0, double rss1, int k, double n_eff);
 Evidence compareNestedWithFloor(double rss0, double rss1, double n, int k, double n_eff,
                                 double floor_var);
 
-/// Upper tail of chi2(k).
-double chi2Sf(double x, double k);
-/// Standard normal two-sided p-value of |z|.
-double normalTwoSidedP(double z);
-
 /// Mean and the t statistic of the mean using the effective sample size.
 struct BiasTest {
   double mean = 0, rms = 0, t = 0, p_value = 1, n_eff = 0;
@@ -90,4 +64,4 @@ struct BiasTest {
 };
 BiasTest biasTest(const Eigen::VectorXd& r, const Groups& groups, int lags);
 
-}  // namespace wheelchair::diagnosis
+}  // namespace wheelchair::stats

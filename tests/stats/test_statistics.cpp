@@ -1,13 +1,13 @@
-// Unit tests of the diagnosis statistics (effective sample size, HAC fit, Ljung-Box, evidence).
-#include "libwheelchair/diagnosis/Statistics.h"
+// Unit tests of the evidence statistics (effective sample size, HAC fit, Ljung-Box, evidence).
+#include "libwheelchair/stats/Statistics.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-using namespace wheelchair::diagnosis;
+using namespace wheelchair::stats;
 
-TEST(DiagnosisStatistics, EffectiveSampleSizeOfWhiteAndAr1) {
+TEST(Statistics, EffectiveSampleSizeOfWhiteAndAr1) {
   std::mt19937_64 rng(3);
   std::normal_distribution<double> N(0, 1);
   const int n = 20000;
@@ -27,7 +27,7 @@ TEST(DiagnosisStatistics, EffectiveSampleSizeOfWhiteAndAr1) {
   EXPECT_LT(ljungBox(a, singleGroup(n), 10).p_value, 1e-10);
 }
 
-TEST(DiagnosisStatistics, HacFitRecoversCoefficientAndHonestError) {
+TEST(Statistics, HacFitRecoversCoefficientAndHonestError) {
   std::mt19937_64 rng(5);
   std::normal_distribution<double> N(0, 1);
   const int n = 5000;
@@ -48,7 +48,7 @@ TEST(DiagnosisStatistics, HacFitRecoversCoefficientAndHonestError) {
   EXPECT_LT(ev.delta_bic, -10);
 }
 
-TEST(DiagnosisStatistics, RankDeficientDesignIsReported) {
+TEST(Statistics, RankDeficientDesignIsReported) {
   Eigen::MatrixXd X(10, 2);
   X.col(0).setLinSpaced(10, 0, 1);
   X.col(1) = 2 * X.col(0);

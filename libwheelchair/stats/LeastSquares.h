@@ -16,18 +16,26 @@
 // with lags taken only within one block (a recording segment); rows of the same time step
 // (the right and left motor) are grouped, so their correlation is accounted for too.
 //
+// This is the one HAC least squares of the library: identification calls it with rows grouped
+// by time step (right and left motor), the diagnosis through fitLinear() with contiguous row
+// GROUPS (one series per group, lags never cross a group boundary). The SVD is preferred to a
+// QR with (X'X)^-1 for the covariance: it never forms X'X (whose condition number is the
+// square), and it handles a rank-deficient design explicitly.
+//
 // Example:
 //   LsInput in{X, y, time_index, block};
 //   LsSolution s = solveLeastSquares(in, LsOptions{.hac_lags = 200});
 //   if (s.isEstimable(w)) double est = w.dot(s.beta), se = std::sqrt(w.dot(s.cov * w));
+//   LinearFit f = fitLinear(X, y, {{0, n}}, 10);   // full-rank fit of one series, 10 lags
 #pragma once
 
 #include <Eigen/Core>
 
 #include <string>
+#include <utility>
 #include <vector>
 
-namespace wheelchair::identification {
+namespace wheelchair::stats {
 
 struct LsInput {
   Eigen::MatrixXd X;             ///< n x p regressor
@@ -86,4 +94,26 @@ Eigen::MatrixXd hacScoreCovariance(const Eigen::MatrixXd& X, const Eigen::Vector
                                    const std::vector<long>& time_index,
                                    const std::vector<int>& block, int lags);
 
-}  // namespace wheelchair::identification
+/// Half-open index ranges [begin, end) of contiguous series in a stacked vector.
+using Groups = std::vector<std::pair<int, int>>;
+
+/// One group covering all n samples.
+Groups singleGroup(int n);
+
+struct LinearFit {
+  Eigen::VectorXd beta;
+  Eigen::MatrixXd cov;  ///< Newey-West (Bartlett) sandwich covariance of beta
+  Eigen::VectorXd residual;
+  double rss = 0;
+  int rank = 0;
+  bool ok = false;  ///< false when the design is rank deficient (beta = 0, residual = y)
+};
+
+/// Full-rank least squares y ~ X beta: solveLeastSquares() with each group one block of
+/// consecutive time steps (rows outside every group are independent), Bartlett bandwidth
+/// `lags`, rank tolerance 1e-10 (relative, equilibrated columns). Not ok (and beta = 0) when
+/// the design is rank deficient or has no more rows than columns.
+LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
+                    int lags);
+
+}  // namespace wheelchair::stats

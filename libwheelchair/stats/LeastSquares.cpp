@@ -1,4 +1,4 @@
-#include "libwheelchair/identification/LeastSquares.h"
+#include "libwheelchair/stats/LeastSquares.h"
 
 #include <Eigen/SVD>
 
@@ -8,7 +8,7 @@
 #include <map>
 #include <stdexcept>
 
-namespace wheelchair::identification {
+namespace wheelchair::stats {
 
 namespace {
 
@@ -170,4 +170,44 @@ LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt) {
   return s;
 }
 
-}  // namespace wheelchair::identification
+Groups singleGroup(int n) {
+  return {{0, n}};
+}
+
+LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
+                    int lags) {
+  LinearFit f;
+  const int n = static_cast<int>(y.size());
+  const int p = static_cast<int>(X.cols());
+  f.residual = y;
+  f.rss = y.squaredNorm();
+  if (p == 0) {
+    f.beta.resize(0);
+    f.cov.resize(0, 0);
+    f.ok = true;
+    return f;
+  }
+  f.beta = Eigen::VectorXd::Zero(p);
+  f.cov = Eigen::MatrixXd::Identity(p, p) * 1e300;
+  if (n <= p) return f;
+  LsInput in{X, y, std::vector<long>(n, 0), std::vector<int>(n, -1)};
+  for (std::size_t g = 0; g < groups.size(); ++g)
+    for (int i = std::max(0, groups[g].first); i < std::min(n, groups[g].second); ++i)
+      in.time_index[i] = i - groups[g].first, in.block[i] = static_cast<int>(g);
+  for (int i = 0; i < n; ++i)  // rows outside every group: each its own block
+    if (in.block[i] < 0) in.block[i] = -1 - i;
+  LsOptions opt;
+  opt.hac_lags = std::max(0, lags);
+  opt.rank_tol = 1e-10;
+  LsSolution s = solveLeastSquares(in, opt);
+  f.rank = s.rank;
+  if (s.rank < p) return f;
+  f.beta = s.beta;
+  f.cov = s.cov;
+  f.residual = s.residuals;
+  f.rss = s.residuals.squaredNorm();
+  f.ok = true;
+  return f;
+}
+
+}  // namespace wheelchair::stats

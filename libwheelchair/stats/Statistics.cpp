@@ -1,18 +1,9 @@
-#include "libwheelchair/diagnosis/Statistics.h"
-
-#include "libwheelchair/estimation/ChiSquare.h"
-
-#include <Eigen/LU>
-#include <Eigen/QR>
+#include "libwheelchair/stats/Statistics.h"
 
 #include <algorithm>
 #include <cmath>
 
-namespace wheelchair::diagnosis {
-
-Groups singleGroup(int n) {
-  return {{0, n}};
-}
+namespace wheelchair::stats {
 
 namespace {
 
@@ -31,60 +22,6 @@ double autocov(const Eigen::VectorXd& r, const Groups& groups, int k, bool demea
 }
 
 }  // namespace
-
-LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
-                    int lags) {
-  LinearFit f;
-  const int n = static_cast<int>(y.size());
-  const int p = static_cast<int>(X.cols());
-  if (p == 0) {
-    f.beta.resize(0);
-    f.cov.resize(0, 0);
-    f.residual = y;
-    f.rss = y.squaredNorm();
-    f.ok = true;
-    return f;
-  }
-  Eigen::VectorXd scale(p);
-  for (int j = 0; j < p; ++j) {
-    double c = X.col(j).norm();
-    scale(j) = c > 0 ? c : 1.0;
-  }
-  Eigen::MatrixXd Xs = X * scale.cwiseInverse().asDiagonal();
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Xs);
-  qr.setThreshold(1e-10);
-  f.rank = static_cast<int>(qr.rank());
-  if (f.rank < p || n <= p) {
-    f.ok = false;
-    f.beta = Eigen::VectorXd::Zero(p);
-    f.residual = y;
-    f.rss = y.squaredNorm();
-    f.cov = Eigen::MatrixXd::Identity(p, p) * 1e300;
-    return f;
-  }
-  Eigen::VectorXd bs = qr.solve(y);
-  f.beta = bs.cwiseQuotient(scale);
-  f.residual = y - X * f.beta;
-  f.rss = f.residual.squaredNorm();
-  // Sandwich: (X'X)^-1 S (X'X)^-1, S = sum_l w_l sum_t (x_t e_t)(x_{t-l} e_{t-l})' (+ transpose).
-  Eigen::MatrixXd XtXi = (Xs.transpose() * Xs).inverse();
-  Eigen::MatrixXd g = Xs.array().colwise() * f.residual.array();
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p, p);
-  for (auto [a, b] : groups) {
-    if (b <= a) continue;
-    S += g.middleRows(a, b - a).transpose() * g.middleRows(a, b - a);
-    for (int l = 1; l <= lags && l < b - a; ++l) {
-      double w = 1.0 - double(l) / (lags + 1);
-      Eigen::MatrixXd G = g.middleRows(a + l, b - a - l).transpose() * g.middleRows(a, b - a - l);
-      S += w * (G + G.transpose());
-    }
-  }
-  double dof_corr = double(n) / std::max(1, n - p);
-  Eigen::MatrixXd cs = XtXi * S * XtXi * dof_corr;
-  f.cov = scale.cwiseInverse().asDiagonal() * cs * scale.cwiseInverse().asDiagonal();
-  f.ok = true;
-  return f;
-}
 
 double effectiveSampleSize(const Eigen::VectorXd& r, const Groups& groups, int lags) {
   double n = 0;
@@ -117,17 +54,6 @@ Whiteness ljungBox(const Eigen::VectorXd& r, const Groups& groups, int m) {
   w.q *= n * (n + 2);
   w.p_value = chi2Sf(w.q, m);
   return w;
-}
-
-double chi2Sf(double x, double k) {
-  if (!(x > 0)) return 1.0;
-  if (x > 1e4 * std::max(1.0, k)) return 0.0;
-  double c = estimation::chi2Cdf(x, k);
-  return std::clamp(1.0 - c, 0.0, 1.0);
-}
-
-double normalTwoSidedP(double z) {
-  return std::erfc(std::abs(z) / std::sqrt(2.0));
 }
 
 Evidence compareNested(double rss0, double rss1, int k, double n_eff) {
@@ -164,4 +90,4 @@ BiasTest biasTest(const Eigen::VectorXd& r, const Groups& groups, int lags) {
   return b;
 }
 
-}  // namespace wheelchair::diagnosis
+}  // namespace wheelchair::stats
