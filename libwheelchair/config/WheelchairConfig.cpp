@@ -1,5 +1,7 @@
 #include "libwheelchair/config/WheelchairConfig.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+
 #include <fmt/format.h>
 
 #include <cerrno>
@@ -176,14 +178,9 @@ void WheelchairConfig::set(const std::string& section, const std::string& key,
 std::string WheelchairConfig::text() const { return ini_->getContent(); }
 
 void WheelchairConfig::save(const std::string& path) const {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(fmt::format("{}: cannot write", tmp));
+  util::writeFileAtomically(path, [&](std::ostream& out) {
     out << "# Written by libwheelchair from " << origin_ << "\n" << text();
-    if (!out.flush()) throw std::runtime_error(fmt::format("{}: write failed", tmp));
-  }
-  std::filesystem::rename(tmp, path);
+  });
 }
 
 }  // namespace wheelchair::config

@@ -1,5 +1,7 @@
 #include "libwheelchair/evaluation/Trajectory.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -30,25 +32,15 @@ bool parseDouble(const std::string& token, double& out) {
 }  // namespace
 
 void writeTum(const std::string& path, const Trajectory& traj) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::out | std::ios::trunc);
-    if (!f) throw std::runtime_error(fmt::format("{}: cannot open for writing", tmp));
-    f << "# timestamp x y z qx qy qz qw (planar pose, yaw-only quaternion)\n";
-    for (const auto& p : traj) {
-      // "{}" prints the shortest representation that reads back to the same double.
-      f << fmt::format("{} {} {} 0 0 0 {} {}\n", p.t_s, p.x_m, p.y_m, std::sin(0.5 * p.phi_rad),
-                       std::cos(0.5 * p.phi_rad));
-    }
-    f.flush();
-    if (!f) throw std::runtime_error(fmt::format("{}: write failed", tmp));
+  util::AtomicFile out(path);
+  std::ostream& f = out.stream();
+  f << "# timestamp x y z qx qy qz qw (planar pose, yaw-only quaternion)\n";
+  for (const auto& p : traj) {
+    // "{}" prints the shortest representation that reads back to the same double.
+    f << fmt::format("{} {} {} 0 0 0 {} {}\n", p.t_s, p.x_m, p.y_m, std::sin(0.5 * p.phi_rad),
+                     std::cos(0.5 * p.phi_rad));
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp);
-    throw std::runtime_error(fmt::format("{}: cannot rename from {}: {}", path, tmp, ec.message()));
-  }
+  out.commit();
 }
 
 Trajectory readTum(const std::string& path) {

@@ -41,8 +41,8 @@ struct Position2DStamped {
   bool hasHeading() const { return phi_rad == phi_rad; }
 };
 
-/// Writes `traj` as TUM to `path` (through `path`.tmp then rename, so readers never see a
-/// partial file). Throws std::runtime_error naming the file on I/O failure.
+/// Writes `traj` as TUM to `path` (util::AtomicFile: complete or absent, never a partial
+/// file). Throws one std::runtime_error line naming the file on any I/O failure.
 void writeTum(const std::string& path, const Trajectory& traj);
 /// Reads a TUM file. Throws std::runtime_error "<path>:<line>: <what>" on a malformed line
 /// (field count, non-numeric or non-finite field, zero quaternion, non-increasing time).

@@ -484,4 +484,26 @@ Recording readRawlog(const std::string& path, RawlogReadReport* report, bool all
   return rec;
 }
 
+std::string salvageWarning(const std::string& path, const RawlogBreak& b) {
+  return fmt::format("{}; salvaged the {} complete records before it", describeBreak(path, b),
+                     b.record_index);
+}
+
+Recording readRawlogSalvaging(const std::string& path, bool salvage, std::string* warning,
+                              RawlogReadReport* report) {
+  RawlogReadReport rep;
+  Recording rec = readRawlog(path, &rep, true);
+  if (rep.broken) {
+    if (!salvage && rec.size() > 0)
+      throw std::runtime_error(describeBreak(path, *rep.broken) +
+                               " (--salvage uses the complete records before it)");
+    if (rec.size() == 0)
+      throw std::runtime_error(describeBreak(path, *rep.broken) +
+                               " (no complete data record before it to salvage)");
+    if (warning) *warning = salvageWarning(path, *rep.broken);
+  }
+  if (report) *report = rep;
+  return rec;
+}
+
 }  // namespace wheelchair::io

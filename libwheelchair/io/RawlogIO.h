@@ -109,6 +109,17 @@ struct RawlogReadReport {
 Recording readRawlog(const std::string& path, RawlogReadReport* report = nullptr,
                      bool allow_truncated = false);
 
+/// readRawlog for the commands' `--salvage` option. Without `salvage`, a damaged file throws
+/// one line naming the record index, byte offset and reason. With it, every complete record
+/// before the break is used and `*warning` (if given) says where and why the file broke, e.g.
+/// "d.rawlog: record 9155 (uncompressed byte 2221453): file cut short ...; salvaged the 9155
+/// complete records before it". A file with no data record before the break is refused
+/// either way. A 0-byte file is always refused.
+Recording readRawlogSalvaging(const std::string& path, bool salvage, std::string* warning,
+                              RawlogReadReport* report = nullptr);
+/// The one-line warning readRawlogSalvaging gives for a salvaged file.
+std::string salvageWarning(const std::string& path, const RawlogBreak& b);
+
 /// If `obj` is our header record (a CObservationComment written by writeHeader; MRPT does
 /// not serialize a comment's sensorLabel, so it is recognised by its first line), returns its
 /// text.

@@ -1,5 +1,7 @@
 #include "libwheelchair/io/TextFormat.h"
 
+#include "libwheelchair/util/Text.h"
+
 #include <fmt/format.h>
 
 #include <charconv>
@@ -277,29 +279,50 @@ Recording readTextRecording(const std::string& dir, std::vector<std::string>* wa
 
 // ---------------------------------------------------------------- TextRecordingWriter
 
+namespace {
+/// Throws unless `dir` is absent, an empty directory or a recording directory of ours.
+void checkExportTarget(const std::string& dir) {
+  std::error_code ec;
+  const auto st = fs::symlink_status(dir, ec);
+  if (!fs::exists(st)) return;
+  if (fs::is_symlink(st))
+    throw std::runtime_error(
+        fmt::format("{}: is a symbolic link; refusing to replace it with a directory", dir));
+  if (!fs::is_directory(st))
+    throw std::runtime_error(fmt::format("{}: exists and is not a directory; not overwriting", dir));
+  // Replace only a directory that holds a recording of ours (never an unrelated folder).
+  if (!fs::is_empty(dir, ec) && !fs::exists(fs::path(dir) / "encoders.csv"))
+    throw std::runtime_error(
+        fmt::format("{}: exists and is not a recording directory; not overwriting", dir));
+}
+}  // namespace
+
 TextRecordingWriter::TextRecordingWriter(const std::string& dir)
     : dir_(dir), tmp_dir_(dir + ".tmp-export") {
+  checkExportTarget(dir_);
   std::error_code ec;
   fs::remove_all(tmp_dir_, ec);
   fs::create_directories(tmp_dir_, ec);
-  if (ec) throw std::runtime_error(fmt::format("{}: cannot create directory: {}", tmp_dir_, ec.message()));
+  if (ec)
+    throw std::runtime_error(
+        fmt::format("{}: cannot create directory: {}", tmp_dir_, ec.message()));
 }
 
 TextRecordingWriter::~TextRecordingWriter() {
   if (!committed_) {
-    files_.clear();
+    files_.clear();  // each AtomicFile removes its temporary
     std::error_code ec;
     fs::remove_all(tmp_dir_, ec);
   }
 }
 
-std::ofstream& TextRecordingWriter::fileFor(StreamKind k, const AnySample& first) {
+std::ostream& TextRecordingWriter::fileFor(StreamKind k, const AnySample& first) {
   auto it = files_.find(k);
-  if (it != files_.end()) return it->second;
+  if (it != files_.end()) return it->second->stream();
   const std::string path = (fs::path(tmp_dir_) / streamFileName(k)).string();
-  std::ofstream& f = files_[k];
-  f.open(path, std::ios::binary | std::ios::trunc);
-  if (!f) throw std::runtime_error(fmt::format("{}: cannot write", path));
+  auto& file = files_[k];
+  file = std::make_unique<util::AtomicFile>(path);
+  std::ostream& f = file->stream();
   const Layout& lay = layoutOf(k);
   std::vector<std::string> cols = lay.required;
   const bool with_optional =
@@ -311,7 +334,8 @@ std::ofstream& TextRecordingWriter::fileFor(StreamKind k, const AnySample& first
 }
 
 void TextRecordingWriter::write(const AnySample& s) {
-  std::ofstream& f = fileFor(kindOf(s), s);
+  std::ostream& f = fileFor(kindOf(s), s);
+  files_[kindOf(s)]->check();  // a full disk stops the export here, not at the end
   const std::string t = formatTime(timeOf(s));
   std::visit(
       [&](const auto& x) {
@@ -357,27 +381,16 @@ void TextRecordingWriter::commit() {
       fileFor(k, first);
     }
   }
-  for (auto& [k, f] : files_) {
-    f.flush();
-    if (!f) throw std::runtime_error(fmt::format("{}: write failed (disk full?)", tmp_dir_));
-    f.close();
-  }
+  for (auto& [k, f] : files_) f->commit();  // each checked: flush, fsync, close, rename
   if (!meta_.empty()) {
-    std::ofstream m(fs::path(tmp_dir_) / "meta.ini");
-    m << "[recording]\n";
-    for (const auto& [k, v] : meta_) m << k << " = " << v << '\n';
-    if (!m.flush()) throw std::runtime_error(fmt::format("{}: write failed", tmp_dir_));
+    util::writeFileAtomically((fs::path(tmp_dir_) / "meta.ini").string(), [&](std::ostream& m) {
+      m << "[recording]\n";
+      for (const auto& [k, v] : meta_) m << k << " = " << v << '\n';
+    });
   }
   std::error_code ec;
-  if (fs::exists(dir_)) {
-    if (!fs::is_directory(dir_) || !fs::is_empty(dir_)) {
-      // Replace only a directory that holds a recording of ours (never an unrelated folder).
-      if (!fs::exists(fs::path(dir_) / "encoders.csv"))
-        throw std::runtime_error(
-            fmt::format("{}: exists and is not a recording directory; not overwriting", dir_));
-    }
-    fs::remove_all(dir_, ec);
-  }
+  checkExportTarget(dir_);
+  if (fs::exists(dir_)) fs::remove_all(dir_, ec);
   fs::rename(tmp_dir_, dir_, ec);
   if (ec) throw std::runtime_error(fmt::format("{}: cannot rename into place: {}", dir_, ec.message()));
   committed_ = true;

@@ -1,5 +1,7 @@
 #include "libwheelchair/simulation/Simulator.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+
 #include "libwheelchair/model/DriveDynamics.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/sensors/Encoders.h"
@@ -122,20 +124,7 @@ std::string trimmed(std::string s) {
 }
 
 void writeAtomically(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(path + ": cannot write");
-    out << content;
-    out.flush();
-    if (!out) throw std::runtime_error(path + ": write failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(path + ": cannot rename temporary file");
-  }
+  util::writeFileAtomically(path, [&](std::ostream& out) { out << content; });
 }
 
 }  // namespace
