@@ -1,6 +1,7 @@
 #include "libwheelchair/config/WheelchairConfig.h"
 
 #include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/Text.h"
 
 #include <fmt/format.h>
 
@@ -88,7 +89,8 @@ double parseNumber(const std::string& text, const std::string& where) {
   const double x = std::strtod(s, &end);
   while (end && (*end == ' ' || *end == '\t' || *end == '\r')) ++end;
   if (end == s || (end && *end != '\0') || errno == ERANGE || !std::isfinite(x)) {
-    throw std::runtime_error(fmt::format("{}: '{}' is not a finite number", where, text));
+    throw std::runtime_error(
+        fmt::format("{}: '{}' is not a finite number", where, util::quoteInput(text)));
   }
   return x;
 }

@@ -77,7 +77,8 @@ CsvStreamReader::CsvStreamReader(const std::string& path, StreamKind kind)
     : path_(path), kind_(kind), in_(path, std::ios::binary) {
   if (!in_) throw FormatError(fmt::format("{}: cannot open file", path));
   std::string header;
-  if (!std::getline(in_, header)) throw FormatError(fmt::format("{}: empty file (no header row)", path));
+  if (!util::getBoundedLine(in_, header, util::kMaxLineBytes, path, 1))
+    throw FormatError(fmt::format("{}: empty file (no header row)", path));
   line_no_ = 1;
   if (header.size() >= 3 && header.compare(0, 3, "\xEF\xBB\xBF") == 0) header.erase(0, 3);
   columns_ = splitComma(trim(header));
@@ -87,14 +88,14 @@ CsvStreamReader::CsvStreamReader(const std::string& path, StreamKind kind)
   if (columns_ != lay.required && (lay.optional.empty() || columns_ != full)) {
     std::string expected = "'" + joinColumns(lay.required) + "'";
     if (!lay.optional.empty()) expected += " or '" + joinColumns(full) + "'";
-    throw FormatError(fmt::format("{}:1: header '{}' is not {}", path, joinColumns(columns_),
-                                  expected));
+    throw FormatError(fmt::format("{}:1: header '{}' is not {}", path,
+                                  util::quoteInput(joinColumns(columns_)), expected));
   }
 }
 
 bool CsvStreamReader::next(AnySample& out) {
   for (;;) {
-    if (!std::getline(in_, buf_)) {
+    if (!util::getBoundedLine(in_, buf_, util::kMaxLineBytes, path_, line_no_ + 1)) {
       if (in_.bad()) throw FormatError(fmt::format("{}:{}: read error", path_, line_no_ + 1));
       return false;
     }
@@ -123,11 +124,11 @@ bool CsvStreamReader::next(AnySample& out) {
     auto [ptr, ec] = std::from_chars(num, fe, v);
     if (p == fe || ec != std::errc() || ptr != fe) {
       throw FormatError(fmt::format("{}: column '{}': '{}' is not a number", where, columns_[col],
-                                    std::string(p, fe)));
+                                    util::quoteInput(std::string_view(p, fe - p))));
     }
     if (!std::isfinite(v))
       throw FormatError(fmt::format("{}: column '{}': value {} is not finite", where,
-                                    columns_[col], std::string(p, fe)));
+                                    columns_[col], util::quoteInput(std::string_view(p, fe - p))));
     values_.push_back(v);
     ++col;
     if (field_end == end) break;
@@ -215,7 +216,8 @@ TextRecordingReader::TextRecordingReader(const std::string& dir) {
   if (fs::exists(meta)) {
     std::ifstream in(meta);
     std::string line, section;
-    while (std::getline(in, line)) {
+    std::size_t meta_line = 0;
+    while (util::getBoundedLine(in, line, util::kMaxLineBytes, meta.string(), ++meta_line)) {
       line = trim(line);
       if (line.empty() || line[0] == '#' || line[0] == ';') continue;
       if (line.front() == '[' && line.back() == ']') {
