@@ -458,7 +458,20 @@ void writeRawlog(const Recording& rec, const std::string& path, const config::Wh
   w.commit();
 }
 
+namespace {
+bool isEmptyRegularFile(const std::string& path) {
+  std::error_code ec;
+  return fs::is_regular_file(path, ec) && fs::file_size(path, ec) == 0 && !ec;
+}
+}  // namespace
+
 Recording readRawlog(const std::string& path, RawlogReadReport* report, bool allow_truncated) {
+  // A capture cut before its first flush leaves a 0-byte file: with allow_truncated that is
+  // an empty prefix; otherwise (and always for the commands) it is refused.
+  if (allow_truncated && isEmptyRegularFile(path)) {
+    if (report) *report = RawlogReadReport{};
+    return Recording{};
+  }
   RawlogReader in(path);
   Recording rec;
   RawlogReadReport rep;
@@ -491,6 +504,7 @@ std::string salvageWarning(const std::string& path, const RawlogBreak& b) {
 
 Recording readRawlogSalvaging(const std::string& path, bool salvage, std::string* warning,
                               RawlogReadReport* report) {
+  if (isEmptyRegularFile(path)) RawlogReader refuse(path);  // throws "empty file (0 bytes)"
   RawlogReadReport rep;
   Recording rec = readRawlog(path, &rep, true);
   if (rep.broken) {

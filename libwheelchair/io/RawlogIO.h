@@ -104,8 +104,9 @@ struct RawlogReadReport {
   std::string header_text;             ///< META comment text (meta keys + configuration)
 };
 
-/// Reads a whole rawlog into memory. Throws on a broken file unless `allow_truncated`,
-/// in which case every complete record is returned and the break is in the report.
+/// Reads a whole rawlog into memory. Throws on a broken or 0-byte file unless
+/// `allow_truncated`, in which case every complete record is returned and the break is in the
+/// report (a 0-byte file, a capture cut before its first flush, is then an empty recording).
 Recording readRawlog(const std::string& path, RawlogReadReport* report = nullptr,
                      bool allow_truncated = false);
 
