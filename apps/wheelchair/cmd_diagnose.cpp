@@ -8,12 +8,12 @@
 // the held-out open-loop drift in fit_before / fit_after and [mrclam_response] written.
 #include "Command.h"
 
-#include "libwheelchair/util/AtomicFile.h"
-#include "libwheelchair/util/OutputDir.h"
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/CommandResponse.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/OutputDir.h"
 #include "libwheelchair/visualization/DiagnosisFigures.h"
 
 #include <fmt/core.h>

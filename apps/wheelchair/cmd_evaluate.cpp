@@ -45,7 +45,9 @@ int runEvaluate(const EvaluateOptions& o) {
   bo.jobs = o.jobs;
   bo.baseline = !o.no_baseline;
   bo.salvage = o.salvage;
-  bo.warning = [](const std::string& w) { fmt::print(stderr, "wheelchair evaluate: warning: {}\n", w); };
+  bo.warning = [](const std::string& w) {
+    fmt::print(stderr, "wheelchair evaluate: warning: {}\n", w);
+  };
   if (!o.quiet && isatty(STDERR_FILENO)) {
     bo.progress = [](std::size_t done, std::size_t total, const std::string& file) {
       const int width = 30;

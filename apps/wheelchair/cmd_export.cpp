@@ -43,8 +43,7 @@ int runExport(const ExportOptions& o) {
     if (n == 0)
       throw std::runtime_error(io::describeBreak(o.input, *in.error()) +
                                " (no complete data record before it to salvage)");
-    std::cerr << "wheelchair export: warning: " << io::salvageWarning(o.input, *in.error())
-              << "\n";
+    std::cerr << "wheelchair export: warning: " << io::salvageWarning(o.input, *in.error()) << "\n";
   }
   out.setMeta(meta);
   out.commit();

@@ -35,7 +35,8 @@ io::Recording readSalvaging(const ViewCliOptions& o) {
 int runView(const ViewCliOptions& o) {
   const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
                                          : config::WheelchairConfig::load(o.config_path);
-  const auto d = visualization::loadDrive(readSalvaging(o), o.file, cfg, evaluation::MetricOptions{}, o.truth);
+  const auto d =
+      visualization::loadDrive(readSalvaging(o), o.file, cfg, evaluation::MetricOptions{}, o.truth);
   visualization::ViewerOptions vo;
   vo.screenshot = o.screenshot;
   vo.at_s = o.at_s;

@@ -13,7 +13,9 @@
 
 namespace wheelchair::capture {
 
-std::string escapeForLog(std::string_view s) { return util::quoteInput(s, 60); }
+std::string escapeForLog(std::string_view s) {
+  return util::quoteInput(s, 60);
+}
 
 CaptureSource::CaptureSource(io::StreamKind kind)
     : kind_(kind), vehicle_(std::make_shared<config::WheelchairConfig>()) {

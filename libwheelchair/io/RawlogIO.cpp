@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 #include <mrpt/core/Clock.h>
+#include <mrpt/io/CStream.h>
 #include <mrpt/obs/CObservationBearingRange.h>
 #include <mrpt/obs/CObservationComment.h>
 #include <mrpt/obs/CObservationIMU.h>
@@ -13,11 +14,10 @@
 #include <mrpt/obs/CObservationRawDAQ.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/serialization/CArchive.h>
-#include <mrpt/io/CStream.h>
 #include <zlib.h>
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <sstream>
@@ -220,9 +220,7 @@ struct RawlogWriter::GzipOut : mrpt::io::CStream {
     pos += n;
     return n;
   }
-  uint64_t Seek(int64_t, TSeekOrigin) override {
-    throw std::logic_error("GzipOut cannot seek");
-  }
+  uint64_t Seek(int64_t, TSeekOrigin) override { throw std::logic_error("GzipOut cannot seek"); }
   uint64_t getTotalBytesCount() const override { return pos; }
   uint64_t getPosition() const override { return pos; }
   std::string getStreamDescription() const override { return file.path(); }
@@ -251,8 +249,8 @@ void RawlogWriter::write(const mrpt::serialization::CSerializable& obj) {
     ar << obj;
   } catch (const std::exception& e) {
     if (!out_->error.empty()) throw std::runtime_error(out_->error);
-    throw std::runtime_error(
-        fmt::format("{}: cannot serialize record {}: {}", path_, count_, util::oneLineMessage(e.what())));
+    throw std::runtime_error(fmt::format("{}: cannot serialize record {}: {}", path_, count_,
+                                         util::oneLineMessage(e.what())));
   }
   ++count_;
 }
@@ -347,10 +345,11 @@ struct RawlogReader::GzipIn : mrpt::io::CStream {
       if (errnum != Z_OK) {
         const std::string m = msg && *msg ? msg : "read error";
         const uint64_t at = pos + static_cast<uint64_t>(std::max(got, 0));
-        error = errnum == Z_BUF_ERROR
-                    ? fmt::format("file cut short: the gzip stream ends at uncompressed byte {}", at)
-                    : fmt::format("compressed data damaged at uncompressed byte {} (zlib: {})", at,
-                                  util::quoteInput(m));
+        error =
+            errnum == Z_BUF_ERROR
+                ? fmt::format("file cut short: the gzip stream ends at uncompressed byte {}", at)
+                : fmt::format("compressed data damaged at uncompressed byte {} (zlib: {})", at,
+                              util::quoteInput(m));
       }
       if (got < 0) return 0;
     }
@@ -399,8 +398,8 @@ bool RawlogReader::next(mrpt::serialization::CSerializable::Ptr& obj) {
     // record: a non-empty file that yields nothing (e.g. a damaged gzip stream, which zlib
     // ends early) is not a rawlog we can read.
     if (in_->pos == pos && index_ > 0 && in_->error.empty()) return false;
-    setBreak(pos, in_->pos == pos ? "no readable record"
-                                           : "truncated record (unexpected end of file)");
+    setBreak(pos,
+             in_->pos == pos ? "no readable record" : "truncated record (unexpected end of file)");
     return false;
   } catch (const std::bad_alloc&) {
     setBreak(pos, "corrupt record (a length field asks for more memory than available)");

@@ -127,8 +127,8 @@ bool CsvStreamReader::next(AnySample& out) {
                                     util::quoteInput(std::string_view(p, fe - p))));
     }
     if (!std::isfinite(v))
-      throw FormatError(fmt::format("{}: column '{}': value {} is not finite", where,
-                                    columns_[col], util::quoteInput(std::string_view(p, fe - p))));
+      throw FormatError(fmt::format("{}: column '{}': value {} is not finite", where, columns_[col],
+                                    util::quoteInput(std::string_view(p, fe - p))));
     values_.push_back(v);
     ++col;
     if (field_end == end) break;
@@ -291,7 +291,8 @@ void checkExportTarget(const std::string& dir) {
     throw std::runtime_error(
         fmt::format("{}: is a symbolic link; refusing to replace it with a directory", dir));
   if (!fs::is_directory(st))
-    throw std::runtime_error(fmt::format("{}: exists and is not a directory; not overwriting", dir));
+    throw std::runtime_error(
+        fmt::format("{}: exists and is not a directory; not overwriting", dir));
   // Replace only a directory that holds a recording of ours (never an unrelated folder).
   if (!fs::is_empty(dir, ec) && !fs::exists(fs::path(dir) / "encoders.csv"))
     throw std::runtime_error(

@@ -4,7 +4,8 @@
 // through OutputDir, name every file they write with file(), and call commit() at the end.
 // If commit() is never reached (an exception: a full disk, a failed figure), the destructor
 // removes the directory if OutputDir created it (with everything in it), otherwise the files
-// named so far, so a failed run leaves no half report. Each file itself is written with util::AtomicFile.
+// named so far, so a failed run leaves no half report. Each file itself is written with
+// util::AtomicFile.
 //
 // Example:
 //   util::OutputDir out("report/");

@@ -319,7 +319,9 @@ mrpt::img::CImage Raster::toImage() const {
   return im;
 }
 
-void Raster::save(const std::string& path) const { saveImage(toImage(), path); }
+void Raster::save(const std::string& path) const {
+  saveImage(toImage(), path);
+}
 
 void saveImage(const mrpt::img::CImage& im, const std::string& path) {
   // Encoded in memory (OpenCV picks the format by extension, which the temporary lacks), then
@@ -331,12 +333,13 @@ void saveImage(const mrpt::img::CImage& im, const std::string& path) {
   try {
     ok = cv::imencode(ext, im.asCvMatRef(), bytes);
   } catch (const std::exception& e) {
-    throw std::runtime_error(fmt::format("{}: cannot encode image: {}", path,
-                                         util::oneLineMessage(e.what())));
+    throw std::runtime_error(
+        fmt::format("{}: cannot encode image: {}", path, util::oneLineMessage(e.what())));
   }
   if (!ok) throw std::runtime_error(fmt::format("{}: cannot encode image as {}", path, ext));
   util::writeFileAtomically(path, [&](std::ostream& os) {
-    os.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    os.write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
   });
 }
 

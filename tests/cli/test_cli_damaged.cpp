@@ -119,8 +119,8 @@ TEST(CliDamaged, EmptyFileIsRefusedByEveryCommand) {
 }
 
 TEST(CliDamaged, TruncatedFileIsRefusedWithRecordAndOffset) {
-  expectRefusedByAll(files().cut,
-                     std::regex("record [1-9][0-9]* \\(uncompressed byte [0-9]+\\): file cut short"));
+  expectRefusedByAll(
+      files().cut, std::regex("record [1-9][0-9]* \\(uncompressed byte [0-9]+\\): file cut short"));
 }
 
 TEST(CliDamaged, ByteFlipInTheMiddleIsRefusedWithRecordAndOffset) {
@@ -165,7 +165,8 @@ TEST(CliDamaged, SalvageUsesTheCompleteRecordsAndSaysWhereItBroke) {
 
 TEST(CliDamaged, SalvageRefusesAFileWithNothingBeforeTheBreak) {
   TempDir out;
-  const Outcome o = runReader("export FILE -o OUT/x --salvage", files().header, out.path().string());
+  const Outcome o =
+      runReader("export FILE -o OUT/x --salvage", files().header, out.path().string());
   EXPECT_EQ(o.code, 1) << o.err;
   EXPECT_NE(o.err.find("no complete data record before it"), std::string::npos) << o.err;
   EXPECT_FALSE(fs::exists(out.path() / "x"));

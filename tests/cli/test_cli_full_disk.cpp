@@ -107,12 +107,14 @@ TEST(CliFullDisk, SimulateRawlog) {
   checkWriter("simulate --scenario three_task --duration 8 -o OUT/s.rawlog", "s.rawlog");
 }
 
-TEST(CliFullDisk, Export) { checkWriter("export " + inputs().rawlog + " -o OUT/x", "x"); }
+TEST(CliFullDisk, Export) {
+  checkWriter("export " + inputs().rawlog + " -o OUT/x", "x");
+}
 
 TEST(CliFullDisk, EvaluateCsvJsonMarkdown) {
-  checkWriter("evaluate -q " + inputs().rawlog +
-                  " --csv OUT/e.csv --json OUT/e.json --markdown OUT/e.md",
-              "e.json");
+  checkWriter(
+      "evaluate -q " + inputs().rawlog + " --csv OUT/e.csv --json OUT/e.json --markdown OUT/e.md",
+      "e.json");
 }
 
 TEST(CliFullDisk, DiagnoseJsonAndConfig) {
