@@ -120,9 +120,15 @@ WheelchairConfig& WheelchairConfig::operator=(const WheelchairConfig& o) {
 WheelchairConfig WheelchairConfig::load(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(fmt::format("{}: cannot open configuration file", path));
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return fromText(ss.str(), path);
+  // An INI is a few kB: refuse anything huge (a wrong path, a data file) before reading it.
+  constexpr std::size_t kMaxConfigBytes = 4u << 20;
+  std::string text(kMaxConfigBytes + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  if (text.size() > kMaxConfigBytes)
+    throw std::runtime_error(
+        fmt::format("{}: larger than {} bytes, not a configuration file", path, kMaxConfigBytes));
+  return fromText(text, path);
 }
 
 WheelchairConfig WheelchairConfig::fromText(const std::string& ini_text, const std::string& origin) {

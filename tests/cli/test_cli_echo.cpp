@@ -86,3 +86,15 @@ TEST(CliEcho, ControlBytesAreEscapedAndLongFieldsCut) {
   EXPECT_NE(r.err.find("x...'"), std::string::npos) << r.err;
   EXPECT_LT(r.err.size(), 300u) << r.err;
 }
+
+TEST(CliEcho, HugeConfigurationFileIsRefusedWithOneLine) {
+  TempDir tmp;
+  wheelchair::test::writeFile(tmp / "huge.ini", std::string(5u << 20, '#'));
+  const auto r = runMeasured("import " + wheelchair::test::sourcePath("datasets/excite") +
+                                 " --config " + (tmp / "huge.ini") + " -o " + (tmp / "r.rawlog"),
+                             tmp / "e");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << r.err.substr(0, 300);
+  EXPECT_NE(r.err.find("huge.ini: larger than"), std::string::npos) << r.err.substr(0, 300);
+  EXPECT_FALSE(fs::exists(tmp / "r.rawlog"));
+}
