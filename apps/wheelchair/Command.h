@@ -17,6 +17,11 @@ constexpr int kExitOk = 0;
 constexpr int kExitBadInput = 1;
 constexpr int kExitUsage = 2;
 
+/// Help text of the `--salvage` flag of every command that reads rawlogs (docs/rawlog-mapping.md).
+constexpr const char* kSalvageHelp =
+    "Damaged rawlog: use every complete record before the break (a warning says where and why "
+    "it broke) instead of refusing the file";
+
 struct Command {
   std::string name;
   std::string description;

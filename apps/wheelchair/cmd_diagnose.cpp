@@ -7,10 +7,13 @@
 // go to the command-response analyser (diagnosis/CommandResponse.h): actuator_lag etc., with
 // the held-out open-loop drift in fit_before / fit_after and [mrclam_response] written.
 #include "Command.h"
+
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/CommandResponse.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/OutputDir.h"
 #include "libwheelchair/visualization/DiagnosisFigures.h"
 
 #include <fmt/core.h>
@@ -27,17 +30,11 @@ namespace {
 struct DiagnoseOptions {
   std::vector<std::string> inputs, validate;
   std::string config_path, json_path, write_config, report_dir;
+  bool salvage = false;
 };
 
 void writeAtomic(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp);
-    if (!f) throw std::runtime_error(fmt::format("{}: cannot write", path));
-    f << text;
-    if (!f) throw std::runtime_error(fmt::format("{}: write failed", path));
-  }
-  std::filesystem::rename(tmp, path);
+  util::writeFileAtomically(path, [&](std::ostream& f) { f << text; });
 }
 
 int runDiagnose(const DiagnoseOptions& o) {
@@ -46,8 +43,14 @@ int runDiagnose(const DiagnoseOptions& o) {
   diagnosis::DiagnosisOptions opt;
   opt.loadFromConfig(cfg.ini());
   std::vector<io::Recording> fit, val;
-  for (const auto& p : o.inputs) fit.push_back(io::readRawlog(p));
-  for (const auto& p : o.validate) val.push_back(io::readRawlog(p));
+  auto read = [&](const std::string& p) {
+    std::string warning;
+    auto rec = io::readRawlogSalvaging(p, o.salvage, &warning);
+    if (!warning.empty()) std::cerr << "wheelchair diagnose: warning: " << warning << "\n";
+    return rec;
+  };
+  for (const auto& p : o.inputs) fit.push_back(read(p));
+  for (const auto& p : o.validate) val.push_back(read(p));
   // Command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor currents: e.g. MRCLAM
   // imports): the command-response analyser; encoders, if any, still go through the
   // wheelchair stages.
@@ -77,8 +80,10 @@ int runDiagnose(const DiagnoseOptions& o) {
     rep.info["command_response_validation"] = how;
     if (!any_encoders) rep.info["validation"] = how;
   }
+  util::RemoveUnlessKept outputs;  // a failed later write removes the earlier outputs
   if (!o.write_config.empty()) {
     diagnosis::correctedConfig(cfg, rep).save(o.write_config);
+    outputs.add(o.write_config);
     rep.config_written = o.write_config;
   }
   auto j = rep.toJson();
@@ -86,6 +91,7 @@ int runDiagnose(const DiagnoseOptions& o) {
   j["validate"] = o.validate;
   j["config"] = o.config_path.empty() ? "<nominal>" : o.config_path;
   writeAtomic(o.json_path, j.dump(2) + "\n");
+  outputs.add(o.json_path);
   std::string text;
   text += fmt::format("mismatch: {}\n", rep.mismatch ? "yes" : "no");
   for (const auto& f : rep.findings) {
@@ -154,6 +160,7 @@ int runDiagnose(const DiagnoseOptions& o) {
     for (const auto& n : fr.notes) std::cout << "report: " << n << "\n";
     std::cout << fmt::format("wrote {} ({} figures)\n", fr.index_path, fr.figures.size());
   }
+  outputs.keep();
   return kExitOk;
 }
 
@@ -176,6 +183,7 @@ const RegisterCommand reg{Command{
       sub.add_option("--report", o->report_dir,
                      "Write figures (residuals and trajectories before/after), index.md, the "
                      "summary and the full JSON into this directory");
+      sub.add_flag("--salvage", o->salvage, kSalvageHelp);
       return [o] { return runDiagnose(*o); };
     }}};
 

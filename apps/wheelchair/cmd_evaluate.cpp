@@ -10,6 +10,8 @@
 // goes to stdout. Exit 1 when any recording (or variant) failed.
 #include "Command.h"
 
+#include "libwheelchair/util/OutputDir.h"
+
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/evaluation/Batch.h"
 
@@ -27,7 +29,7 @@ struct EvaluateOptions {
   std::vector<std::string> files;
   std::string config_path, csv, json, markdown, alignment = "se2";
   unsigned jobs = 0;
-  bool no_baseline = false, quiet = false;
+  bool no_baseline = false, quiet = false, salvage = false;
 };
 
 int runEvaluate(const EvaluateOptions& o) {
@@ -42,6 +44,10 @@ int runEvaluate(const EvaluateOptions& o) {
                                          : config::WheelchairConfig::load(o.config_path);
   bo.jobs = o.jobs;
   bo.baseline = !o.no_baseline;
+  bo.salvage = o.salvage;
+  bo.warning = [](const std::string& w) {
+    fmt::print(stderr, "wheelchair evaluate: warning: {}\n", w);
+  };
   if (!o.quiet && isatty(STDERR_FILENO)) {
     bo.progress = [](std::size_t done, std::size_t total, const std::string& file) {
       const int width = 30;
@@ -53,9 +59,18 @@ int runEvaluate(const EvaluateOptions& o) {
     };
   }
   const auto res = evaluation::runBatch(o.files, cfg, bo);
-  if (!o.csv.empty()) evaluation::writeBatchCsv(o.csv, res, cfg);
-  if (!o.json.empty()) evaluation::writeBatchJson(o.json, res, cfg);
+  util::RemoveUnlessKept outputs;  // a failed later write removes the earlier outputs
+  if (!o.csv.empty()) {
+    evaluation::writeBatchCsv(o.csv, res, cfg);
+    outputs.add(o.csv);
+    outputs.add(o.csv + ".config.ini");
+  }
+  if (!o.json.empty()) {
+    evaluation::writeBatchJson(o.json, res, cfg);
+    outputs.add(o.json);
+  }
   if (!o.markdown.empty()) evaluation::writeBatchMarkdown(o.markdown, res, cfg);
+  outputs.keep();
   if (o.csv.empty() && o.json.empty() && o.markdown.empty()) std::cout << evaluation::batchCsv(res);
   for (const auto& r : res.rows)
     if (!r.error.empty())
@@ -84,6 +99,7 @@ const RegisterCommand reg{Command{
           ->default_val("se2");
       sub.add_flag("--no-baseline", o->no_baseline, "Skip the baseline filter");
       sub.add_flag("-q,--quiet", o->quiet, "No progress bar or summary on stderr");
+      sub.add_flag("--salvage", o->salvage, kSalvageHelp);
       return [o] { return runEvaluate(*o); };
     }}};
 

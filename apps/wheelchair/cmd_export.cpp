@@ -13,6 +13,7 @@ namespace {
 
 struct ExportOptions {
   std::string input, output;
+  bool salvage = false;
 };
 
 int runExport(const ExportOptions& o) {
@@ -35,7 +36,15 @@ int runExport(const ExportOptions& o) {
     out.write(*s);
     ++n;
   }
-  if (in.error()) throw std::runtime_error(io::describeBreak(o.input, *in.error()));
+  if (in.error()) {
+    if (!o.salvage && n > 0)
+      throw std::runtime_error(io::describeBreak(o.input, *in.error()) +
+                               " (--salvage uses the complete records before it)");
+    if (n == 0)
+      throw std::runtime_error(io::describeBreak(o.input, *in.error()) +
+                               " (no complete data record before it to salvage)");
+    std::cerr << "wheelchair export: warning: " << io::salvageWarning(o.input, *in.error()) << "\n";
+  }
   out.setMeta(meta);
   out.commit();
   fmt::print("exported {} observations from {} into {}", n, o.input, o.output);
@@ -50,6 +59,7 @@ const RegisterCommand reg{Command{
       auto o = std::make_shared<ExportOptions>();
       sub.add_option("input", o->input, "Input rawlog")->required();
       sub.add_option("-o,--output", o->output, "Output recording directory")->required();
+      sub.add_flag("--salvage", o->salvage, kSalvageHelp);
       return [o] { return runExport(*o); };
     }}};
 

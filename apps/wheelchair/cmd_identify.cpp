@@ -4,6 +4,9 @@
 // recordings stacked together; see docs/identification.md.
 #include "Command.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/OutputDir.h"
+
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/identification/Identification.h"
 #include "libwheelchair/io/RawlogIO.h"
@@ -23,6 +26,7 @@ struct IdentifyOptions {
   std::string config_path, json_path, write_config;
   double cutoff_hz = std::nan("");
   std::string omega_source;
+  bool salvage = false;
 };
 
 std::string fmtEstimate(const identification::Estimate& e, double z) {
@@ -41,7 +45,11 @@ int runIdentify(const IdentifyOptions& o) {
   if (!o.omega_source.empty()) opt.omega_source = o.omega_source;
   opt.validate("command line / [identification]");
   std::vector<io::Recording> recs;
-  for (const auto& p : o.inputs) recs.push_back(io::readRawlog(p));
+  for (const auto& p : o.inputs) {
+    std::string warning;
+    recs.push_back(io::readRawlogSalvaging(p, o.salvage, &warning));
+    if (!warning.empty()) std::cerr << "wheelchair identify: warning: " << warning << "\n";
+  }
 
   const auto res = identification::identify(recs, cfg, opt, o.inputs);
   auto j = res.toJson();
@@ -52,16 +60,11 @@ int runIdentify(const IdentifyOptions& o) {
     out_cfg = identification::identifiedConfig(cfg, res, &changes);
     j["written_config"] = {{"path", o.write_config}, {"changes", changes}};
   }
-  {
-    const std::string tmp = o.json_path + ".tmp";
-    std::ofstream f(tmp);
-    if (!f) throw std::runtime_error(fmt::format("{}: cannot write", o.json_path));
-    f << j.dump(2) << "\n";
-    f.close();
-    if (!f) throw std::runtime_error(fmt::format("{}: write failed", o.json_path));
-    std::filesystem::rename(tmp, o.json_path);
-  }
+  util::RemoveUnlessKept outputs;  // a failed config write removes the JSON again
+  util::writeFileAtomically(o.json_path, [&](std::ostream& f) { f << j.dump(2) << "\n"; });
+  outputs.add(o.json_path);
   if (out_cfg) out_cfg->save(o.write_config);
+  outputs.keep();
 
   const double z = res.z;
   fmt::print(
@@ -107,6 +110,7 @@ const RegisterCommand reg{Command{
       sub.add_option("--json", o->json_path, "Write the full result as JSON here")->required();
       sub.add_option("--write-config", o->write_config,
                      "Write the input configuration with the identified values here");
+      sub.add_flag("--salvage", o->salvage, kSalvageHelp);
       return [o] { return runIdentify(*o); };
     }}};
 

@@ -4,6 +4,8 @@
 // configuration used (libwheelchair/visualization/Report.h, docs/visualization.md).
 #include "Command.h"
 
+#include "libwheelchair/io/RawlogIO.h"
+
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/visualization/Report.h"
@@ -20,7 +22,15 @@ struct ReportCliOptions {
   std::string file, out_dir, config_path, alignment = "se2", truth;
   double at_s = NAN;
   bool no_3d = false;
+  bool salvage = false;
 };
+
+io::Recording readSalvaging(const ReportCliOptions& o) {
+  std::string warning;
+  auto rec = io::readRawlogSalvaging(o.file, o.salvage, &warning);
+  if (!warning.empty()) std::cerr << "wheelchair report: warning: " << warning << "\n";
+  return rec;
+}
 
 int runReport(const ReportCliOptions& o) {
   visualization::ReportOptions ro;
@@ -35,7 +45,7 @@ int runReport(const ReportCliOptions& o) {
   ro.out_dir = o.out_dir;
   ro.scene3d = !o.no_3d;
   ro.truth_path = o.truth;
-  const auto d = visualization::loadDrive(o.file, cfg, ro.metrics, o.truth);
+  const auto d = visualization::loadDrive(readSalvaging(o), o.file, cfg, ro.metrics, o.truth);
   if (std::isfinite(o.at_s)) ro.at_s = d.t0_s + o.at_s;
   const auto r = visualization::writeReport(d, ro);
   for (const auto& f : r.figures) fmt::print("wrote {}\n", f);
@@ -60,6 +70,7 @@ const RegisterCommand reg{Command{
       sub.add_option("--truth", o->truth,
                      "Simulator truth JSON (default FILE.truth.json if present)");
       sub.add_flag("--no-3d", o->no_3d, "Skip the offscreen 3-D snapshot");
+      sub.add_flag("--salvage", o->salvage, kSalvageHelp);
       return [o] { return runReport(*o); };
     }}};
 

@@ -5,6 +5,8 @@
 // frame (at --at seconds since the start) and exits; works without a display (offscreen).
 #include "Command.h"
 
+#include "libwheelchair/io/RawlogIO.h"
+
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/visualization/Viewer.h"
 
@@ -20,12 +22,21 @@ struct ViewCliOptions {
   std::string file, config_path, truth, screenshot;
   double at_s = NAN, speed = 1.0;
   int width = 1200, height = 800;
+  bool salvage = false;
 };
+
+io::Recording readSalvaging(const ViewCliOptions& o) {
+  std::string warning;
+  auto rec = io::readRawlogSalvaging(o.file, o.salvage, &warning);
+  if (!warning.empty()) std::cerr << "wheelchair view: warning: " << warning << "\n";
+  return rec;
+}
 
 int runView(const ViewCliOptions& o) {
   const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
                                          : config::WheelchairConfig::load(o.config_path);
-  const auto d = visualization::loadDrive(o.file, cfg, evaluation::MetricOptions{}, o.truth);
+  const auto d =
+      visualization::loadDrive(readSalvaging(o), o.file, cfg, evaluation::MetricOptions{}, o.truth);
   visualization::ViewerOptions vo;
   vo.screenshot = o.screenshot;
   vo.at_s = o.at_s;
@@ -54,6 +65,7 @@ const RegisterCommand reg{Command{
       sub.add_option("--width", o->width, "Window width (px)")->default_val(1200);
       sub.add_option("--height", o->height, "Window height (px)")->default_val(800);
       sub.add_option("--speed", o->speed, "Initial playback speed")->default_val(1.0);
+      sub.add_flag("--salvage", o->salvage, kSalvageHelp);
       return [o] { return runView(*o); };
     }}};
 

@@ -9,6 +9,8 @@
 #include <iostream>
 #include <map>
 
+#include <csignal>
+
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -38,6 +40,9 @@ void capAddressSpace() {
 int main(int argc, char** argv) {
   using namespace wheelchair::cli;
   capAddressSpace();
+  // A file-size limit (ulimit -f) must be an I/O error like a full disk (write(2) fails with
+  // EFBIG and every writer reports it), not a silent kill by SIGXFSZ.
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{
       "wheelchair: localization and model checking for a semi-autonomous power wheelchair"};
   app.require_subcommand(1);

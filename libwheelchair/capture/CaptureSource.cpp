@@ -1,5 +1,7 @@
 #include "libwheelchair/capture/CaptureSource.h"
 
+#include "libwheelchair/util/Text.h"
+
 #include "libwheelchair/capture/HostClock.h"
 #include "libwheelchair/io/RawlogIO.h"
 
@@ -12,18 +14,7 @@
 namespace wheelchair::capture {
 
 std::string escapeForLog(std::string_view s) {
-  std::string out;
-  for (unsigned char c : s) {
-    if (out.size() >= 60) {
-      out += "...";
-      break;
-    }
-    if (c >= 0x20 && c < 0x7f)
-      out.push_back(static_cast<char>(c));
-    else
-      out += fmt::format("\\x{:02x}", c);
-  }
-  return out;
+  return util::quoteInput(s, 60);
 }
 
 CaptureSource::CaptureSource(io::StreamKind kind)

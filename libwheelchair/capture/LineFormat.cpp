@@ -1,5 +1,7 @@
 #include "libwheelchair/capture/LineFormat.h"
 
+#include "libwheelchair/util/Text.h"
+
 #include "libwheelchair/io/TextFormat.h"
 
 #include <fmt/format.h>
@@ -220,7 +222,8 @@ LineFormat LineFormat::fromConfig(const mrpt::config::CConfigFileBase& ini,
     if (raw.empty()) return def;
     const auto v = parseFiniteNumber(raw);
     if (!v)
-      throw std::invalid_argument(fmt::format("[{}] {} = '{}': not a number", section, key, raw));
+      throw std::invalid_argument(
+          fmt::format("[{}] {} = '{}': not a number", section, key, util::quoteInput(raw)));
     return *v;
   };
   for (const auto& n : names) {

@@ -1,5 +1,7 @@
 #include "libwheelchair/capture/SerialReplayer.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+
 #include "libwheelchair/capture/HostClock.h"
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/TextFormat.h"
@@ -193,9 +195,8 @@ void SerialReplayer::setup() {
       ::unlink(s->link.c_str());
   }
   if (!opt_.derived_config.empty()) {
-    std::ofstream out(opt_.derived_config, std::ios::binary | std::ios::trunc);
-    out << derived_text_;
-    if (!out) throw std::runtime_error(opt_.derived_config + ": cannot write");
+    util::writeFileAtomically(opt_.derived_config,
+                              [&](std::ostream& out) { out << derived_text_; });
   }
 }
 

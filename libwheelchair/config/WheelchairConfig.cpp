@@ -1,5 +1,8 @@
 #include "libwheelchair/config/WheelchairConfig.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/Text.h"
+
 #include <fmt/format.h>
 
 #include <cerrno>
@@ -86,7 +89,8 @@ double parseNumber(const std::string& text, const std::string& where) {
   const double x = std::strtod(s, &end);
   while (end && (*end == ' ' || *end == '\t' || *end == '\r')) ++end;
   if (end == s || (end && *end != '\0') || errno == ERANGE || !std::isfinite(x)) {
-    throw std::runtime_error(fmt::format("{}: '{}' is not a finite number", where, text));
+    throw std::runtime_error(
+        fmt::format("{}: '{}' is not a finite number", where, util::quoteInput(text)));
   }
   return x;
 }
@@ -116,9 +120,15 @@ WheelchairConfig& WheelchairConfig::operator=(const WheelchairConfig& o) {
 WheelchairConfig WheelchairConfig::load(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(fmt::format("{}: cannot open configuration file", path));
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return fromText(ss.str(), path);
+  // An INI is a few kB: refuse anything huge (a wrong path, a data file) before reading it.
+  constexpr std::size_t kMaxConfigBytes = 4u << 20;
+  std::string text(kMaxConfigBytes + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  if (text.size() > kMaxConfigBytes)
+    throw std::runtime_error(
+        fmt::format("{}: larger than {} bytes, not a configuration file", path, kMaxConfigBytes));
+  return fromText(text, path);
 }
 
 WheelchairConfig WheelchairConfig::fromText(const std::string& ini_text, const std::string& origin) {
@@ -176,14 +186,9 @@ void WheelchairConfig::set(const std::string& section, const std::string& key,
 std::string WheelchairConfig::text() const { return ini_->getContent(); }
 
 void WheelchairConfig::save(const std::string& path) const {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(fmt::format("{}: cannot write", tmp));
+  util::writeFileAtomically(path, [&](std::ostream& out) {
     out << "# Written by libwheelchair from " << origin_ << "\n" << text();
-    if (!out.flush()) throw std::runtime_error(fmt::format("{}: write failed", tmp));
-  }
-  std::filesystem::rename(tmp, path);
+  });
 }
 
 }  // namespace wheelchair::config

@@ -94,7 +94,7 @@ class WheelchairConfig {
   void syncToIni();
   /// Sets one key in the INI (any section); values are kept as text.
   void set(const std::string& section, const std::string& key, const std::string& value);
-  /// Writes text() to `path` atomically (temp + rename).
+  /// Writes text() to `path` atomically (util::AtomicFile; throws naming `path` on failure).
   void save(const std::string& path) const;
 
  private:

@@ -4,6 +4,7 @@
 #include "libwheelchair/estimation/EkfOptions.h"
 #include "libwheelchair/estimation/Estimator.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/util/AtomicFile.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -51,16 +52,7 @@ std::string num(double v) {
 }
 
 void writeAtomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error("cannot write " + tmp);
-    out << text;
-    out.flush();
-    if (!out) throw std::runtime_error("cannot write " + tmp);
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0)
-    throw std::runtime_error("cannot rename " + tmp + " to " + path);
+  util::writeFileAtomically(path, [&](std::ostream& out) { out << text; });
 }
 
 estimation::EkfOptions ekfOptions(const config::WheelchairConfig& cfg,
@@ -333,7 +325,13 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
   try {
     // Own copy: nothing of the configuration is shared between worker threads.
     const auto cfg = config::WheelchairConfig::fromText(shared_cfg.text(), shared_cfg.origin());
-    const io::Recording rec = io::readRawlog(path);
+    std::string salvaged;
+    const io::Recording rec = io::readRawlogSalvaging(path, options.salvage, &salvaged);
+    if (!salvaged.empty() && options.warning) {
+      static std::mutex warning_mutex;
+      const std::lock_guard<std::mutex> lock(warning_mutex);
+      options.warning(salvaged);
+    }
     const GroundTruth gt = groundTruthOf(rec, cfg);
     MetricOptions mo = options.metrics;
     mo.lever_arm_m = gt.lever_arm_m;
@@ -485,10 +483,15 @@ std::string batchCsv(const BatchResult& r) {
 void writeBatchCsv(const std::string& path, const BatchResult& r,
                    const config::WheelchairConfig& cfg) {
   writeAtomically(path, batchCsv(r));
-  writeAtomically(
-      path + ".config.ini",
-      "# Configuration used for " + path + " (wheelchair evaluate)\n# origin: " + cfg.origin() +
-          "\n# alignment: " + alignmentText(r.alignment, r.align_first_s) + "\n" + cfg.text());
+  try {
+    writeAtomically(
+        path + ".config.ini",
+        "# Configuration used for " + path + " (wheelchair evaluate)\n# origin: " + cfg.origin() +
+            "\n# alignment: " + alignmentText(r.alignment, r.align_first_s) + "\n" + cfg.text());
+  } catch (...) {
+    std::remove(path.c_str());  // both files or neither
+    throw;
+  }
 }
 
 std::string batchJson(const BatchResult& r, const config::WheelchairConfig& cfg) {

@@ -151,6 +151,10 @@ struct BatchOptions {
   MetricOptions metrics;  ///< alignment etc.; lever_arm_m is set from the ground truth
   unsigned jobs = 0;      ///< worker threads; 0 = std::thread::hardware_concurrency()
   bool baseline = true;   ///< also evaluate the baseline filter
+  /// Damaged rawlogs: use the complete records before the break (io::readRawlogSalvaging)
+  /// and report where it broke through `warning` (called serialised, from worker threads).
+  bool salvage = false;
+  std::function<void(const std::string&)> warning;
   /// Called (serialised, from worker threads) after each recording: (done, total, path).
   std::function<void(std::size_t, std::size_t, const std::string&)> progress;
 };

@@ -11,6 +11,7 @@
 
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/stats/Descriptive.h"
+#include "libwheelchair/util/AtomicFile.h"
 
 namespace wheelchair::evaluation {
 
@@ -19,20 +20,7 @@ constexpr double kRad2Deg = 180.0 / M_PI;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 void writeAtomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::out | std::ios::trunc);
-    if (!f) throw std::runtime_error(fmt::format("{}: cannot open for writing", tmp));
-    f << text;
-    f.flush();
-    if (!f) throw std::runtime_error(fmt::format("{}: write failed", tmp));
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp);
-    throw std::runtime_error(fmt::format("{}: cannot rename from {}: {}", path, tmp, ec.message()));
-  }
+  util::writeFileAtomically(path, [&](std::ostream& f) { f << text; });
 }
 }  // namespace
 

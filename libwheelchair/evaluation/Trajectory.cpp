@@ -1,5 +1,7 @@
 #include "libwheelchair/evaluation/Trajectory.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>

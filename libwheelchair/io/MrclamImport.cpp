@@ -1,5 +1,7 @@
 #include "libwheelchair/io/MrclamImport.h"
 
+#include "libwheelchair/util/Text.h"
+
 #include "libwheelchair/io/TextFormat.h"
 
 #include <fmt/format.h>
@@ -24,7 +26,7 @@ void readRows(const std::string& path, std::size_t ncols, F&& onRow) {
   std::string line;
   std::size_t line_no = 0;
   std::vector<double> v;
-  while (std::getline(in, line)) {
+  while (util::getBoundedLine(in, line, util::kMaxLineBytes, path, line_no + 1)) {
     ++line_no;
     const auto first = line.find_first_not_of(" \t\r");
     if (first == std::string::npos || line[first] == '#') continue;
@@ -35,7 +37,8 @@ void readRows(const std::string& path, std::size_t ncols, F&& onRow) {
       char* end = nullptr;
       const double x = std::strtod(tok.c_str(), &end);
       if (*end != '\0' || !std::isfinite(x))
-        throw FormatError(fmt::format("{}:{}: '{}' is not a finite number", path, line_no, tok));
+        throw FormatError(fmt::format("{}:{}: '{}' is not a finite number", path, line_no,
+                                      util::quoteInput(tok)));
       v.push_back(x);
     }
     if (v.size() != ncols)

@@ -1,7 +1,11 @@
 #include "libwheelchair/io/RawlogIO.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/Text.h"
+
 #include <fmt/format.h>
 #include <mrpt/core/Clock.h>
+#include <mrpt/io/CStream.h>
 #include <mrpt/obs/CObservationBearingRange.h>
 #include <mrpt/obs/CObservationComment.h>
 #include <mrpt/obs/CObservationIMU.h>
@@ -10,8 +14,11 @@
 #include <mrpt/obs/CObservationRawDAQ.h>
 #include <mrpt/obs/CObservationRobotPose.h>
 #include <mrpt/serialization/CArchive.h>
+#include <zlib.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <sstream>
 #include <stdexcept>
@@ -29,6 +36,15 @@ double floatAsDecimal(float x) { return std::strtod(fmt::format("{}", x).c_str()
 
 constexpr double kUnknownZVariance_m2 = 1e6;
 constexpr const char* kHeaderFirstLine = "# libwheelchair recording";
+constexpr const char* kHeaderCrcKey = "# header crc32 = ";
+
+/// CRC-32 of the header text and its timestamp (so a flipped bit in either is detected).
+unsigned long headerCrc(std::string_view text, mrpt::Clock::time_point t) {
+  const std::string stamp = fmt::format("{}", t.time_since_epoch().count());
+  auto crc = crc32(0L, reinterpret_cast<const Bytef*>(text.data()), static_cast<uInt>(text.size()));
+  return crc32(crc, reinterpret_cast<const Bytef*>(stamp.data()), static_cast<uInt>(stamp.size()));
+}
+
 const mrpt::obs::TIMUDataIndex kImuExtra[5] = {IMU_WX, IMU_WY, IMU_X_ACC, IMU_Y_ACC, IMU_Z_ACC};
 
 // MRPT's clock counts 100 ns ticks since 1601 in an unsigned-compatible range: a negative or
@@ -165,25 +181,87 @@ std::optional<AnySample> fromObservation(const CObservation& obs) {
 
 // ---------------------------------------------------------------- RawlogWriter
 
-RawlogWriter::RawlogWriter(const std::string& path, int compression_level)
-    : path_(path), tmp_(path + ".tmp") {
-  out_ = std::make_unique<mrpt::io::CFileGZOutputStream>();
-  std::string err;
-  if (!out_->open(tmp_, compression_level, err))
-    throw std::runtime_error(fmt::format("{}: cannot open for writing: {}", tmp_, err));
-}
+/// mrpt::io::CStream that gzip-compresses (zlib, gzip wrapper) into an AtomicFile. Every
+/// deflate call and every write is checked; the first failure is kept in `error` (one line
+/// naming the target) and thrown, since MRPT wraps exceptions thrown through its archives in
+/// multi-line texts, RawlogWriter rethrows `error` itself.
+struct RawlogWriter::GzipOut : mrpt::io::CStream {
+  util::AtomicFile file;
+  z_stream zs{};
+  bool open = false;
+  uint64_t pos = 0;
+  std::string error;
+  std::vector<unsigned char> chunk = std::vector<unsigned char>(1 << 16);
 
-RawlogWriter::~RawlogWriter() {
-  if (!committed_) {
-    out_.reset();
-    std::error_code ec;
-    fs::remove(tmp_, ec);
+  GzipOut(const std::string& path, int level) : file(path) {
+    if (deflateInit2(&zs, level, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY) != Z_OK)
+      throw std::runtime_error(fmt::format("{}: cannot initialise gzip compression", path));
+    open = true;
   }
-}
+  ~GzipOut() override {
+    if (open) deflateEnd(&zs);
+  }
+  [[noreturn]] void fail(const std::string& what) {
+    error = what;
+    throw std::runtime_error(what);
+  }
+  void pump(int flush) {
+    int rc = Z_OK;
+    do {
+      zs.next_out = chunk.data();
+      zs.avail_out = static_cast<uInt>(chunk.size());
+      rc = deflate(&zs, flush);
+      if (rc == Z_STREAM_ERROR) fail(file.path() + ": gzip compression failed");
+      file.stream().write(reinterpret_cast<const char*>(chunk.data()),
+                          static_cast<std::streamsize>(chunk.size() - zs.avail_out));
+    } while (zs.avail_out == 0 || (flush == Z_FINISH && rc != Z_STREAM_END));
+    try {
+      file.check();  // a full disk stops the writer here, not at the end
+    } catch (const std::exception& e) {
+      fail(e.what());
+    }
+  }
+  size_t Read(void*, size_t) override { throw std::logic_error("GzipOut is write-only"); }
+  size_t Write(const void* buf, size_t n) override {
+    if (!error.empty()) throw std::runtime_error(error);
+    zs.next_in = static_cast<Bytef*>(const_cast<void*>(buf));
+    zs.avail_in = static_cast<uInt>(n);
+    pump(Z_NO_FLUSH);
+    pos += n;
+    return n;
+  }
+  uint64_t Seek(int64_t, TSeekOrigin) override { throw std::logic_error("GzipOut cannot seek"); }
+  uint64_t getTotalBytesCount() const override { return pos; }
+  uint64_t getPosition() const override { return pos; }
+  std::string getStreamDescription() const override { return file.path(); }
+  void finish() {
+    zs.next_in = nullptr;
+    zs.avail_in = 0;
+    pump(Z_FINISH);
+    deflateEnd(&zs);
+    open = false;
+    try {
+      file.commit();
+    } catch (const std::exception& e) {
+      fail(e.what());
+    }
+  }
+};
+
+RawlogWriter::RawlogWriter(const std::string& path, int compression_level)
+    : path_(path), out_(std::make_unique<GzipOut>(path, compression_level)) {}
+
+RawlogWriter::~RawlogWriter() = default;  // AtomicFile removes the temporary unless committed
 
 void RawlogWriter::write(const mrpt::serialization::CSerializable& obj) {
-  auto ar = mrpt::serialization::archiveFrom(*out_);
-  ar << obj;
+  try {
+    auto ar = mrpt::serialization::archiveFrom(*out_);
+    ar << obj;
+  } catch (const std::exception& e) {
+    if (!out_->error.empty()) throw std::runtime_error(out_->error);
+    throw std::runtime_error(fmt::format("{}: cannot serialize record {}: {}", path_, count_,
+                                         util::oneLineMessage(e.what())));
+  }
   ++count_;
 }
 
@@ -200,52 +278,155 @@ void RawlogWriter::writeHeader(const std::map<std::string, std::string>& meta,
   ss << kHeaderFirstLine << "\n[recording]\n";
   for (const auto& [k, v] : meta) ss << k << " = " << v << "\n";
   ss << "# configuration used when writing this file\n" << cfg.text();
-  c->text = ss.str();
+  std::string text = ss.str();
+  if (!text.empty() && text.back() != '\n') text += '\n';
+  // A checksum of the text before it, so a damaged header is reported as such (RawlogReader).
+  const auto crc = headerCrc(text, c->timestamp);
+  c->text = text + fmt::format("{}{:08x}\n", kHeaderCrcKey, crc);
   write(*c);
 }
 
 void RawlogWriter::commit() {
-  out_->close();
-  std::error_code ec;
-  fs::rename(tmp_, path_, ec);
-  if (ec) throw std::runtime_error(fmt::format("{}: cannot rename into place: {}", path_, ec.message()));
+  if (committed_) return;
+  if (!out_->error.empty()) throw std::runtime_error(out_->error);
+  out_->finish();
   committed_ = true;
 }
 
 // ---------------------------------------------------------------- RawlogReader
 
-RawlogReader::RawlogReader(const std::string& path) : path_(path) {
-  if (!fs::exists(path)) throw std::runtime_error(fmt::format("{}: no such file", path));
-  file_size_ = fs::file_size(path);
-  if (!in_.open(path)) throw std::runtime_error(fmt::format("{}: cannot open", path));
+namespace {
+
+/// True if the first record of `path` names MRPT's comment class (the class of our header).
+bool startsWithCommentRecord(const std::string& path) {
+  gzFile f = gzopen(path.c_str(), "rb");
+  if (!f) return false;
+  char buf[64] = {};
+  const int n = gzread(f, buf, sizeof buf);
+  gzclose(f);
+  return n > 0 && std::string(buf, static_cast<std::size_t>(n)).find("CObservationComment") !=
+                      std::string::npos;
+}
+
+/// Why record 0 (if it is, or was meant to be, our META header) is damaged; nullopt if fine.
+std::optional<std::string> headerDamage(const mrpt::serialization::CSerializable& obj) {
+  const auto* c = dynamic_cast<const CObservationComment*>(&obj);
+  if (!c) return std::nullopt;
+  const std::string& t = c->text;
+  if (t.rfind(kHeaderFirstLine, 0) != 0) {
+    if (t.find("\n[recording]\n") != std::string::npos)
+      return fmt::format("its first line is not '{}'", kHeaderFirstLine);
+    return std::nullopt;  // some other comment: not ours
+  }
+  // The checksum line is the last line: '#', the key, 8 hex digits (files written before the
+  // checksum existed end with a configuration line, which never starts with '#').
+  const std::size_t crc_line = std::strlen(kHeaderCrcKey) + 8;
+  if (t.size() < crc_line + 1 || t.back() != '\n') return std::nullopt;
+  const std::size_t k = t.size() - 1 - crc_line;
+  if (t[k] != '#' || (k > 0 && t[k - 1] != '\n')) return std::nullopt;
+  if (t.compare(k, std::strlen(kHeaderCrcKey), kHeaderCrcKey) != 0)
+    return std::string("checksum line damaged");
+  const auto crc = headerCrc(std::string_view(t).substr(0, k), c->timestamp);
+  if (t.compare(k + std::strlen(kHeaderCrcKey), 8, fmt::format("{:08x}", crc)) != 0)
+    return std::string("checksum mismatch (a byte of the header text changed)");
+  return std::nullopt;
+}
+
+}  // namespace
+
+/// mrpt::io::CStream reading a gzip (or, like MRPT's reader, an uncompressed) file through
+/// zlib, keeping zlib's error: MRPT's own reader turns a damaged gzip stream into a silent end
+/// of file, which at a record boundary would look like a clean end.
+struct RawlogReader::GzipIn : mrpt::io::CStream {
+  gzFile f = nullptr;
+  uint64_t pos = 0;
+  std::string error;  ///< set when zlib reported damage (never for a clean end)
+  ~GzipIn() override {
+    if (f) gzclose(f);
+  }
+  size_t Read(void* buf, size_t n) override {
+    if (!error.empty() || n == 0) return 0;
+    const int got = gzread(f, buf, static_cast<unsigned>(std::min<size_t>(n, 1u << 30)));
+    if (got < 0 || static_cast<size_t>(got) < n) {
+      // A short read: the end of the data, clean or not (zlib reports a cut file as
+      // Z_BUF_ERROR with the data it could still decompress).
+      int errnum = Z_OK;
+      const char* msg = gzerror(f, &errnum);
+      if (errnum != Z_OK) {
+        const std::string m = msg && *msg ? msg : "read error";
+        const uint64_t at = pos + static_cast<uint64_t>(std::max(got, 0));
+        error =
+            errnum == Z_BUF_ERROR
+                ? fmt::format("file cut short: the gzip stream ends at uncompressed byte {}", at)
+                : fmt::format("compressed data damaged at uncompressed byte {} (zlib: {})", at,
+                              util::quoteInput(m));
+      }
+      if (got < 0) return 0;
+    }
+    pos += static_cast<uint64_t>(got);
+    return static_cast<size_t>(got);
+  }
+  size_t Write(const void*, size_t) override { throw std::logic_error("GzipIn is read-only"); }
+  uint64_t Seek(int64_t, TSeekOrigin) override { throw std::logic_error("GzipIn cannot seek"); }
+  uint64_t getTotalBytesCount() const override { return pos; }
+  uint64_t getPosition() const override { return pos; }
+};
+
+RawlogReader::RawlogReader(const std::string& path) : path_(path), in_(std::make_unique<GzipIn>()) {
+  std::error_code ec;
+  const auto st = fs::status(path, ec);
+  if (!fs::exists(st)) throw std::runtime_error(fmt::format("{}: no such file", path));
+  if (fs::is_directory(st))
+    throw std::runtime_error(fmt::format("{}: is a directory, not a rawlog", path));
+  file_size_ = fs::is_regular_file(st) ? fs::file_size(path, ec) : 0;
+  if (fs::is_regular_file(st) && file_size_ == 0)
+    throw std::runtime_error(fmt::format("{}: empty file (0 bytes), not a rawlog", path));
+  in_->f = gzopen(path.c_str(), "rb");
+  if (!in_->f)
+    throw std::runtime_error(fmt::format("{}: cannot open: {}", path, std::strerror(errno)));
+}
+
+RawlogReader::~RawlogReader() = default;
+
+void RawlogReader::setBreak(uint64_t pos, std::string what) {
+  // Damage in the gzip layer shows in MRPT only as an early end or garbage: name it.
+  if (!in_->error.empty()) what = in_->error;
+  if (index_ == 0)
+    what = startsWithCommentRecord(path_) ? "header record (META) damaged: " + what
+                                          : "not a rawlog, or its first record is damaged: " + what;
+  error_ = RawlogBreak{index_, pos, std::move(what)};
 }
 
 bool RawlogReader::next(mrpt::serialization::CSerializable::Ptr& obj) {
   if (error_) return false;
-  const uint64_t pos = in_.getPosition();
+  const uint64_t pos = in_->pos;
   try {
-    auto ar = mrpt::serialization::archiveFrom(in_);
+    auto ar = mrpt::serialization::archiveFrom(*in_);
     obj = ar.ReadObject();
   } catch (const mrpt::serialization::CExceptionEOF&) {
     // A clean end of file only if nothing of a record was read, and only after at least one
     // record: a non-empty file that yields nothing (e.g. a damaged gzip stream, which zlib
     // ends early) is not a rawlog we can read.
-    if (in_.getPosition() == pos && (index_ > 0 || file_size_ == 0)) return false;
-    if (in_.getPosition() == pos) {
-      error_ = RawlogBreak{index_, pos, "no readable record (not a rawlog, or damaged from the start)"};
-      return false;
-    }
-    error_ = RawlogBreak{index_, pos, "truncated record (unexpected end of file)"};
+    if (in_->pos == pos && index_ > 0 && in_->error.empty()) return false;
+    setBreak(pos,
+             in_->pos == pos ? "no readable record" : "truncated record (unexpected end of file)");
+    return false;
+  } catch (const std::bad_alloc&) {
+    setBreak(pos, "corrupt record (a length field asks for more memory than available)");
     return false;
   } catch (const std::exception& e) {
-    std::string what = e.what();
-    if (const auto nl = what.find('\n'); nl != std::string::npos) what = what.substr(0, nl);
-    error_ = RawlogBreak{index_, pos, "corrupt record: " + what};
+    setBreak(pos, "corrupt record: " + util::oneLineMessage(e.what()));
     return false;
   }
   if (!obj) {
-    error_ = RawlogBreak{index_, pos, "corrupt record (null object)"};
+    setBreak(pos, "corrupt record (null object)");
     return false;
+  }
+  if (index_ == 0) {
+    if (auto why = headerDamage(*obj)) {
+      error_ = RawlogBreak{0, pos, "header record (META) damaged: " + *why};
+      return false;
+    }
   }
   ++index_;
   return true;
@@ -286,7 +467,20 @@ void writeRawlog(const Recording& rec, const std::string& path, const config::Wh
   w.commit();
 }
 
+namespace {
+bool isEmptyRegularFile(const std::string& path) {
+  std::error_code ec;
+  return fs::is_regular_file(path, ec) && fs::file_size(path, ec) == 0 && !ec;
+}
+}  // namespace
+
 Recording readRawlog(const std::string& path, RawlogReadReport* report, bool allow_truncated) {
+  // A capture cut before its first flush leaves a 0-byte file: with allow_truncated that is
+  // an empty prefix; otherwise (and always for the commands) it is refused.
+  if (allow_truncated && isEmptyRegularFile(path)) {
+    if (report) *report = RawlogReadReport{};
+    return Recording{};
+  }
   RawlogReader in(path);
   Recording rec;
   RawlogReadReport rep;
@@ -308,6 +502,29 @@ Recording readRawlog(const std::string& path, RawlogReadReport* report, bool all
   }
   rep.broken = in.error();
   if (rep.broken && !allow_truncated) throw std::runtime_error(describeBreak(path, *rep.broken));
+  if (report) *report = rep;
+  return rec;
+}
+
+std::string salvageWarning(const std::string& path, const RawlogBreak& b) {
+  return fmt::format("{}; salvaged the {} complete records before it", describeBreak(path, b),
+                     b.record_index);
+}
+
+Recording readRawlogSalvaging(const std::string& path, bool salvage, std::string* warning,
+                              RawlogReadReport* report) {
+  if (isEmptyRegularFile(path)) RawlogReader refuse(path);  // throws "empty file (0 bytes)"
+  RawlogReadReport rep;
+  Recording rec = readRawlog(path, &rep, true);
+  if (rep.broken) {
+    if (!salvage && rec.size() > 0)
+      throw std::runtime_error(describeBreak(path, *rep.broken) +
+                               " (--salvage uses the complete records before it)");
+    if (rec.size() == 0)
+      throw std::runtime_error(describeBreak(path, *rep.broken) +
+                               " (no complete data record before it to salvage)");
+    if (warning) *warning = salvageWarning(path, *rep.broken);
+  }
   if (report) *report = rep;
   return rec;
 }

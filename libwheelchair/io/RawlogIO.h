@@ -16,16 +16,19 @@
 // The first record is a CObservationComment (label META) holding the recording's meta.ini
 // keys and the configuration the file was written with.
 //
-// Writing goes to PATH.tmp and is renamed on commit(): a failed run never leaves a half
-// file. Reading is streamed record by record; a truncated or corrupt file yields every
-// complete record, then reports the record index and byte offset where it broke.
+// Writing goes through util::AtomicFile (a hidden temporary beside PATH, renamed on commit()):
+// the gzip stream is produced with zlib by this class and every write, the gzip trailer, the
+// fsync and the close are checked, so a full disk (even one that only shows at the final
+// flush) throws one line "PATH: cannot write: No space left on device" and leaves neither PATH
+// nor a temporary. The result is a standard gzip MRPT .rawlog (RawLogViewer, rawlog-edit).
+// Reading is streamed record by record; a truncated or corrupt file yields every complete
+// record, then reports the record index and byte offset where it broke (record 0, the META
+// header, is reported as header damage). A 0-byte file is not a rawlog and is refused.
 #pragma once
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/io/Samples.h"
 
-#include <mrpt/io/CFileGZInputStream.h>
-#include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/obs/CObservation.h>
 
 #include <memory>
@@ -53,8 +56,9 @@ class RawlogWriter {
   void commit();
 
  private:
-  std::string path_, tmp_;
-  std::unique_ptr<mrpt::io::CFileGZOutputStream> out_;
+  struct GzipOut;
+  std::string path_;
+  std::unique_ptr<GzipOut> out_;
   std::size_t count_ = 0;
   bool committed_ = false;
 };
@@ -68,7 +72,9 @@ struct RawlogBreak {
 
 class RawlogReader {
  public:
+  /// Throws (one line) for a missing, 0-byte or unopenable file.
   explicit RawlogReader(const std::string& path);
+  ~RawlogReader();
   /// Next record; false at a clean end of file or at the first broken record (see error()).
   bool next(mrpt::serialization::CSerializable::Ptr& obj);
   const std::optional<RawlogBreak>& error() const { return error_; }
@@ -78,8 +84,11 @@ class RawlogReader {
   const std::string& path() const { return path_; }
 
  private:
+  void setBreak(uint64_t pos, std::string what);
+
+  struct GzipIn;
   std::string path_;
-  mrpt::io::CFileGZInputStream in_;
+  std::unique_ptr<GzipIn> in_;
   std::size_t index_ = 0;
   uint64_t file_size_ = 0;
   std::optional<RawlogBreak> error_;
@@ -95,10 +104,22 @@ struct RawlogReadReport {
   std::string header_text;             ///< META comment text (meta keys + configuration)
 };
 
-/// Reads a whole rawlog into memory. Throws on a broken file unless `allow_truncated`,
-/// in which case every complete record is returned and the break is in the report.
+/// Reads a whole rawlog into memory. Throws on a broken or 0-byte file unless
+/// `allow_truncated`, in which case every complete record is returned and the break is in the
+/// report (a 0-byte file, a capture cut before its first flush, is then an empty recording).
 Recording readRawlog(const std::string& path, RawlogReadReport* report = nullptr,
                      bool allow_truncated = false);
+
+/// readRawlog for the commands' `--salvage` option. Without `salvage`, a damaged file throws
+/// one line naming the record index, byte offset and reason. With it, every complete record
+/// before the break is used and `*warning` (if given) says where and why the file broke, e.g.
+/// "d.rawlog: record 9155 (uncompressed byte 2221453): file cut short ...; salvaged the 9155
+/// complete records before it". A file with no data record before the break is refused
+/// either way. A 0-byte file is always refused.
+Recording readRawlogSalvaging(const std::string& path, bool salvage, std::string* warning,
+                              RawlogReadReport* report = nullptr);
+/// The one-line warning readRawlogSalvaging gives for a salvaged file.
+std::string salvageWarning(const std::string& path, const RawlogBreak& b);
 
 /// If `obj` is our header record (a CObservationComment written by writeHeader; MRPT does
 /// not serialize a comment's sensorLabel, so it is recognised by its first line), returns its

@@ -1,5 +1,7 @@
 #include "libwheelchair/io/TextFormat.h"
 
+#include "libwheelchair/util/Text.h"
+
 #include <fmt/format.h>
 
 #include <charconv>
@@ -75,7 +77,8 @@ CsvStreamReader::CsvStreamReader(const std::string& path, StreamKind kind)
     : path_(path), kind_(kind), in_(path, std::ios::binary) {
   if (!in_) throw FormatError(fmt::format("{}: cannot open file", path));
   std::string header;
-  if (!std::getline(in_, header)) throw FormatError(fmt::format("{}: empty file (no header row)", path));
+  if (!util::getBoundedLine(in_, header, util::kMaxLineBytes, path, 1))
+    throw FormatError(fmt::format("{}: empty file (no header row)", path));
   line_no_ = 1;
   if (header.size() >= 3 && header.compare(0, 3, "\xEF\xBB\xBF") == 0) header.erase(0, 3);
   columns_ = splitComma(trim(header));
@@ -85,14 +88,14 @@ CsvStreamReader::CsvStreamReader(const std::string& path, StreamKind kind)
   if (columns_ != lay.required && (lay.optional.empty() || columns_ != full)) {
     std::string expected = "'" + joinColumns(lay.required) + "'";
     if (!lay.optional.empty()) expected += " or '" + joinColumns(full) + "'";
-    throw FormatError(fmt::format("{}:1: header '{}' is not {}", path, joinColumns(columns_),
-                                  expected));
+    throw FormatError(fmt::format("{}:1: header '{}' is not {}", path,
+                                  util::quoteInput(joinColumns(columns_)), expected));
   }
 }
 
 bool CsvStreamReader::next(AnySample& out) {
   for (;;) {
-    if (!std::getline(in_, buf_)) {
+    if (!util::getBoundedLine(in_, buf_, util::kMaxLineBytes, path_, line_no_ + 1)) {
       if (in_.bad()) throw FormatError(fmt::format("{}:{}: read error", path_, line_no_ + 1));
       return false;
     }
@@ -121,15 +124,15 @@ bool CsvStreamReader::next(AnySample& out) {
     auto [ptr, ec] = std::from_chars(num, fe, v);
     if (p == fe || ec != std::errc() || ptr != fe) {
       throw FormatError(fmt::format("{}: column '{}': '{}' is not a number", where, columns_[col],
-                                    std::string(p, fe)));
+                                    util::quoteInput(std::string_view(p, fe - p))));
     }
     if (!std::isfinite(v))
       throw FormatError(fmt::format("{}: column '{}': value {} is not finite", where,
-                                    columns_[col], std::string(p, fe)));
+                                    columns_[col], util::quoteInput(std::string_view(p, fe - p))));
     if (col == 0 && v < 0)  // MRPT's clock would wrap it to ~1.8e12 s
-      throw FormatError(
-          fmt::format("{}: column '{}': negative timestamp {} (times are seconds >= 0)", where,
-                      columns_[col], std::string(p, fe)));
+      throw FormatError(fmt::format(
+          "{}: column '{}': negative timestamp {} (times are seconds >= 0)", where, columns_[col],
+          util::quoteInput(std::string_view(p, fe - p))));
     values_.push_back(v);
     ++col;
     if (field_end == end) break;
@@ -219,7 +222,8 @@ TextRecordingReader::TextRecordingReader(const std::string& dir) {
   if (fs::exists(meta)) {
     std::ifstream in(meta);
     std::string line, section;
-    while (std::getline(in, line)) {
+    std::size_t meta_line = 0;
+    while (util::getBoundedLine(in, line, util::kMaxLineBytes, meta.string(), ++meta_line)) {
       line = trim(line);
       if (line.empty() || line[0] == '#' || line[0] == ';') continue;
       if (line.front() == '[' && line.back() == ']') {
@@ -296,29 +300,51 @@ Recording readTextRecording(const std::string& dir, std::vector<std::string>* wa
 
 // ---------------------------------------------------------------- TextRecordingWriter
 
+namespace {
+/// Throws unless `dir` is absent, an empty directory or a recording directory of ours.
+void checkExportTarget(const std::string& dir) {
+  std::error_code ec;
+  const auto st = fs::symlink_status(dir, ec);
+  if (!fs::exists(st)) return;
+  if (fs::is_symlink(st))
+    throw std::runtime_error(
+        fmt::format("{}: is a symbolic link; refusing to replace it with a directory", dir));
+  if (!fs::is_directory(st))
+    throw std::runtime_error(
+        fmt::format("{}: exists and is not a directory; not overwriting", dir));
+  // Replace only a directory that holds a recording of ours (never an unrelated folder).
+  if (!fs::is_empty(dir, ec) && !fs::exists(fs::path(dir) / "encoders.csv"))
+    throw std::runtime_error(
+        fmt::format("{}: exists and is not a recording directory; not overwriting", dir));
+}
+}  // namespace
+
 TextRecordingWriter::TextRecordingWriter(const std::string& dir)
     : dir_(dir), tmp_dir_(dir + ".tmp-export") {
+  checkExportTarget(dir_);
   std::error_code ec;
   fs::remove_all(tmp_dir_, ec);
   fs::create_directories(tmp_dir_, ec);
-  if (ec) throw std::runtime_error(fmt::format("{}: cannot create directory: {}", tmp_dir_, ec.message()));
+  if (ec)
+    throw std::runtime_error(
+        fmt::format("{}: cannot create directory: {}", tmp_dir_, ec.message()));
 }
 
 TextRecordingWriter::~TextRecordingWriter() {
   if (!committed_) {
-    files_.clear();
+    files_.clear();  // each AtomicFile removes its temporary
     std::error_code ec;
     fs::remove_all(tmp_dir_, ec);
   }
 }
 
-std::ofstream& TextRecordingWriter::fileFor(StreamKind k, const AnySample& first) {
+std::ostream& TextRecordingWriter::fileFor(StreamKind k, const AnySample& first) {
   auto it = files_.find(k);
-  if (it != files_.end()) return it->second;
+  if (it != files_.end()) return it->second->stream();
   const std::string path = (fs::path(tmp_dir_) / streamFileName(k)).string();
-  std::ofstream& f = files_[k];
-  f.open(path, std::ios::binary | std::ios::trunc);
-  if (!f) throw std::runtime_error(fmt::format("{}: cannot write", path));
+  auto& file = files_[k];
+  file = std::make_unique<util::AtomicFile>(path);
+  std::ostream& f = file->stream();
   const Layout& lay = layoutOf(k);
   std::vector<std::string> cols = lay.required;
   const bool with_optional =
@@ -330,7 +356,8 @@ std::ofstream& TextRecordingWriter::fileFor(StreamKind k, const AnySample& first
 }
 
 void TextRecordingWriter::write(const AnySample& s) {
-  std::ofstream& f = fileFor(kindOf(s), s);
+  std::ostream& f = fileFor(kindOf(s), s);
+  files_[kindOf(s)]->check();  // a full disk stops the export here, not at the end
   const std::string t = formatTime(timeOf(s));
   std::visit(
       [&](const auto& x) {
@@ -376,27 +403,16 @@ void TextRecordingWriter::commit() {
       fileFor(k, first);
     }
   }
-  for (auto& [k, f] : files_) {
-    f.flush();
-    if (!f) throw std::runtime_error(fmt::format("{}: write failed (disk full?)", tmp_dir_));
-    f.close();
-  }
+  for (auto& [k, f] : files_) f->commit();  // each checked: flush, fsync, close, rename
   if (!meta_.empty()) {
-    std::ofstream m(fs::path(tmp_dir_) / "meta.ini");
-    m << "[recording]\n";
-    for (const auto& [k, v] : meta_) m << k << " = " << v << '\n';
-    if (!m.flush()) throw std::runtime_error(fmt::format("{}: write failed", tmp_dir_));
+    util::writeFileAtomically((fs::path(tmp_dir_) / "meta.ini").string(), [&](std::ostream& m) {
+      m << "[recording]\n";
+      for (const auto& [k, v] : meta_) m << k << " = " << v << '\n';
+    });
   }
   std::error_code ec;
-  if (fs::exists(dir_)) {
-    if (!fs::is_directory(dir_) || !fs::is_empty(dir_)) {
-      // Replace only a directory that holds a recording of ours (never an unrelated folder).
-      if (!fs::exists(fs::path(dir_) / "encoders.csv"))
-        throw std::runtime_error(
-            fmt::format("{}: exists and is not a recording directory; not overwriting", dir_));
-    }
-    fs::remove_all(dir_, ec);
-  }
+  checkExportTarget(dir_);
+  if (fs::exists(dir_)) fs::remove_all(dir_, ec);
   fs::rename(tmp_dir_, dir_, ec);
   if (ec) throw std::runtime_error(fmt::format("{}: cannot rename into place: {}", dir_, ec.message()));
   committed_ = true;

@@ -15,6 +15,7 @@
 #pragma once
 
 #include "libwheelchair/io/Samples.h"
+#include "libwheelchair/util/AtomicFile.h"
 
 #include <fstream>
 #include <map>
@@ -93,7 +94,10 @@ constexpr double kDefaultMaxGapS = 5.0;
 /// Whole recording in memory (for moderate sizes; use TextRecordingReader to stream).
 Recording readTextRecording(const std::string& dir, std::vector<std::string>* warnings = nullptr);
 
-/// Streams samples into a recording directory; files appear only on commit().
+/// Streams samples into a recording directory; files appear only on commit(). Every file is
+/// an util::AtomicFile inside a temporary directory `DIR.tmp-export` that commit() renames to
+/// DIR: any write failure (a full disk) throws one line naming the file and leaves neither DIR
+/// nor the temporary directory. DIR must be absent, empty or a recording directory.
 class TextRecordingWriter {
  public:
   explicit TextRecordingWriter(const std::string& dir);
@@ -104,9 +108,9 @@ class TextRecordingWriter {
   void commit();
 
  private:
-  std::ofstream& fileFor(StreamKind k, const AnySample& first);
+  std::ostream& fileFor(StreamKind k, const AnySample& first);
   std::string dir_, tmp_dir_;
-  std::map<StreamKind, std::ofstream> files_;
+  std::map<StreamKind, std::unique_ptr<util::AtomicFile>> files_;
   std::map<std::string, std::string> meta_;
   bool committed_ = false;
 };

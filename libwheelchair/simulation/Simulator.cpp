@@ -1,5 +1,8 @@
 #include "libwheelchair/simulation/Simulator.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/Text.h"
+
 #include "libwheelchair/model/DriveDynamics.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/sensors/Encoders.h"
@@ -116,7 +119,7 @@ double parseNumber(const std::string& text, const std::string& where) {
   const double x = std::strtod(s, &end);
   while (end && (*end == ' ' || *end == '\t' || *end == '\r')) ++end;
   if (end == s || *end != '\0' || errno == ERANGE || !std::isfinite(x))
-    throw std::runtime_error(where + ": '" + text + "' is not a finite number");
+    throw std::runtime_error(where + ": '" + util::quoteInput(text) + "' is not a finite number");
   return x;
 }
 

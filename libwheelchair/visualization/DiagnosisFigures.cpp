@@ -1,5 +1,8 @@
 #include "libwheelchair/visualization/DiagnosisFigures.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/OutputDir.h"
+
 #include "libwheelchair/estimation/DeadReckoning.h"
 #include "libwheelchair/estimation/ModelExtensions.h"
 #include "libwheelchair/evaluation/Association.h"
@@ -41,14 +44,7 @@ Color lighter(Color c, double a) {  // c over white with opacity a
 }
 
 void writeText(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::trunc);
-    if (!f) throw std::runtime_error("cannot write " + path);
-    f << text;
-    if (!f) throw std::runtime_error("write failed: " + path);
-  }
-  fs::rename(tmp, path);
+  util::writeFileAtomically(path, [&](std::ostream& f) { f << text; });
 }
 
 /// A JSON value for a Markdown cell.
@@ -827,9 +823,9 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
                                             const std::vector<std::string>& validate_paths,
                                             const DiagnosisFigureOptions& o) {
   if (o.out_dir.empty()) throw std::invalid_argument("diagnosis report: no output directory");
-  fs::create_directories(o.out_dir);
+  util::OutputDir dir(o.out_dir);  // a failed run leaves no half directory
   DiagnosisFigureResult res;
-  auto out = [&](const std::string& f) { return (fs::path(o.out_dir) / f).string(); };
+  auto out = [&](const std::string& f) { return dir.file(f); };
   writeText(out("diagnosis.json"), report.dump(2) + "\n");
   if (!o.summary_text.empty()) writeText(out("summary.txt"), o.summary_text);
 
@@ -957,6 +953,7 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
       corrected_cfg.text() + "\n```\n";
   res.index_path = out("index.md");
   writeText(res.index_path, md);
+  dir.commit();
   return res;
 }
 

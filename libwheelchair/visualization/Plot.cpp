@@ -1,11 +1,16 @@
 #include "libwheelchair/visualization/Plot.h"
 
 #include <mrpt/img/CImage.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/Text.h"
 
 #include <fmt/core.h>
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <stdexcept>
 
@@ -315,7 +320,27 @@ mrpt::img::CImage Raster::toImage() const {
 }
 
 void Raster::save(const std::string& path) const {
-  if (!toImage().saveToFile(path)) throw std::runtime_error("cannot write image " + path);
+  saveImage(toImage(), path);
+}
+
+void saveImage(const mrpt::img::CImage& im, const std::string& path) {
+  // Encoded in memory (OpenCV picks the format by extension, which the temporary lacks), then
+  // written through AtomicFile so a full disk leaves no partial image.
+  std::string ext = std::filesystem::path(path).extension().string();
+  if (ext.empty()) ext = ".png";
+  std::vector<uchar> bytes;
+  bool ok = false;
+  try {
+    ok = cv::imencode(ext, im.asCvMatRef(), bytes);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(
+        fmt::format("{}: cannot encode image: {}", path, util::oneLineMessage(e.what())));
+  }
+  if (!ok) throw std::runtime_error(fmt::format("{}: cannot encode image as {}", path, ext));
+  util::writeFileAtomically(path, [&](std::ostream& os) {
+    os.write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
+  });
 }
 
 // ------------------------------------------------------------------------------------ ticks

@@ -73,7 +73,7 @@ class Raster {
   void clearClip();
 
   mrpt::img::CImage toImage() const;
-  /// Writes a PNG; throws std::runtime_error on failure.
+  /// Writes a PNG (saveImage); throws std::runtime_error on failure.
   void save(const std::string& path) const;
 
  private:
@@ -82,6 +82,10 @@ class Raster {
   std::vector<uint8_t> px_;    // supersampled, RGB
   int cx0_, cy0_, cx1_, cy1_;  // clip, supersampled pixels (inclusive-exclusive)
 };
+
+/// Encodes `im` in the format of `path`'s extension (.png, .jpg) and writes it with
+/// util::AtomicFile (complete or absent); throws one line naming `path` on any failure.
+void saveImage(const mrpt::img::CImage& im, const std::string& path);
 
 struct Series {
   std::string label;  ///< "" = not in the legend

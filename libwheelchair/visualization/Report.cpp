@@ -1,5 +1,8 @@
 #include "libwheelchair/visualization/Report.h"
 
+#include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/OutputDir.h"
+
 #include "libwheelchair/visualization/Plot.h"
 #include "libwheelchair/visualization/Scene3D.h"
 
@@ -384,10 +387,10 @@ ReportResult writeReport(const std::string& rawlog, const config::WheelchairConf
 ReportResult writeReport(const DriveData& d, const ReportOptions& o) {
   namespace fs = std::filesystem;
   if (o.out_dir.empty()) throw std::invalid_argument("report: no output directory");
-  fs::create_directories(o.out_dir);
+  util::OutputDir dir(o.out_dir);  // a failed report leaves no half directory
   ReportResult r;
   const double t_at = std::isfinite(o.at_s) ? o.at_s : defaultObstacleTime(d);
-  auto path = [&](const std::string& f) { return (fs::path(o.out_dir) / f).string(); };
+  auto path = [&](const std::string& f) { return dir.file(f); };
   struct Fig {
     std::string file, caption;
   };
@@ -469,9 +472,8 @@ ReportResult writeReport(const DriveData& d, const ReportOptions& o) {
   for (const auto& n : r.notes) md += "* note: " + n + "\n";
   md += "\n## Configuration used\n\n```ini\n" + d.cfg.text() + "\n```\n";
   r.index_path = path("index.md");
-  std::ofstream out(r.index_path, std::ios::trunc);
-  out << md;
-  if (!out) throw std::runtime_error("cannot write " + r.index_path);
+  util::writeFileAtomically(r.index_path, [&](std::ostream& out) { out << md; });
+  dir.commit();
   return r;
 }
 

@@ -1,5 +1,8 @@
 #include "libwheelchair/visualization/Scene3D.h"
 
+#include "libwheelchair/util/Text.h"
+#include "libwheelchair/visualization/Plot.h"
+
 #include <mrpt/img/CImage.h>
 #include <mrpt/math/CMatrixFixed.h>
 #include <mrpt/opengl/CBox.h>
@@ -324,20 +327,17 @@ void DriveScene::updateText() {
 }
 
 bool renderSnapshot(const DriveScene& s, const std::string& png, int w, int h, std::string* why) {
+  mrpt::img::CImage im;
   try {
     CFBORender render(static_cast<unsigned>(w), static_cast<unsigned>(h));
     s.setupCamera(render.getCamera(*s.scene()));
-    mrpt::img::CImage im;
     render.render_RGB(*s.scene(), im);
-    if (!im.saveToFile(png)) {
-      if (why) *why = "cannot write " + png;
-      return false;
-    }
-    return true;
   } catch (const std::exception& e) {
-    if (why) *why = std::string("offscreen OpenGL rendering failed: ") + e.what();
+    if (why) *why = "offscreen OpenGL rendering failed: " + util::oneLineMessage(e.what());
     return false;
   }
+  saveImage(im, png);  // a write failure is an error, not a skipped figure
+  return true;
 }
 
 }  // namespace wheelchair::visualization

@@ -64,7 +64,7 @@ class DriveScene {
 };
 
 /// Renders the scene offscreen (CFBORender) into a PNG of w x h. Returns false (and the reason
-/// in `why`) when no OpenGL context can be created.
+/// in `why`) when no OpenGL context can be created; throws if the PNG cannot be written.
 bool renderSnapshot(const DriveScene& s, const std::string& png, int w, int h, std::string* why);
 
 }  // namespace wheelchair::visualization

@@ -1,5 +1,7 @@
 #include "libwheelchair/visualization/Viewer.h"
 
+#include "libwheelchair/visualization/Plot.h"
+
 #include "libwheelchair/visualization/Scene3D.h"
 
 #include <mrpt/gui/CDisplayWindow3D.h>
@@ -81,7 +83,8 @@ ViewerResult runViewer(const DriveData& d, const ViewerOptions& o) {
           win.unlockAccess3DScene();
         }
       }
-      if (grabbed && !blank(*grabbed) && grabbed->saveToFile(o.screenshot)) {
+      if (grabbed && !blank(*grabbed)) {
+        saveImage(*grabbed, o.screenshot);  // checked; throws naming the file on failure
         res.ok = true;
         res.method = "window";
         res.message = "saved the window's framebuffer";
