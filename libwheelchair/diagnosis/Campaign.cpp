@@ -9,6 +9,7 @@
 #include <cmath>
 #include <iostream>
 #include <limits>
+#include <map>
 #include <set>
 
 namespace wheelchair::diagnosis {
@@ -110,22 +111,25 @@ nlohmann::json CaseResult::toJson() const {
   j["val_rms_before"] = val_rms_before;
   j["val_rms_after"] = val_rms_after;
   j["runtime_s"] = runtime_s;
+  j["mismatch"] = mismatch;
   return j;
 }
 
 CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scenario, uint64_t seed,
                    double duration_s, const std::vector<simulation::EffectSpec>& effects,
-                   const DiagnosisOptions& dopt) {
+                   const DiagnosisOptions& dopt, const std::string& engine) {
   CaseResult c;
   c.truth = effects;
   simulation::SimulationOptions so;
   so.loadFromConfig(cfg.ini());
   so.record_ground_truth = true;
+  so.engine = engine;
   auto sim =
       simulation::simulate(cfg, scenario, seed, scenario == "excite" ? duration_s : 0, effects, so);
   auto t0 = std::chrono::steady_clock::now();
   DiagnosisReport rep = diagnose({sim.recording}, {}, cfg, dopt);
   c.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  c.mismatch = rep.mismatch;
   std::multiset<std::string> rs, ts;
   for (auto& f : rep.findings)
     c.reported.push_back(f.effect + (f.effectText().empty() ? "" : " " + f.effectText())),
@@ -172,7 +176,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       auto e = randomEffect(id, rng);
       std::string sc = pickScenario();
       uint64_t seed = rng();
-      CaseResult c = runCase(cfg, sc, seed % 1000000, opt.duration_s, {e}, dopt);
+      CaseResult c = runCase(cfg, sc, seed % 1000000, opt.duration_s, {e}, dopt, opt.engine);
       log(sc, c);
       ++n, ok += c.correct;
       errs.push_back(c.param_errors[0]);
@@ -201,7 +205,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       auto ea = randomEffect(opt.effects[a], rng), eb = randomEffect(opt.effects[b], rng);
       std::string sc = pickScenario();
       uint64_t seed = rng() % 1000000;
-      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {ea, eb}, dopt);
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {ea, eb}, dopt, opt.engine);
       log(sc, c);
       ++n, ok += c.correct;
       for (double e : c.param_errors) errs.push_back(e);
@@ -223,7 +227,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
     for (int k = 0; k < opt.clean_runs; ++k) {
       std::string sc = pickScenario();
       uint64_t seed = rng() % 1000000;
-      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {}, dopt);
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {}, dopt, opt.engine);
       log(sc, c);
       ++n, alarms += !c.correct;
       auto j = c.toJson();
@@ -232,6 +236,55 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
     }
     out["clean"] = {{"runs", n}, {"false_alarms", alarms}, {"rate", n ? double(alarms) / n : 0}};
   }
+  if (opt.triple_runs > 0 && opt.effects.size() >= 3) {
+    int n = 0, ok = 0;
+    std::vector<double> errs;
+    for (int k = 0; k < opt.triple_runs; ++k) {
+      std::vector<std::size_t> idx;
+      while (idx.size() < 3) {
+        const std::size_t a = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng);
+        if (std::find(idx.begin(), idx.end(), a) == idx.end()) idx.push_back(a);
+      }
+      std::vector<simulation::EffectSpec> es;
+      for (std::size_t a : idx) es.push_back(randomEffect(opt.effects[a], rng));
+      std::string sc = pickScenario();
+      uint64_t seed = rng() % 1000000;
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
+      log(sc, c);
+      ++n, ok += c.correct;
+      for (double e : c.param_errors) errs.push_back(e);
+      auto j = c.toJson();
+      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "triple";
+      cases.push_back(j);
+    }
+    int within = 0;
+    for (double e : errs) within += e <= 0.25;
+    out["triples"] = {{"runs", n},
+                      {"correct", ok},
+                      {"rate", n ? double(ok) / n : 0},
+                      {"median_param_error", median(errs)},
+                      {"within_25pct", within},
+                      {"params", errs.size()}};
+  }
+  if (opt.unknown_runs > 0 && opt.unknown_effects) {
+    int n = 0, flagged = 0;
+    std::map<std::string, int> named;
+    for (int k = 0; k < opt.unknown_runs; ++k) {
+      const auto es = opt.unknown_effects(rng);
+      std::string sc = pickScenario();
+      uint64_t seed = rng() % 1000000;
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
+      log(sc, c);
+      ++n, flagged += c.mismatch || !c.reported.empty();
+      for (const auto& r : c.reported) ++named[r.substr(0, r.find(' '))];
+      auto j = c.toJson();
+      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "unknown";
+      cases.push_back(j);
+    }
+    out["unknown"] = {
+        {"runs", n}, {"flagged", flagged}, {"rate", n ? double(flagged) / n : 0}, {"named", named}};
+  }
+  out["engine"] = opt.engine;
   out["cases"] = cases;
   return out;
 }
