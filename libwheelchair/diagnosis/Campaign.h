@@ -61,6 +61,9 @@ struct CaseResult {
   double val_rms_before = 0, val_rms_after = 0;  ///< current channels (A) or gyro (rad)
   double runtime_s = 0;
   bool mismatch = false;  ///< the diagnosis found the model mismatched (with or without names)
+  /// The catalogue names are right when the `unmodeled` findings (residual the catalogue does
+  /// not explain) are set aside: correct naming plus a flag for the physics it cannot name.
+  bool named_correct = false;
   nlohmann::json toJson() const;
 };
 
