@@ -499,6 +499,25 @@ double MujocoChair::sonarRange(double x_m, double y_m, double yaw_rad,
   return best;
 }
 
+std::vector<MujocoPart> MujocoChair::parts() const {
+  const mjModel* m = impl_->m;
+  const mjData* d = impl_->d;
+  std::vector<MujocoPart> out;
+  for (int b = 1; b < m->nbody; ++b) {
+    if (m->body_mass[b] <= 0) continue;
+    const char* n = mj_id2name(m, mjOBJ_BODY, b);
+    out.push_back({n ? n : "", d->xipos[3 * b], d->xipos[3 * b + 1], d->xipos[3 * b + 2],
+                   m->body_mass[b], 0});
+  }
+  for (int g = 0; g < m->ngeom; ++g) {
+    if (m->geom_type[g] != mjGEOM_SPHERE) continue;
+    const char* n = mj_id2name(m, mjOBJ_GEOM, g);
+    out.push_back({n ? n : "", d->geom_xpos[3 * g], d->geom_xpos[3 * g + 1],
+                   d->geom_xpos[3 * g + 2], 0, m->geom_size[3 * g]});
+  }
+  return out;
+}
+
 double MujocoChair::totalMass() const {
   return impl_->m->body_subtreemass[1];
 }

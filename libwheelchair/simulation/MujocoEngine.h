@@ -101,6 +101,15 @@ struct ChairState {
   double castor_swivel_right_rad = 0, castor_swivel_left_rad = 0;
 };
 
+/// One body (centre of mass, mass) or tyre sphere (centre, radius) of the compiled multibody,
+/// in the floor frame at the current state: for pictures of the model (docs/simulation.md).
+struct MujocoPart {
+  std::string name;
+  double x_m = 0, y_m = 0, z_m = 0;
+  double mass_kg = 0;   ///< bodies
+  double radius_m = 0;  ///< > 0: a tyre sphere (its centre)
+};
+
 /// The multibody and its MuJoCo state. Not copyable.
 class MujocoChair {
  public:
@@ -122,6 +131,8 @@ class MujocoChair {
   double totalMass() const;
   /// The MJCF the chair was compiled from.
   const std::string& xml() const { return xml_; }
+  /// Bodies with mass (their centres of mass) and tyre spheres, at the current state.
+  std::vector<MujocoPart> parts() const;
   double time() const;
 
  private:
