@@ -193,7 +193,9 @@ std::string tyreGeom(const std::string& name, double radius, const ChairSpec& c)
 // ------------------------------------------------------------------------------------------
 void MujocoOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                                    const std::string& sec) {
+  std::vector<std::string> known;
   auto D = [&](const char* key, double& v, bool positive) {
+    known.push_back(key);
     const std::string t = ini.read_string(sec, key, "", false);
     if (t.empty()) return;
     char* end = nullptr;
@@ -231,6 +233,11 @@ void MujocoOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
   if (rays != std::floor(rays) || rays < 2 || rays > 1000)
     throw std::runtime_error("[" + sec + "] sonar_rays: an integer in [2, 1000]");
   sonar_rays = static_cast<int>(rays);
+  std::vector<std::string> keys;
+  ini.getAllKeys(sec, keys);
+  for (const auto& k : keys)
+    if (std::find(known.begin(), known.end(), k) == known.end())
+      throw std::runtime_error("[" + sec + "] " + k + ": unknown key");
   if (timestep_s > 0.01) throw std::runtime_error("[" + sec + "] timestep_s: must be <= 0.01");
   if (castor_wheel_radius_m >= 0.5)
     throw std::runtime_error("[" + sec + "] castor_wheel_radius_m: must be < 0.5");

@@ -72,7 +72,7 @@ struct MujocoOptions {
   int sonar_rays = 31;           ///< rays across the sonar cone
 
   /// Reads the keys present in `section`; throws std::runtime_error naming the key on a bad
-  /// value.
+  /// value or an unknown key.
   void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                       const std::string& section = "mujoco");
 };

@@ -85,4 +85,12 @@ TEST(CliSimulate, MujocoEngine) {
   EXPECT_EQ(b.exit_code, 1) << b.out;
   EXPECT_NE(b.out.find("timestep_s"), std::string::npos) << b.out;
   EXPECT_FALSE(std::filesystem::exists(tmp / "y"));
+  {
+    std::ofstream f(ini);
+    f << "[mujoco]\ntimestep = 0.001\n";
+  }
+  const auto u = wt::cli("simulate --engine mujoco --config " + ini +
+                         " --scenario excite --duration 1 -o " + (tmp / "y"));
+  EXPECT_EQ(u.exit_code, 1) << u.out;
+  EXPECT_NE(u.out.find("[mujoco] timestep: unknown key"), std::string::npos) << u.out;
 }
