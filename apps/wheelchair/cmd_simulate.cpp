@@ -20,8 +20,8 @@ namespace wheelchair::cli {
 namespace {
 
 struct SimulateOptions {
-  std::string scenario, output, truth, config_path, format = "rawlog", supervisory,
-      engine = "model";
+  std::string scenario, output, truth, config_path, format = "rawlog", supervisory;
+  std::string engine = "model";
   uint64_t seed = 1;
   double duration_s = 0;
   std::vector<std::string> effects;
@@ -85,8 +85,8 @@ int runSimulate(const SimulateOptions& o) {
   res.writeTruth(truth_path);
 
   const auto& r = res.recording;
-  fmt::print("simulated '{}' seed {} (engine {}): {:.2f} s, supervisory control {}\n",
-             o.scenario, o.seed, res.engine, res.duration_s, res.supervisory ? "on" : "off");
+  fmt::print("simulated '{}' seed {} (engine {}): {:.2f} s, supervisory control {}\n", o.scenario,
+             o.seed, res.engine, res.duration_s, res.supervisory ? "on" : "off");
   fmt::print("  samples: encoders {}, imu {}, motors {}, sonar {}, pozyx {}, joystick {}\n",
              r.encoders.size(), r.imu.size(), r.motors.size(), r.sonar.size(), r.pozyx.size(),
              r.joystick.size());

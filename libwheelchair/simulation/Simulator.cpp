@@ -386,9 +386,9 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     const JoystickDemand cmd{joy.v_m_s * sup_scale, joy.omega_rad_s * sup_scale};
     // Power module: currents within the current limit and what the battery can drive.
     // Rim speeds r psidot as the power module measures them (no slip in the model engine).
-    const Eigen::Vector2d rim = mj ? Eigen::Vector2d(r * mj->state().psidot_right_rad_s,
-                                                     r * mj->state().psidot_left_rad_s)
-                                   : Eigen::Vector2d(s.v + lw * s.om / 2, s.v - lw * s.om / 2);
+    const Eigen::Vector2d rim =
+        mj ? Eigen::Vector2d(r * mj->state().psidot_right_rad_s, r * mj->state().psidot_left_rad_s)
+           : Eigen::Vector2d(s.v + lw * s.om / 2, s.v - lw * s.om / 2);
     Eigen::Vector2d i_lo, i_hi;
     for (int m = 0; m < 2; ++m) {
       const double emf = km[m] * rG * rim(m) / r;
@@ -430,9 +430,9 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     // the steady state of the end-of-step lead voltage, with the local rate constant of
     // (11) there (the Zener conductance included).
     for (int m = 0; m < 2; ++m) {
-      const double u_end = mj ? r * (m == 0 ? mj->state().psidot_right_rad_s
-                                            : mj->state().psidot_left_rad_s)
-                              : (m == 0 ? s.v + lw * s.om / 2 : s.v - lw * s.om / 2);
+      const double u_end =
+          mj ? r * (m == 0 ? mj->state().psidot_right_rad_s : mj->state().psidot_left_rad_s)
+             : (m == 0 ? s.v + lw * s.om / 2 : s.v - lw * s.om / 2);
       const double Uend = Rm * I(m) + km[m] * rG * u_end / r;
       const double Vw[2] = {std::max(Uend, 0.0), std::max(-Uend, 0.0)};
       for (int w = 0; w < 2; ++w) {
