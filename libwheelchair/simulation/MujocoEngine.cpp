@@ -62,6 +62,19 @@ double mujocoNumber(const EffectSpec& e, const std::string& key) {
   return x;
 }
 
+/// MuJoCo's warnings go to the engine (checked after each step) instead of stdout and
+/// MUJOCO_LOG.TXT in the working directory.
+void quietWarning(const char*) {}
+
+/// Throws if MuJoCo flagged a numerical failure (it then resets the state silently).
+void checkWarnings(const mjData* d) {
+  for (int w : {mjWARN_BADQPOS, mjWARN_BADQVEL, mjWARN_BADQACC, mjWARN_BADCTRL, mjWARN_INERTIA})
+    if (d->warning[w].number > 0)
+      throw std::runtime_error(
+          "MuJoCo: the chair's simulation became numerically unstable at t = " +
+          std::to_string(d->time) + " s (bad state or inertia); check [mujoco] and [vehicle]");
+}
+
 std::string num(double x) {
   std::ostringstream s;
   s.precision(10);
@@ -419,6 +432,7 @@ MujocoChair::MujocoChair(const config::WheelchairConfig& cfg, const MujocoOption
   const int idx = mj_findFileVFS(vfs.get(), name);
   std::memcpy(vfs->filedata[idx], xml_.data(), xml_.size());
   char err[1000] = "";
+  mju_user_warning = quietWarning;
   I.m = mj_loadXML(name, vfs.get(), err, sizeof err);
   mj_deleteVFS(vfs.get());
   if (!I.m)
@@ -438,6 +452,7 @@ MujocoChair::MujocoChair(const config::WheelchairConfig& cfg, const MujocoOption
   I.m->opt.gravity[2] = -kGravity_m_s2;
   const long n_settle = std::lround(std::max(0.0, opt.settle_s) / I.m->opt.timestep);
   for (long k = 0; k < n_settle; ++k) mj_step(I.m, I.d);
+  checkWarnings(I.d);
   double* q = I.d->qpos;
   const double yaw = I.yaw(), c = std::cos(-yaw / 2), sn = std::sin(-yaw / 2);
   const double w = q[3], a = q[4], b = q[5], z = q[6];  // qz(-yaw) * q
@@ -471,6 +486,7 @@ void MujocoChair::step(const Eigen::Vector2d& current_A, double h_s) {
     mj_step(I.m, I.d);
     I.unwrap();
   }
+  checkWarnings(I.d);
 }
 
 ChairState MujocoChair::state() const {

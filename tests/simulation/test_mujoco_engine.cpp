@@ -381,3 +381,14 @@ TEST(MujocoSensors, SonarRaysSeeTheObstacle) {
   EXPECT_NEAR(chair.sonarRange(0, 0, 0, 0.26), 2.95, 1e-6);
   EXPECT_TRUE(std::isinf(chair.sonarRange(0, 0, M_PI, 0.26)));
 }
+
+TEST(MujocoEngine, UnstableSimulationIsAnErrorNotASilentReset) {
+  // A current no chair could take (1e9 A): MuJoCo's state blows up; the engine must say so
+  // instead of letting MuJoCo reset the chair to the origin.
+  MujocoChair chair(nominal(), {}, {}, {});
+  EXPECT_THROW(
+      {
+        for (int k = 0; k < 2000; ++k) chair.step({1e9, -1e9}, 0.001);
+      },
+      std::runtime_error);
+}
