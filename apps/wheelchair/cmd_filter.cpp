@@ -19,17 +19,18 @@
 #include "libwheelchair/estimation/CommandDrivenEkf.h"
 #include "libwheelchair/estimation/DeadReckoning.h"
 #include "libwheelchair/estimation/EkfOptions.h"
+#include "libwheelchair/estimation/EstimateWriters.h"
 #include "libwheelchair/estimation/Estimator.h"
 #include "libwheelchair/estimation/ModelExtensions.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Trajectory.h"
 #include "libwheelchair/io/MrclamImport.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/util/AtomicFile.h"
 
 #include <mrpt/config/CConfigFile.h>
 
 #include <fmt/core.h>
-#include <fmt/os.h>
 
 #include <atomic>
 #include <chrono>
@@ -39,6 +40,7 @@
 #include <filesystem>
 #include <iostream>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include <unistd.h>
@@ -131,25 +133,6 @@ std::string withSuffix(const std::string& path, const std::string& suffix) {
   return (p.parent_path() / (p.stem().string() + suffix + p.extension().string())).string();
 }
 
-void writeEstimatesCsv(const std::string& path, const estimation::EstimationResult& res) {
-  const std::string tmp = path + ".tmp";
-  {
-    auto out = fmt::output_file(tmp);
-    out.print(
-        "t_s,v_m_s,omega_rad_s,x_m,y_m,phi_rad,obstacle_x_m,obstacle_y_m,obstacle_distance_m,"
-        "sd_v_m_s,sd_omega_rad_s,sd_x_m,sd_y_m,sd_phi_rad,sd_obstacle_x_m,sd_obstacle_y_m,"
-        "sd_obstacle_distance_m\n");
-    for (const auto& e : res.estimates) {
-      const auto& x = e.x;
-      const auto& sd = e.sd;
-      out.print("{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", e.t_s, x(0), x(1), x(2),
-                x(3), x(4), x(5), x(6), e.obstacle_distance_m, sd(0), sd(1), sd(2), sd(3), sd(4),
-                sd(5), sd(6), e.obstacle_distance_sd_m);
-    }
-  }
-  std::filesystem::rename(tmp, path);
-}
-
 /// Why the wheelchair filters cannot run on `rec` ("" = they can).
 std::string missingForWheelchairFilter(const io::Recording& rec,
                                        const estimation::EkfOptions& opt) {
@@ -173,21 +156,6 @@ std::string missingForWheelchairFilter(const io::Recording& rec,
   return s;
 }
 
-// TUM with '#' comment lines naming the frame (readTum skips them).
-void writeTumWithHeader(const std::string& path, const evaluation::Trajectory& traj,
-                        const std::vector<std::string>& comments) {
-  const std::string tmp = path + ".tmp";
-  {
-    auto out = fmt::output_file(tmp);
-    for (const auto& c : comments) out.print("# {}\n", c);
-    out.print("# t x y z qx qy qz qw\n");
-    for (const auto& p : traj)
-      out.print("{:.6f} {:.9g} {:.9g} 0 0 0 {:.9g} {:.9g}\n", p.t_s, p.x_m, p.y_m,
-                std::sin(p.phi_rad / 2), std::cos(p.phi_rad / 2));
-  }
-  std::filesystem::rename(tmp, path);
-}
-
 // Poses re-expressed in the frame of `origin` (T_origin^-1 * T).
 evaluation::Trajectory relativeTo(const evaluation::Trajectory& traj,
                                   const evaluation::Pose2DStamped& origin) {
@@ -200,23 +168,6 @@ evaluation::Trajectory relativeTo(const evaluation::Trajectory& traj,
                    std::remainder(p.phi_rad - origin.phi_rad, 2 * M_PI)});
   }
   return out;
-}
-
-void writeCommandDrivenCsv(const std::string& path,
-                           const std::vector<estimation::CommandDrivenEstimate>& est) {
-  const std::string tmp = path + ".tmp";
-  {
-    auto out = fmt::output_file(tmp);
-    out.print(
-        "t_s,x_m,y_m,phi_rad,v_m_s,omega_rad_s,sd_x_m,sd_y_m,sd_phi_rad,sd_v_m_s,sd_omega_rad_s,"
-        "cov_xy_m2\n");
-    auto sd = [](double var) { return std::sqrt(std::max(var, 0.0)); };
-    for (const auto& e : est)
-      out.print("{:.6f},{},{},{},{},{},{},{},{},{},{},{}\n", e.t_s, e.x_m, e.y_m, e.phi_rad,
-                e.v_m_s, e.omega_rad_s, sd(e.var_x), sd(e.var_y), sd(e.var_phi), sd(e.var_v),
-                sd(e.var_omega), e.cov_xy);
-  }
-  std::filesystem::rename(tmp, path);
 }
 
 int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progress& progress) {
@@ -305,25 +256,22 @@ int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progre
       start_frame ? "frame: start (the first estimated pose, from the landmark initialisation)"
                   : "frame: map (landmark map; the Vicon frame for MRCLAM)";
   if (!o.trajectory.empty()) {
-    writeTumWithHeader(o.trajectory, start_frame ? relativeTo(traj, traj.front()) : traj,
-                       {"wheelchair filter " + o.input + ": command-driven EKF", frame_text});
+    evaluation::writeTum(o.trajectory, start_frame ? relativeTo(traj, traj.front()) : traj,
+                         {"wheelchair filter " + o.input + ": command-driven EKF", frame_text});
     fmt::print("trajectory (TUM, {}): {}\n", start_frame ? "start frame" : "map frame",
                o.trajectory);
   }
   if (!o.estimates.empty()) {
-    writeCommandDrivenCsv(o.estimates, res.trajectory);
+    estimation::writeCommandDrivenCsv(o.estimates, res.trajectory);
     fmt::print("estimates (CSV, map frame): {}\n", o.estimates);
   }
   if (!o.trajectory.empty() || !o.estimates.empty()) {
     const std::string cfg_path =
         (o.trajectory.empty() ? o.estimates : o.trajectory) + ".config.ini";
-    const std::string tmp = cfg_path + ".tmp";
-    {
-      auto out = fmt::output_file(tmp);
-      out.print("# command-driven EKF options used by wheelchair filter {} (from {})\n{}", o.input,
-                config_note, estimation::toIni(opt));
-    }
-    std::filesystem::rename(tmp, cfg_path);
+    util::writeFileAtomically(cfg_path, [&](std::ostream& os) {
+      os << fmt::format("# command-driven EKF options used by wheelchair filter {} (from {})\n{}",
+                        o.input, config_note, estimation::toIni(opt));
+    });
     fmt::print("configuration used: {}\n", cfg_path);
   }
   if (o.variants) {
@@ -333,7 +281,7 @@ int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progre
         res.start_velocity);
     const auto dr_traj = evaluation::toTrajectory(dr);
     const std::string path = withSuffix(base, "_commands");
-    writeTumWithHeader(
+    evaluation::writeTum(
         path, start_frame ? relativeTo(dr_traj, dr_traj.front()) : dr_traj,
         {"wheelchair filter " + o.input +
              ": open-loop dead reckoning of the commands from the EKF's initial pose",
@@ -377,9 +325,22 @@ int runFilter(const FilterCliOptions& o) {
     rec = ext.apply(rec, cfg);
     fmt::print("model extensions applied: {}\n", ext.summary());
   }
+  // The outputs are streamed while the filter runs (memory flat in the drive's length); their
+  // temporaries are created first, so a bad path fails before the run.
+  std::optional<evaluation::TumEstimateSink> tum;
+  std::optional<estimation::EstimatesCsvWriter> csv;
+  if (!o.trajectory.empty()) tum.emplace(o.trajectory);
+  if (!o.estimates.empty()) csv.emplace(o.estimates);
+  estimation::EstimateFanOut sinks({tum ? &*tum : nullptr, csv ? &*csv : nullptr});
   const auto t0 = std::chrono::steady_clock::now();
-  const estimation::EstimationResult res =
-      estimation::runEstimator(rec, cfg, opt, [&](double f) { progress.update(f, "filtering"); });
+  const estimation::EstimationResult res = [&] {
+    try {  // name the file: runEstimator names the sample and time of a failure
+      return estimation::runEstimator(rec, cfg, opt, sinks,
+                                      [&](double f) { progress.update(f, "filtering"); });
+    } catch (const std::exception& e) {
+      throw std::runtime_error(o.input + ": " + e.what());
+    }
+  }();
   progress.stop();
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -412,18 +373,18 @@ int runFilter(const FilterCliOptions& o) {
         double(c.error_test_fails) / c.intervals);
   }
   for (const auto& w : res.warnings) fmt::print("warning: {}\n", w);
-  if (!res.estimates.empty()) {
+  if (res.n_estimates > 0) {
     const auto& f = res.final();
     fmt::print("final pose x = {:.3f} +- {:.3f} m, y = {:.3f} +- {:.3f} m, phi = {:.1f} deg\n",
                f.x(2), f.sd(2), f.x(3), f.sd(3), f.x(4) * 180 / M_PI);
   }
 
-  if (!o.trajectory.empty()) {
-    evaluation::writeTum(o.trajectory, evaluation::toTrajectory(res));
+  if (tum) {
+    tum->commit();
     fmt::print("trajectory (TUM, start frame: the body at the first sample): {}\n", o.trajectory);
   }
-  if (!o.estimates.empty()) {
-    writeEstimatesCsv(o.estimates, res);
+  if (csv) {
+    csv->commit();
     fmt::print("estimates (CSV): {}\n", o.estimates);
   }
   if (!o.trajectory.empty() || !o.estimates.empty()) {
@@ -434,15 +395,21 @@ int runFilter(const FilterCliOptions& o) {
   }
   if (o.variants) {
     const std::string base = o.trajectory.empty() ? "filter.tum" : o.trajectory;
-    const auto enc =
-        estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom);
-    const auto encg = estimation::deadReckoningEncoderGyro(rec.encoders, rec.imu,
-                                                           cfg.encoders.params, cfg.vehicle.geom);
-    evaluation::writeTum(withSuffix(base, "_encoders"), evaluation::toTrajectory(enc));
-    evaluation::writeTum(withSuffix(base, "_encoders_gyro"), evaluation::toTrajectory(encg));
+    // One variant at a time: written, measured, dropped.
+    auto writeVariant = [](const std::string& path,
+                           const std::vector<estimation::DeadReckoningSample>& dr) {
+      evaluation::writeTum(path, evaluation::toTrajectory(dr));
+      return estimation::pathLength(dr);
+    };
+    const double d_enc = writeVariant(
+        withSuffix(base, "_encoders"),
+        estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom));
+    const double d_encg =
+        writeVariant(withSuffix(base, "_encoders_gyro"),
+                     estimation::deadReckoningEncoderGyro(rec.encoders, rec.imu,
+                                                          cfg.encoders.params, cfg.vehicle.geom));
     fmt::print("Fig. 5 variants: {} (d_path {:.2f} m), {} (d_path {:.2f} m)\n",
-               withSuffix(base, "_encoders"), estimation::pathLength(enc),
-               withSuffix(base, "_encoders_gyro"), estimation::pathLength(encg));
+               withSuffix(base, "_encoders"), d_enc, withSuffix(base, "_encoders_gyro"), d_encg);
   }
   return kExitOk;
 }

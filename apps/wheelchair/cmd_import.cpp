@@ -17,6 +17,7 @@ struct ImportOptions {
   std::string input, output, config_path, format = "text";
   int robot = 1;
   bool strict = false;
+  double max_gap_s = -1;  ///< < 0: [import] max_gap_s of the configuration
 };
 
 int runImport(const ImportOptions& o) {
@@ -34,6 +35,14 @@ int runImport(const ImportOptions& o) {
     return kExitUsage;
   }
   io::TextRecordingReader in(o.input);
+  // A forward jump of the timeline above max_gap_s (a clock step, a stalled logger) is refused
+  // with file, line and size: filtering across it would silently coast for the whole jump.
+  const double max_gap_s = o.max_gap_s >= 0
+                               ? o.max_gap_s
+                               : cfg.ini().read_double("import", "max_gap_s", io::kDefaultMaxGapS);
+  if (!(max_gap_s >= 0))
+    throw std::runtime_error(fmt::format("[import] max_gap_s must be >= 0 (got {})", max_gap_s));
+  in.setMaxGap(max_gap_s);
   io::RawlogWriter out(o.output);
   io::AnySample s;
   bool header_written = false;
@@ -49,8 +58,7 @@ int runImport(const ImportOptions& o) {
   const auto warnings = in.warnings();
   if (o.strict) {
     for (const auto& w : warnings)
-      if (w.find("timestamps") != std::string::npos)
-        throw std::runtime_error(w + " (--strict)");
+      if (w.find("timestamps") != std::string::npos) throw std::runtime_error(w + " (--strict)");
   }
   if (!header_written) out.writeHeader(in.meta(), cfg, 0.0);
   out.commit();
@@ -73,6 +81,10 @@ const RegisterCommand reg{Command{
                      "MRCLAM dataset directory)")
           ->check(CLI::IsMember({"text", "mrclam"}));
       sub.add_option("--robot", o->robot, "MRCLAM robot number (1-5)")->check(CLI::Range(1, 5));
+      sub.add_option("--max-gap", o->max_gap_s,
+                     "Largest forward jump of the timestamps accepted, s (default: [import] "
+                     "max_gap_s of --config, else 5; 0: no limit)")
+          ->check(CLI::NonNegativeNumber);
       sub.add_flag("--strict", o->strict,
                    "Fail on out-of-order or duplicated timestamps instead of warning");
       return [o] { return runImport(*o); };

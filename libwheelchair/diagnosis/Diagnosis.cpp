@@ -613,33 +613,43 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
       for (size_t a = 0; a < sel.accepted.size(); ++a)
         if (cands[sel.accepted[a]].name == "sensor_delay/motors") di = static_cast<int>(a);
       double delay = 0;
-      DynRows df2 = df, dv2 = dv;
+      // The rows re-built with the re-estimated delay; without a delay df, dv themselves (no
+      // copy: the rows are the bulk of diagnose's memory).
+      DynRows df2n, dv2n;
+      const DynRows* pf2 = &df;
+      const DynRows* pv2 = &dv;
       if (di >= 0) {
         Corrections c2 = corr;
         for (int it = 0; it < 4; ++it) {
           delay += sel.fit.beta(sel.ranges[di].first);
           c2.delay_motors = delay;
-          df2 = dynamicRows(fitS, c2, cfg, opt);
-          sel.fit = fitLinear(acceptedDesign(df2.X, cands, sel.accepted), df2.y, df2.groups, lags2);
+          df2n = dynamicRows(fitS, c2, cfg, opt);
+          sel.fit =
+              fitLinear(acceptedDesign(df2n.X, cands, sel.accepted), df2n.y, df2n.groups, lags2);
         }
         delay += sel.fit.beta(sel.ranges[di].first);
         c2.delay_motors = delay;
         corr.delay_motors = delay;
-        df2 = dynamicRows(fitS, c2, cfg, opt);
-        dv2 = dynamicRows(valS, c2, cfg, opt);
+        df2n = dynamicRows(fitS, c2, cfg, opt);
+        dv2n = dynamicRows(valS, c2, cfg, opt);
         SelectionStep dstep = sel.steps[di];
         int dcand = sel.accepted[di];
-        SelectionData sd2{df2.y,      dv2.y,      df2.X, dv2.X,
-                          df2.groups, dv2.groups, lags2, sd.min_contribution_rms};
+        SelectionData sd2{df2n.y,      dv2n.y,      df2n.X, dv2n.X,
+                          df2n.groups, dv2n.groups, lags2,  sd.min_contribution_rms};
         sel = forwardSelect(sd2, cands, opt, {dcand});
         sel.steps.insert(sel.steps.begin(), dstep);
         delay += sel.fit.beta(sel.ranges[0].first);
         c2.delay_motors = delay;
         corr.delay_motors = delay;
-        df2 = dynamicRows(fitS, c2, cfg, opt);
-        dv2 = dynamicRows(valS, c2, cfg, opt);
-        sel.fit = fitLinear(acceptedDesign(df2.X, cands, sel.accepted), df2.y, df2.groups, lags2);
+        df2n = dynamicRows(fitS, c2, cfg, opt);
+        dv2n = dynamicRows(valS, c2, cfg, opt);
+        sel.fit =
+            fitLinear(acceptedDesign(df2n.X, cands, sel.accepted), df2n.y, df2n.groups, lags2);
+        pf2 = &df2n;
+        pv2 = &dv2n;
       }
+      const DynRows& df2 = *pf2;
+      const DynRows& dv2 = *pv2;
       Eigen::VectorXd rv_after = dv2.y - acceptedDesign(dv2.X, cands, sel.accepted) * sel.fit.beta;
       int nRv = static_cast<int>(dv.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
       auto half = [](const Groups& g, int nR, bool left) {

@@ -11,8 +11,11 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 
+#include <fmt/core.h>
+
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -363,10 +366,10 @@ void packSymmetrised(const Eigen::MatrixXd& Q, double* out) {
 
 }  // namespace
 
-void CdEkf::evalRhs(double t, const double* y, double* ydot) {
+void CdEkf::evalRhs(double tau, const double* y, double* ydot) {
   const int n = n_;
   for (int i = 0; i < n; ++i) wx_(i) = y[i];
-  u_->eval(t, wu_);
+  u_->eval(t_ref_ + tau, wu_);  // CVODE's time is relative to t_ref_ (see integrate())
   model_.fAndF(wx_, wu_, wxd_, wF_);
   if (qPacked_.empty() || !model_.constantQ()) {
     model_.Q(wx_, wu_, wQ_);
@@ -384,6 +387,7 @@ void CdEkf::reset(double t0_s, const Eigen::VectorXd& x0, const Eigen::MatrixXd&
   if (x0.size() != n_ || P0.rows() != n_ || P0.cols() != n_)
     throw std::invalid_argument("CdEkf::reset: dimension mismatch");
   t_ = t0_s;
+  t_ref_ = t0_s;
   x_ = x0;
   setCovariance(P0);
   cv_->live = false;
@@ -411,7 +415,14 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   if (!(t1_s >= t_)) throw std::invalid_argument("CdEkf::propagate: time goes backwards");
   const double dt = t1_s - t_;
   if (dt == 0.0) return;
-  const double scale = std::max(1.0, std::max(std::fabs(t_), std::fabs(t1_s)));
+  // CVODE integrates in time relative to the reset time t_ref_: an absolute UNIX stamp
+  // (~1.7e9 s) would leave it eps * t = 4e-7 s of resolution and make every interval "too
+  // short" below. Differences of two stamps of similar size are exact (Sterbenz), so tau0 and
+  // tau1 carry all the information the stamps have, whatever the clock offset.
+  const double tau0 = t_ - t_ref_, tau1 = t1_s - t_ref_;
+  if (!std::isfinite(tau1))
+    throw std::runtime_error("CdEkf::propagate: non-finite time " + std::to_string(t1_s));
+  const double scale = std::max(1.0, std::max(std::fabs(tau0), std::fabs(tau1)));
   struct Clear {
     const CdInput*& p;
     ~Clear() { p = nullptr; }
@@ -421,7 +432,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
     // Too short for CVODE's first step heuristics: one explicit Euler step (exact to O(dt^2)).
     const int N = n_ + packedSize(n_);
     pack(ys_.data());
-    evalRhs(t_, ys_.data(), yds_.data());
+    evalRhs(tau0, ys_.data(), yds_.data());
     for (int i = 0; i < N; ++i) ys_[i] += dt * yds_[i];
     unpack(ys_.data());
     t_ = t1_s;
@@ -434,7 +445,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   void* mem = cv_->mem;
   // Continue the running integration when nothing jumped since it stopped at t_.
   bool resume = false;
-  if (continuous && cv_->live && cv_->t_live == t_) {
+  if (continuous && cv_->live && cv_->t_live == tau0) {
     pack(cv_->ycheck.data());
     resume = std::equal(cv_->ycheck.begin(), cv_->ycheck.end(), y);
   }
@@ -442,9 +453,14 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   if (!resume) {
     pack(y);
     if (!cv_->initialised) {
-      check(CVodeInit(mem, &CdEkfAccess::rhs, t_, cv_->y), "CVodeInit");
+      check(CVodeInit(mem, &CdEkfAccess::rhs, tau0, cv_->y), "CVodeInit");
       check(CVodeSVtolerances(mem, opt_.rel_tol, cv_->abstol), "CVodeSVtolerances");
       check(CVodeSetUserData(mem, this), "CVodeSetUserData");
+      // Failures are reported by the exception of integrate() (one line naming the interval),
+      // not by CVODE's own print to stderr.
+      check(CVodeSetErrHandlerFn(
+                mem, [](int, const char*, const char*, char*, void*) {}, nullptr),
+            "CVodeSetErrHandlerFn");
       if (opt_.method == CvodeOptions::Method::Adams) {
         cv_->nls = SUNNonlinSol_FixedPoint(cv_->y, 0, cv_->ctx);
         if (!cv_->nls) throw std::runtime_error("CdEkf: SUNNonlinSol_FixedPoint failed");
@@ -461,7 +477,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
       if (opt_.max_order > 0) check(CVodeSetMaxOrd(mem, opt_.max_order), "CVodeSetMaxOrd");
       cv_->initialised = true;
     } else {
-      check(CVodeReInit(mem, t_, cv_->y), "CVodeReInit");
+      check(CVodeReInit(mem, tau0, cv_->y), "CVodeReInit");
     }
     cv_->nst = cv_->nfe = cv_->netf = cv_->nni = 0;  // (Re)Init resets CVODE's counters
     ++stats_.restarts;
@@ -472,11 +488,20 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
     }
   }
   // Never step past t1: u(t) is only defined on [t0, t1].
-  check(CVodeSetStopTime(mem, t1_s), "CVodeSetStopTime");
+  check(CVodeSetStopTime(mem, tau1), "CVodeSetStopTime");
 
-  double tret = t_;
-  const int flag = CVode(mem, t1_s, cv_->y, &tret, CV_NORMAL);
-  check(flag, "CVode");
+  double tret = tau0;
+  const int flag = CVode(mem, tau1, cv_->y, &tret, CV_NORMAL);
+  if (flag < 0) {
+    // Name the interval (absolute times) and CVODE's reason; the caller adds the record.
+    char* name = CVodeGetReturnFlagName(flag);
+    const std::string reason = name ? name : std::to_string(flag);
+    std::free(name);
+    cv_->live = false;
+    throw std::runtime_error(fmt::format(
+        "CVODE failed ({}) integrating from t = {:.6f} s to {:.6f} s (reached {:.6f} s)", reason,
+        t_, t1_s, t_ref_ + tret));
+  }
   long nst = 0, nfe = 0, netf = 0, nni = 0;
   CVodeGetNumSteps(mem, &nst);
   CVodeGetNumRhsEvals(mem, &nfe);
@@ -505,7 +530,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   unpack(y);
   t_ = t1_s;
   cv_->live = true;
-  cv_->t_live = t_;
+  cv_->t_live = tau1;
 }
 
 double CdEkf::nis(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,

@@ -135,7 +135,9 @@ class CdEkf {
 
   /// Integrates state and covariance from time() to t1_s (t1_s >= time()) with input u(t).
   /// The integration is always re-initialised at time() (u may jump there).
-  /// Throws std::runtime_error when CVODE fails.
+  /// Throws std::runtime_error when CVODE fails (what(): CVODE's reason and the interval).
+  /// Times are the caller's clock (e.g. UNIX time): internally CVODE integrates in time
+  /// relative to the reset() time, so the result does not depend on the clock offset.
   void propagate(double t1_s, const InputFunction& u);
   /// The same with an allocation-free input. `continuous`: u(t) is the continuation of the
   /// input of the previous propagate() (same function, no jump at time()); then, if the state
@@ -166,7 +168,8 @@ class CdEkf {
  private:
   struct Cvode;
   friend struct CdEkfAccess;
-  void evalRhs(double t, const double* y, double* ydot);
+  /// Right-hand side at CVODE's time tau = t - t_ref_ (s).
+  void evalRhs(double tau, const double* y, double* ydot);
   void pack(double* y) const;
   void unpack(const double* y);
   void integrate(double t1_s, const CdInput& u, bool continuous);
@@ -174,7 +177,8 @@ class CdEkf {
   const CdModel& model_;
   CvodeOptions opt_;
   int n_ = 0;
-  double t_ = 0;
+  double t_ = 0;      ///< current time (s, the caller's clock, e.g. UNIX time)
+  double t_ref_ = 0;  ///< reset time: CVODE integrates in t - t_ref_ (s)
   Eigen::VectorXd x_;
   Eigen::MatrixXd P_;
   const CdInput* u_ = nullptr;

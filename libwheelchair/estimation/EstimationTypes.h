@@ -104,17 +104,30 @@ struct LargeBufferAllocator {
 
 using EstimateSeries = std::vector<EstimateSample, LargeBufferAllocator<EstimateSample>>;
 
+/// Receives a run's estimates one by one, in the order the filter produces them (strictly
+/// increasing time), instead of a vector that grows with the drive: a streaming writer
+/// (estimation/EstimateWriters.h, evaluation::TumEstimateSink) or a reducer keeps memory
+/// flat whatever the recording's length. add() may throw (e.g. a full disk): the run stops.
+class EstimateSink {
+ public:
+  virtual ~EstimateSink() = default;
+  virtual void add(const EstimateSample& s) = 0;
+};
+
 struct EstimationResult {
   std::string filter;  ///< "physics" or "baseline"
+  /// All estimates (runEstimator without a sink); empty when they went to an EstimateSink.
   EstimateSeries estimates;
+  std::size_t n_estimates = 0;  ///< estimates produced (stored or streamed)
+  EstimateSample last;          ///< the last one produced (valid when n_estimates > 0)
   std::array<SensorStats, kNumSensors> sensors{};
   std::vector<RejectedMeasurement> rejected;
-  std::vector<NisRecord> nis;
+  std::vector<NisRecord> nis;         ///< every update attempt (runEstimator without a sink only)
   CvodeStats cvode;                   ///< physics filter only
   std::vector<std::string> warnings;  ///< e.g. "no motor currents: input held at 0"
 
   const SensorStats& stats(Sensor s) const { return sensors[static_cast<int>(s)]; }
-  /// Final estimate (throws std::logic_error when there is none).
+  /// Final estimate, stored or streamed (throws std::logic_error when there is none).
   const EstimateSample& final() const;
 };
 

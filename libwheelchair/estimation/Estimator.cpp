@@ -8,11 +8,14 @@
 #include <sys/mman.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <stdexcept>
 #include <tuple>
+
+#include <fmt/core.h>
 
 namespace wheelchair::estimation {
 
@@ -58,8 +61,9 @@ std::pair<double, double> SensorStats::meanNisBand95() const {
 }
 
 const EstimateSample& EstimationResult::final() const {
-  if (estimates.empty()) throw std::logic_error("EstimationResult: no estimate");
-  return estimates.back();
+  if (!estimates.empty()) return estimates.back();
+  if (n_estimates > 0) return last;
+  throw std::logic_error("EstimationResult: no estimate");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -177,7 +181,7 @@ double Estimator::gate(int dof) const {
 void Estimator::record(Sensor s, double t, const UpdateResult& r, double g) {
   SensorStats& st = stats(s);
   st.dof = r.dof;
-  res_.nis.push_back({t, s, r.nis, r.dof, r.accepted});
+  if (keep_nis_records_) res_.nis.push_back({t, s, r.nis, r.dof, r.accepted});
   if (r.accepted) {
     ++st.used;
     ++st.nis_count;
@@ -322,18 +326,42 @@ struct Event {
   std::size_t index;
 };
 
+/// The stream itself when it is already in `less` order (the usual, time-ordered recording:
+/// no copy; `order` stays empty, meaning the identity), else a stable-sorted copy kept in
+/// `store`, with in `order` the index in v of each sorted element (to name a sample as stored
+/// when something fails).
 template <typename T, typename Less>
-std::vector<T> sortedCopy(const std::vector<T>& v, Less less) {
-  std::vector<T> s = v;
-  std::sort(s.begin(), s.end(), less);
-  return s;
+const std::vector<T>& sortedView(const std::vector<T>& v, std::vector<T>& store,
+                                 std::vector<std::size_t>& order, Less less) {
+  if (std::is_sorted(v.begin(), v.end(), less)) return v;
+  order.resize(v.size());
+  for (std::size_t i = 0; i < v.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return less(v[a], v[b]); });
+  store.clear();
+  store.reserve(v.size());
+  for (const std::size_t i : order) store.push_back(v[i]);
+  return store;
 }
 
-}  // namespace
+/// Stream label (as in the rawlog) of an event kind.
+const char* eventStream(int kind) {
+  switch (kind) {
+    case kEncStart:
+    case kEncInterval:
+      return "ENCODERS";
+    case kGyro:
+      return "IMU";
+    case kSonar:
+      return "SONAR";
+    default:
+      return "POZYX";
+  }
+}
 
-EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                              const EkfOptions& options,
-                              const std::function<void(double)>& progress) {
+EstimationResult runEstimatorImpl(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                                  const EkfOptions& options, EstimateSink* sink,
+                                  const std::function<void(double)>& progress) {
   EkfOptions opt = options;
   opt.resolveSensorDefaults(cfg);
   opt.validate();
@@ -341,23 +369,36 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
   InputSignal input(opt.input_interpolation);
   input.setSamples(rec.motors);
   auto est = makeEstimator(cfg, opt, &input);
+  est->keepNisRecords(sink == nullptr);
   EstimationResult& res = est->result();
 
   // Every stream sorted by (time, value): the same multiset of samples gives the same order.
-  const auto enc =
-      sortedCopy(rec.encoders, [](const io::EncoderSample& a, const io::EncoderSample& b) {
-        return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
-               std::tie(b.t_s, b.right_ticks, b.left_ticks);
-      });
-  const auto imu = sortedCopy(rec.imu, [](const io::ImuSample& a, const io::ImuSample& b) {
-    return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);
-  });
-  const auto son = sortedCopy(rec.sonar, [](const io::SonarSample& a, const io::SonarSample& b) {
-    return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
-  });
-  const auto poz = sortedCopy(rec.pozyx, [](const io::PozyxSample& a, const io::PozyxSample& b) {
-    return std::tie(a.t_s, a.x_m, a.y_m) < std::tie(b.t_s, b.x_m, b.y_m);
-  });
+  // order[k][i]: index in the recording's stream of the i-th sorted sample (error messages;
+  // empty when the stream was stored in order).
+  std::array<std::vector<std::size_t>, 5> order;
+  std::vector<io::EncoderSample> enc_store;
+  std::vector<io::ImuSample> imu_store;
+  std::vector<io::SonarSample> son_store;
+  std::vector<io::PozyxSample> poz_store;
+  const auto& enc = sortedView(rec.encoders, enc_store, order[kEncStart],
+                               [](const io::EncoderSample& a, const io::EncoderSample& b) {
+                                 return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
+                                        std::tie(b.t_s, b.right_ticks, b.left_ticks);
+                               });
+  const auto& imu = sortedView(rec.imu, imu_store, order[kGyro],
+                               [](const io::ImuSample& a, const io::ImuSample& b) {
+                                 return std::tie(a.t_s, a.gyro_z_rad_s) <
+                                        std::tie(b.t_s, b.gyro_z_rad_s);
+                               });
+  const auto& son = sortedView(rec.sonar, son_store, order[kSonar],
+                               [](const io::SonarSample& a, const io::SonarSample& b) {
+                                 return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
+                               });
+  const auto& poz = sortedView(rec.pozyx, poz_store, order[kPozyx],
+                               [](const io::PozyxSample& a, const io::PozyxSample& b) {
+                                 return std::tie(a.t_s, a.x_m, a.y_m) <
+                                        std::tie(b.t_s, b.x_m, b.y_m);
+                               });
 
   std::vector<Event> ev;
   std::vector<sensors::WheelSpeedInterval> iv;
@@ -395,23 +436,34 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
   est->start(t0);
   const bool fixed_rate = opt.output_rate_hz > 0;
   // Sized once: growing a vector of ~0.5 kB samples by doubling was a third of the baseline
-  // filter's time (copies and first-touch page faults; docs/benchmarks.md).
-  res.estimates.reserve(fixed_rate
-                            ? static_cast<std::size_t>((ev.back().t - t0) * opt.output_rate_hz) + 2
-                            : ev.size());
-  res.nis.reserve(ev.size());
+  // filter's time (copies and first-touch page faults; docs/benchmarks.md). A sink keeps
+  // nothing: memory stays flat however long the drive.
+  if (!sink) {
+    res.estimates.reserve(
+        fixed_rate ? static_cast<std::size_t>((ev.back().t - t0) * opt.output_rate_hz) + 2
+                   : ev.size());
+    res.nis.reserve(ev.size());
+  }
+  const auto emit = [&](const EstimateSample& s) {
+    ++res.n_estimates;
+    if (sink) {
+      sink->add(s);
+      res.last = s;
+    } else {
+      res.estimates.push_back(s);
+    }
+  };
   long k_out = 0;
   auto nextOut = [&] { return t0 + static_cast<double>(k_out) / opt.output_rate_hz; };
   const std::size_t progress_every = std::max<std::size_t>(1, ev.size() / 100);
-  for (std::size_t e = 0; e < ev.size(); ++e) {
+  const auto processEvent = [&](std::size_t e) {
     const Event& E = ev[e];
-    if (progress && e % progress_every == 0) progress(static_cast<double>(e) / ev.size());
     if (fixed_rate) {
       while (nextOut() <= E.t) {
         est->predictTo(nextOut());
         EstimateSample s = est->estimate();
         s.t_s = nextOut();
-        res.estimates.push_back(s);
+        emit(s);
         ++k_out;
       }
     }
@@ -434,11 +486,51 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
         break;
     }
     // One output per measurement time (after all measurements of that time).
-    if (!fixed_rate && (e + 1 == ev.size() || ev[e + 1].t != E.t))
-      res.estimates.push_back(est->estimate());
+    if (!fixed_rate && (e + 1 == ev.size() || ev[e + 1].t != E.t)) emit(est->estimate());
+  };
+  // Names the measurement being processed when a filter fails (e.g. CVODE after a clock jump):
+  // stream, sample index as stored in the recording (0-based) and time.
+  const auto describe = [&](const Event& E) {
+    std::size_t sorted = E.index;
+    if (E.kind == kEncInterval) {
+      // The interval ends at an encoder sample: find it among the sorted samples.
+      const auto it =
+          std::lower_bound(enc.begin(), enc.end(), iv[E.index].t1_s,
+                           [](const io::EncoderSample& a, double t) { return a.t_s < t; });
+      sorted = static_cast<std::size_t>(it - enc.begin());
+    } else if (E.kind == kEncStart) {
+      sorted = 0;
+    }
+    const auto& ord = order[E.kind == kEncInterval ? kEncStart : E.kind];
+    const std::size_t stored = sorted < ord.size() ? ord[sorted] : sorted;
+    return fmt::format("{} sample {} (t = {:.6f} s)", eventStream(E.kind), stored, E.t);
+  };
+  for (std::size_t e = 0; e < ev.size(); ++e) {
+    const Event& E = ev[e];
+    if (progress && e % progress_every == 0) progress(static_cast<double>(e) / ev.size());
+    try {
+      processEvent(e);
+    } catch (const std::exception& ex) {
+      throw std::runtime_error(fmt::format("{}: {}", describe(E), ex.what()));
+    }
   }
+  if (!res.estimates.empty()) res.last = res.estimates.back();
   if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) res.cvode = w->filter().stats();
   return std::move(res);
+}
+
+}  // namespace
+
+EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                              const EkfOptions& options,
+                              const std::function<void(double)>& progress) {
+  return runEstimatorImpl(rec, cfg, options, nullptr, progress);
+}
+
+EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                              const EkfOptions& options, EstimateSink& sink,
+                              const std::function<void(double)>& progress) {
+  return runEstimatorImpl(rec, cfg, options, &sink, progress);
 }
 
 }  // namespace wheelchair::estimation

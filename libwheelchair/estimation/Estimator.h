@@ -93,6 +93,9 @@ class Estimator {
   /// Pozyx position in the anchor frame (m).
   void pozyx(double t_s, const Eigen::Vector2d& p_anchor_m);
 
+  /// Whether record() keeps every update attempt in result().nis (default true; counts and
+  /// NIS statistics are kept either way).
+  void keepNisRecords(bool keep) { keep_nis_records_ = keep; }
   const EstimationResult& result() const { return res_; }
   EstimationResult& result() { return res_; }
   const EkfOptions& options() const { return opt_; }
@@ -133,6 +136,7 @@ class Estimator {
  private:
   mutable std::map<int, double> gates_;
   int consecutive_sonar_rejections_ = 0;
+  bool keep_nis_records_ = true;
 };
 
 /// The filter selected by opt.filter. `input` (motor currents) must outlive it; the baseline
@@ -144,6 +148,17 @@ std::unique_ptr<Estimator> makeEstimator(const config::WheelchairConfig& cfg, co
 /// set, is called with the fraction of measurements processed (0..1) about every 1 %.
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
                               const EkfOptions& opt,
+                              const std::function<void(double)>& progress = {});
+
+/// The same run with every estimate passed to `sink` as it is produced instead of stored:
+/// the result has counts, statistics, rejections, warnings, n_estimates and the last estimate
+/// (final()), but no `estimates` and no per-update `nis` records, so memory does not grow
+/// with the drive. The estimates are bit-identical to the stored ones. Example:
+///   EstimatesCsvWriter csv("est.csv");               // estimation/EstimateWriters.h
+///   auto res = runEstimator(rec, cfg, opt, csv);
+///   csv.commit();
+EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
+                              const EkfOptions& opt, EstimateSink& sink,
                               const std::function<void(double)>& progress = {});
 
 }  // namespace wheelchair::estimation

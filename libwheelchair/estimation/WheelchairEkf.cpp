@@ -248,8 +248,9 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     return;
   }
   const double dt = iv.dt();
-  const bool aligned =
-      acc_valid_ && std::fabs(acc_start_s_ - iv.t0_s) <= 1e-9 * std::max(1.0, std::fabs(iv.t0_s));
+  // Same encoder sample: the stamps are equal (an absolute tolerance: a tolerance relative to
+  // |t| would be 1.7 s for UNIX stamps).
+  const bool aligned = acc_valid_ && std::fabs(acc_start_s_ - iv.t0_s) <= 1e-9;
   if (!(dt > 0) || dt > opt_.max_encoder_interval_s || !std::isfinite(iv.v_m_s) ||
       !std::isfinite(iv.omega_rad_s) ||
       (opt_.encoder_model == EncoderMeasurementModel::Mean && !aligned)) {

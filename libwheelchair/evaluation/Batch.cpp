@@ -24,18 +24,19 @@ constexpr double kPi = 3.14159265358979323846;
 
 // Sorted by t_s (stable), then strictly increasing times: of equal timestamps the last
 // sample wins.
+// Done in place (no copy of a long trajectory) when the input is already time-ordered.
 template <class T>
 void sortByTimeKeepLast(std::vector<T>& v) {
-  std::stable_sort(v.begin(), v.end(), [](const T& a, const T& b) { return a.t_s < b.t_s; });
-  std::vector<T> out;
-  out.reserve(v.size());
-  for (auto& s : v) {
-    if (!out.empty() && out.back().t_s == s.t_s)
-      out.back() = s;
+  const auto less = [](const T& a, const T& b) { return a.t_s < b.t_s; };
+  if (!std::is_sorted(v.begin(), v.end(), less)) std::stable_sort(v.begin(), v.end(), less);
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (n > 0 && v[n - 1].t_s == v[i].t_s)
+      v[n - 1] = v[i];
     else
-      out.push_back(s);
+      v[n++] = v[i];
   }
-  v.swap(out);
+  v.resize(n);
 }
 
 std::string oneLine(std::string s) {
@@ -101,6 +102,13 @@ Trajectory toTrajectory(const estimation::EstimationResult& res) {
   Trajectory t;
   t.reserve(res.estimates.size());
   for (const auto& e : res.estimates) t.push_back({e.t_s, e.x(2), e.x(3), e.x(4)});
+  sortByTimeKeepLast(t);
+  return t;
+}
+
+Trajectory TrajectorySink::take() {
+  Trajectory t;
+  t.swap(poses_);
   sortByTimeKeepLast(t);
   return t;
 }
@@ -197,7 +205,9 @@ RecordingEstimates estimateVariants(const io::Recording& raw_rec,
   // sensors and the drive train for every variant.
   const auto ext = estimation::ModelExtensions::fromConfig(raw_cfg.ini());
   const config::WheelchairConfig cfg = ext.adjustConfig(raw_cfg);
-  const io::Recording rec = ext.empty() ? raw_rec : ext.apply(raw_rec, cfg);
+  io::Recording corrected;  // a copy only when the extensions change the recording
+  if (!ext.empty()) corrected = ext.apply(raw_rec, cfg);
+  const io::Recording& rec = ext.empty() ? raw_rec : corrected;
   RecordingEstimates r;
   r.has_baseline = with_baseline;
   auto attempt = [&](const std::string& name, const std::function<void()>& f) {
@@ -232,6 +242,57 @@ RecordingEstimates estimateVariants(const io::Recording& raw_rec,
     });
   return r;
 }
+
+namespace {
+
+// The wheelchair variants of estimateVariants, one after the other: each trajectory (or its
+// error) is passed to `f` and dropped before the next is computed, and the filters stream
+// their poses (TrajectorySink), so the peak is one pose trajectory, not four full results.
+void forEachVariantTrajectory(
+    const io::Recording& raw_rec, const config::WheelchairConfig& raw_cfg, bool with_baseline,
+    const std::function<void(const std::string&, const std::string&, Trajectory)>& f) {
+  const auto ext = estimation::ModelExtensions::fromConfig(raw_cfg.ini());
+  const config::WheelchairConfig cfg = ext.adjustConfig(raw_cfg);
+  io::Recording corrected;
+  if (!ext.empty()) corrected = ext.apply(raw_rec, cfg);
+  const io::Recording& rec = ext.empty() ? raw_rec : corrected;
+  auto attempt = [&](const std::string& name, const std::function<Trajectory()>& make) {
+    Trajectory t;
+    std::string err;
+    try {
+      t = make();
+    } catch (const std::exception& e) {
+      err = e.what();
+    }
+    f(name, err, std::move(t));
+  };
+  auto filter = [&](estimation::FilterKind kind, const char* empty_error) {
+    TrajectorySink poses;
+    const auto res = estimation::runEstimator(rec, cfg, ekfOptions(cfg, kind), poses);
+    if (res.n_estimates == 0) throw std::runtime_error(empty_error);
+    return poses.take();
+  };
+  attempt("ekf",
+          [&] { return filter(estimation::FilterKind::Physics, "the EKF produced no estimate"); });
+  attempt("encoders", [&] {
+    const auto dr =
+        estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom);
+    if (dr.empty()) throw std::runtime_error("no encoder samples");
+    return toTrajectory(dr);
+  });
+  attempt("encoders_gyro", [&] {
+    const auto dr = estimation::deadReckoningEncoderGyro(rec.encoders, rec.imu, cfg.encoders.params,
+                                                         cfg.vehicle.geom);
+    if (dr.empty()) throw std::runtime_error("no encoder/gyro samples");
+    return toTrajectory(dr);
+  });
+  if (with_baseline)
+    attempt("baseline", [&] {
+      return filter(estimation::FilterKind::Baseline, "the baseline produced no estimate");
+    });
+}
+
+}  // namespace
 
 void parseAlignment(const std::string& text, MetricOptions& o) {
   if (text == "none") {
@@ -276,22 +337,8 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
     const GroundTruth gt = groundTruthOf(rec, cfg);
     MetricOptions mo = options.metrics;
     mo.lever_arm_m = gt.lever_arm_m;
-    // Command-driven recordings (MRCLAM): ekf + commands; others: the wheelchair variants.
-    const bool command_driven = estimation::isCommandDrivenRecording(rec);
-    std::vector<std::pair<std::string, std::string>> errors;
-    RecordingEstimates wc;
-    CommandDrivenEstimates cd;
-    if (command_driven) {
-      cd = estimateCommandDrivenVariants(rec, cfg);
-      errors = cd.errors;
-    } else {
-      wc = estimateVariants(rec, cfg, options.baseline);
-      errors = wc.errors;
-    }
-    const auto trajectoryOf = [&](const std::string& v) {
-      return command_driven ? cd.trajectory(v) : wc.trajectory(v);
-    };
-    for (const auto& [variant, err] : errors) {
+    const auto addRow = [&](const std::string& variant, const std::string& err,
+                            const std::function<Trajectory()>& trajectory) {
       BatchRow row;
       row.recording = path;
       row.variant = variant;
@@ -299,7 +346,7 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
       row.error = oneLine(err);
       if (err.empty()) {
         try {
-          const Trajectory t = trajectoryOf(variant);
+          const Trajectory t = trajectory();
           row.n_estimates = t.size();
           row.metrics = computeMetrics(t, gt.samples, mo);
         } catch (const std::exception& e) {
@@ -307,6 +354,19 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
         }
       }
       rows.push_back(std::move(row));
+    };
+    // Command-driven recordings (MRCLAM): ekf + commands; others: the wheelchair variants,
+    // streamed one at a time (memory flat in the drive's length).
+    if (estimation::isCommandDrivenRecording(rec)) {
+      const CommandDrivenEstimates cd = estimateCommandDrivenVariants(rec, cfg);
+      for (const auto& [variant, err] : cd.errors)
+        addRow(variant, err, [&, v = variant] { return cd.trajectory(v); });
+    } else {
+      forEachVariantTrajectory(
+          rec, cfg, options.baseline,
+          [&](const std::string& variant, const std::string& err, Trajectory t) {
+            addRow(variant, err, [&t] { return std::move(t); });
+          });
     }
   } catch (const std::exception& e) {
     rows.clear();

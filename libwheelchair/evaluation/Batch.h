@@ -77,6 +77,38 @@ Trajectory toTrajectory(const estimation::EstimationResult& res);
 Trajectory toTrajectory(const std::vector<estimation::DeadReckoningSample>& dr);
 Trajectory toTrajectory(const std::vector<estimation::CommandDrivenEstimate>& est);
 
+/// Estimate sink keeping only the pose (x, y, phi of the canonical state; 32 B per estimate
+/// instead of ~0.5 kB): trajectory() equals toTrajectory() of the stored estimates.
+/// Example:
+///   TrajectorySink poses;
+///   auto res = estimation::runEstimator(rec, cfg, opt, poses);
+///   Trajectory t = poses.take();
+class TrajectorySink : public estimation::EstimateSink {
+ public:
+  void add(const estimation::EstimateSample& e) override {
+    poses_.push_back({e.t_s, e.x(2), e.x(3), e.x(4)});
+  }
+  /// The poses, strictly increasing in time (of equal timestamps the last); empties the sink.
+  Trajectory take();
+
+ private:
+  Trajectory poses_;
+};
+
+/// Estimate sink streaming the pose (x, y, phi of the canonical state) to a TUM file.
+class TumEstimateSink : public estimation::EstimateSink {
+ public:
+  explicit TumEstimateSink(const std::string& path, const std::vector<std::string>& comments = {})
+      : tum_(path, comments) {}
+  void add(const estimation::EstimateSample& e) override {
+    tum_.add({e.t_s, e.x(2), e.x(3), e.x(4)});
+  }
+  void commit() { tum_.commit(); }
+
+ private:
+  TumWriter tum_;
+};
+
 /// Variant names in their fixed order.
 const std::vector<std::string>& variantNames();  ///< ekf, encoders, encoders_gyro, baseline
 /// Variants of command-driven recordings, in their fixed order: ekf, commands.

@@ -7,12 +7,14 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <stdexcept>
 
 #include <fmt/format.h>
 
 #include "libwheelchair/model/Kinematics.h"
+#include "libwheelchair/util/AtomicFile.h"
 
 namespace wheelchair::evaluation {
 
@@ -29,26 +31,54 @@ bool parseDouble(const std::string& token, double& out) {
 
 }  // namespace
 
-void writeTum(const std::string& path, const Trajectory& traj) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::out | std::ios::trunc);
-    if (!f) throw std::runtime_error(fmt::format("{}: cannot open for writing", tmp));
-    f << "# timestamp x y z qx qy qz qw (planar pose, yaw-only quaternion)\n";
-    for (const auto& p : traj) {
-      // "{}" prints the shortest representation that reads back to the same double.
-      f << fmt::format("{} {} {} 0 0 0 {} {}\n", p.t_s, p.x_m, p.y_m, std::sin(0.5 * p.phi_rad),
-                       std::cos(0.5 * p.phi_rad));
-    }
-    f.flush();
-    if (!f) throw std::runtime_error(fmt::format("{}: write failed", tmp));
+struct TumWriter::Impl {
+  explicit Impl(const std::string& path) : file(path) {}
+  util::AtomicFile file;
+};
+
+TumWriter::TumWriter(const std::string& path, const std::vector<std::string>& comments)
+    : impl_(std::make_unique<Impl>(path)) {
+  std::ostream& os = impl_->file.stream();
+  for (const auto& c : comments) os << "# " << c << "\n";
+  os << "# timestamp x y z qx qy qz qw (planar pose, yaw-only quaternion)\n";
+  impl_->file.check();
+}
+
+TumWriter::~TumWriter() = default;
+
+void TumWriter::add(const Pose2DStamped& p) {
+  if (pending_ && p.t_s < pending_->t_s)
+    throw std::runtime_error(fmt::format("{}: pose at t = {} s after one at t = {} s",
+                                         impl_->file.path(), p.t_s, pending_->t_s));
+  if (!pending_ || p.t_s != pending_->t_s) {
+    flushPending();
+    ++poses_;
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp);
-    throw std::runtime_error(fmt::format("{}: cannot rename from {}: {}", path, tmp, ec.message()));
-  }
+  pending_ = p;
+}
+
+void TumWriter::flushPending() {
+  if (!pending_) return;
+  const auto& p = *pending_;
+  // "{}" prints the shortest representation that reads back to the same double.
+  fmt::memory_buffer buf;
+  fmt::format_to(std::back_inserter(buf), "{} {} {} 0 0 0 {} {}\n", p.t_s, p.x_m, p.y_m,
+                 std::sin(0.5 * p.phi_rad), std::cos(0.5 * p.phi_rad));
+  impl_->file.stream().write(buf.data(), static_cast<std::streamsize>(buf.size()));
+  if (poses_ % 4096 == 0) impl_->file.check();
+  pending_.reset();
+}
+
+void TumWriter::commit() {
+  flushPending();
+  impl_->file.commit();
+}
+
+void writeTum(const std::string& path, const Trajectory& traj,
+              const std::vector<std::string>& comments) {
+  TumWriter w(path, comments);
+  for (const auto& p : traj) w.add(p);
+  w.commit();
 }
 
 Trajectory readTum(const std::string& path) {

@@ -16,6 +16,7 @@
 
 #include <cstddef>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -41,9 +42,38 @@ struct Position2DStamped {
   bool hasHeading() const { return phi_rad == phi_rad; }
 };
 
-/// Writes `traj` as TUM to `path` (through `path`.tmp then rename, so readers never see a
-/// partial file). Throws std::runtime_error naming the file on I/O failure.
-void writeTum(const std::string& path, const Trajectory& traj);
+/// Streaming TUM writer (the one TUM writer of the project): poses go to the file as they
+/// come, through util::AtomicFile (complete at `path` after commit(), else absent). Lines:
+/// optional `# COMMENT` lines, the column header, then `t x y 0 0 0 qz qw` with every number in
+/// the shortest form that reads back to the same double. Poses must come in non-decreasing
+/// time; of equal timestamps the last one is written (as toTrajectory keeps it). Throws
+/// std::runtime_error naming the file on an I/O failure or a pose earlier than the previous.
+/// Example:
+///   TumWriter tum("out/ekf.tum", {"frame: start"});
+///   for (const auto& p : poses) tum.add(p);
+///   tum.commit();
+class TumWriter {
+ public:
+  explicit TumWriter(const std::string& path, const std::vector<std::string>& comments = {});
+  ~TumWriter();
+  TumWriter(const TumWriter&) = delete;
+  TumWriter& operator=(const TumWriter&) = delete;
+  void add(const Pose2DStamped& p);
+  void commit();
+  std::size_t poses() const { return poses_; }  ///< poses written or pending
+
+ private:
+  void flushPending();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::optional<Pose2DStamped> pending_;
+  std::size_t poses_ = 0;
+};
+
+/// Writes `traj` as TUM to `path` (TumWriter: atomic, shortest round-trip numbers). Throws
+/// std::runtime_error naming the file on I/O failure.
+void writeTum(const std::string& path, const Trajectory& traj,
+              const std::vector<std::string>& comments = {});
 /// Reads a TUM file. Throws std::runtime_error "<path>:<line>: <what>" on a malformed line
 /// (field count, non-numeric or non-finite field, zero quaternion, non-increasing time).
 Trajectory readTum(const std::string& path);

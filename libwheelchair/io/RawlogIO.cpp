@@ -14,6 +14,7 @@
 #include <cmath>
 #include <filesystem>
 #include <sstream>
+#include <stdexcept>
 
 namespace fs = std::filesystem;
 using namespace mrpt::obs;
@@ -30,10 +31,19 @@ constexpr double kUnknownZVariance_m2 = 1e6;
 constexpr const char* kHeaderFirstLine = "# libwheelchair recording";
 const mrpt::obs::TIMUDataIndex kImuExtra[5] = {IMU_WX, IMU_WY, IMU_X_ACC, IMU_Y_ACC, IMU_Z_ACC};
 
+// MRPT's clock counts 100 ns ticks since 1601 in an unsigned-compatible range: a negative or
+// non-finite time would wrap to a date ~1.8e12 s away instead of failing.
+mrpt::Clock::time_point mrptTime(double t_s) {
+  if (!(t_s >= 0) || !std::isfinite(t_s))
+    throw std::invalid_argument(
+        fmt::format("timestamp {} s cannot be stored (times are finite seconds >= 0)", t_s));
+  return mrpt::Clock::fromDouble(t_s);
+}
+
 template <class T>
 typename T::Ptr stamped(StreamKind k, double t_s) {
   auto o = T::Create();
-  o->timestamp = mrpt::Clock::fromDouble(t_s);
+  o->timestamp = mrptTime(t_s);
   o->sensorLabel = streamLabel(k);
   return o;
 }
@@ -184,7 +194,7 @@ void RawlogWriter::write(const AnySample& s, const config::WheelchairConfig& cfg
 void RawlogWriter::writeHeader(const std::map<std::string, std::string>& meta,
                                const config::WheelchairConfig& cfg, double t_s) {
   auto c = CObservationComment::Create();
-  c->timestamp = mrpt::Clock::fromDouble(t_s);
+  c->timestamp = mrptTime(t_s);
   c->sensorLabel = "META";
   std::ostringstream ss;
   ss << kHeaderFirstLine << "\n[recording]\n";

@@ -126,6 +126,10 @@ bool CsvStreamReader::next(AnySample& out) {
     if (!std::isfinite(v))
       throw FormatError(fmt::format("{}: column '{}': value {} is not finite", where,
                                     columns_[col], std::string(p, fe)));
+    if (col == 0 && v < 0)  // MRPT's clock would wrap it to ~1.8e12 s
+      throw FormatError(
+          fmt::format("{}: column '{}': negative timestamp {} (times are seconds >= 0)", where,
+                      columns_[col], std::string(p, fe)));
     values_.push_back(v);
     ++col;
     if (field_end == end) break;
@@ -174,12 +178,14 @@ struct TextRecordingReader::Source {
   CsvStreamReader reader;
   AnySample head;
   bool has_head = false;
+  std::size_t head_line = 0;  ///< line of `head` in the file
   double last_t = -std::numeric_limits<double>::infinity();
   TimestampIssues issues;
   Source(const std::string& path, StreamKind k) : kind(k), reader(path, k) {}
   void advance() {
     has_head = reader.next(head);
     if (!has_head) return;
+    head_line = reader.line();
     const double t = timeOf(head);
     if (t < last_t) {
       if (!issues.out_of_order && !issues.duplicates) issues.first_bad_line = reader.line();
@@ -241,6 +247,19 @@ bool TextRecordingReader::next(AnySample& out) {
     }
   }
   if (!best) return false;
+  if (max_gap_s_ > 0 && have_last_ && best_t - last_t_ > max_gap_s_)
+    throw FormatError(fmt::format(
+        "{}:{}: timestamp {} s jumps {:.3f} s after the previous sample ({} s, {}:{}): more than "
+        "the import limit max_gap_s = {:g} s (a clock jump or a logger stall); raise [import] "
+        "max_gap_s or --max-gap (0: no limit) to import it anyway",
+        best->reader.path(), best->head_line, formatTime(best_t), best_t - last_t_,
+        formatTime(last_t_), last_path_, last_line_, max_gap_s_));
+  if (!have_last_ || best_t >= last_t_) {  // latest time so far (out-of-order rows kept)
+    have_last_ = true;
+    last_t_ = best_t;
+    last_path_ = best->reader.path();
+    last_line_ = best->head_line;
+  }
   out = best->head;
   best->advance();
   return true;

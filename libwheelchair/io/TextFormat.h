@@ -69,13 +69,26 @@ class TextRecordingReader {
   std::vector<std::string> warnings() const;
   /// Columns of each present file.
   std::map<StreamKind, std::vector<std::string>> columns() const;
+  /// Refuse forward jumps of the merged timeline (all files) larger than max_gap_s (0: no
+  /// check, the default): next() throws FormatError naming the file, line and size of the jump.
+  /// `wheelchair import` sets it from [import] max_gap_s (default kDefaultMaxGapS).
+  void setMaxGap(double max_gap_s) { max_gap_s_ = max_gap_s; }
 
  private:
   struct Source;
   std::vector<std::unique_ptr<Source>> sources_;
   std::map<std::string, std::string> meta_;
   std::vector<std::string> missing_optional_;
+  double max_gap_s_ = 0;
+  bool have_last_ = false;
+  double last_t_ = 0;  ///< latest time returned so far (s)
+  std::string last_path_;
+  std::size_t last_line_ = 0;
 };
+
+/// Default of [import] max_gap_s (s): the largest forward jump of a recording's timeline that
+/// `wheelchair import` accepts (docs/recording-format.md).
+constexpr double kDefaultMaxGapS = 5.0;
 
 /// Whole recording in memory (for moderate sizes; use TextRecordingReader to stream).
 Recording readTextRecording(const std::string& dir, std::vector<std::string>* warnings = nullptr);

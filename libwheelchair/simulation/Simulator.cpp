@@ -6,6 +6,7 @@
 #include "libwheelchair/sensors/VoltageCircuit.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Random.h"
+#include "libwheelchair/util/AtomicFile.h"
 
 #include <nlohmann/json.hpp>
 
@@ -18,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
@@ -53,6 +55,10 @@ class StreamClock {
     draw();
   }
   double next() const { return next_; }
+  /// Upper bound of the samples in a run of duration_s (to size the vectors once).
+  std::size_t capacityFor(double duration_s) const {
+    return period_ > 0 ? static_cast<std::size_t>(duration_s / period_) + 2 : 0;
+  }
   void advance() {
     nominal_ += period_;
     draw();
@@ -121,23 +127,6 @@ std::string trimmed(std::string s) {
   if (b == std::string::npos) return "";
   const auto e = s.find_last_not_of(" \t\r\n\"");
   return s.substr(b, e - b + 1);
-}
-
-void writeAtomically(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(path + ": cannot write");
-    out << content;
-    out.flush();
-    if (!out) throw std::runtime_error(path + ": write failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(path + ": cannot rename temporary file");
-  }
 }
 
 }  // namespace
@@ -373,6 +362,14 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   double sup_scale = 1.0, next_sup = 0.0;
   const long n_steps = static_cast<long>(std::ceil(T / h - 1e-9));
   const long truth_stride = std::max(1L, std::lround(1.0 / (opt.truth_rate_hz * h)));
+  // Sized once (no doubling slack, no copy on growth: a long drive's peak is its data).
+  res.truth.samples.reserve(static_cast<std::size_t>(n_steps / truth_stride) + 1);
+  rec.encoders.reserve(clocks[kEncoders].capacityFor(T));
+  rec.imu.reserve(clocks[kImu].capacityFor(T));
+  rec.motors.reserve(clocks[kMotors].capacityFor(T));
+  rec.sonar.reserve(clocks[kSonar].capacityFor(T));
+  rec.pozyx.reserve(clocks[kPozyx].capacityFor(T));
+  rec.joystick.reserve(clocks[kJoystick].capacityFor(T));
 
   for (long k = 0; k <= n_steps; ++k) {
     const double t = k * h;
@@ -580,10 +577,11 @@ using nlohmann::json;
   X(x_m)                                                                                          \
   X(y_m)                                                                                          \
   X(phi_rad)                                                                                      \
-  X(v_m_s) X(omega_rad_s) X(wheel_speed_right_rad_s) X(wheel_speed_left_rad_s)                    \
-      X(wheel_angle_right_rad) X(wheel_angle_left_rad) X(current_right_A) X(current_left_A)       \
-          X(voltage_right_V) X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) \
-              X(omega_ref_rad_s) X(supervisory_scale)
+  X(v_m_s)                                                                                        \
+  X(omega_rad_s) X(wheel_speed_right_rad_s) X(wheel_speed_left_rad_s) X(wheel_angle_right_rad)    \
+      X(wheel_angle_left_rad) X(current_right_A) X(current_left_A) X(voltage_right_V)             \
+          X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) X(omega_ref_rad_s) \
+              X(supervisory_scale)
 
 std::string fmtNum(double x) {
   char buf[40];
@@ -597,24 +595,60 @@ std::string fmtNum(double x) {
   return buf;
 }
 
+// A double as json::dump() writes it (shortest round trip, "null" when not finite).
+void putJsonNumber(std::ostream& os, double x) {
+  if (!std::isfinite(x)) {
+    os << "null";
+    return;
+  }
+  std::array<char, 64> buf{};
+  const char* end = nlohmann::detail::to_chars(buf.data(), buf.data() + buf.size(), x);
+  os.write(buf.data(), end - buf.data());
+}
+
+// {"column": [v, ...], ...} in the key order and format of json::dump() (keys sorted, no
+// spaces), one column at a time from the samples.
+void writeTruthColumns(std::ostream& os, const std::vector<TruthSample>& samples) {
+  std::map<std::string, double TruthSample::*> columns;
+#define WC_MEMBER(c) columns[#c] = &TruthSample::c;
+  WC_TRUTH_COLUMNS(WC_MEMBER)
+#undef WC_MEMBER
+  os << '{';
+  bool first = true;
+  for (const auto& [name, member] : columns) {
+    os << (first ? "" : ",") << json(name).dump() << ":[";
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      if (i) os << ',';
+      putJsonNumber(os, samples[i].*member);
+    }
+    os << ']';
+    first = false;
+  }
+  os << '}';
+}
+
 }  // namespace
 
 void SimulationResult::writeTruth(const std::string& path) const {
   const bool csv = path.size() >= 4 && path.compare(path.size() - 4, 4, ".csv") == 0;
   if (csv) {
+    util::AtomicFile file(path);  // streamed row by row
+    std::ostream& os = file.stream();
     std::string out;
 #define WC_HDR(c) out += std::string(out.empty() ? "" : ",") + #c;
     WC_TRUTH_COLUMNS(WC_HDR)
 #undef WC_HDR
-    out += "\n";
+    os << out << "\n";
+    std::size_t n = 0;
     for (const auto& s : truth.samples) {
       std::string row;
 #define WC_ROW(c) row += (row.empty() ? "" : ",") + fmtNum(s.c);
       WC_TRUTH_COLUMNS(WC_ROW)
 #undef WC_ROW
-      out += row + "\n";
+      os << row << "\n";
+      if (++n % 4096 == 0) file.check();
     }
-    writeAtomically(path, out);
+    file.commit();
     return;
   }
   json j;
@@ -644,26 +678,25 @@ void SimulationResult::writeTruth(const std::string& path) const {
   j["pozyx_anchor"] = {{"x_m", truth.pozyx_anchor.x_m},
                        {"y_m", truth.pozyx_anchor.y_m},
                        {"yaw_rad", truth.pozyx_anchor.yaw_rad}};
-  json traj;
-#define WC_COL(c)                                           \
-  {                                                         \
-    std::vector<double> col;                                \
-    col.reserve(truth.samples.size());                      \
-    for (const auto& s : truth.samples) col.push_back(s.c); \
-    traj[#c] = col;                                         \
-  }
-  WC_TRUTH_COLUMNS(WC_COL)
-#undef WC_COL
-  j["trajectory"] = traj;
+  j["trajectory"] = nullptr;  // streamed below, column by column, straight from the samples
   j["config"] = config_text;
-  // One top-level key per line (readable header, compact columns).
-  std::string out = "{\n";
+  // One top-level key per line (readable header, compact columns); the same bytes as
+  // json::dump() of the whole document, without building the ~100 B-per-number DOM.
+  util::AtomicFile file(path);
+  std::ostream& os = file.stream();
+  os << "{\n";
   bool first = true;
   for (auto it = j.begin(); it != j.end(); ++it) {
-    out += (first ? "" : ",\n") + json(it.key()).dump() + ": " + it.value().dump();
+    os << (first ? "" : ",\n") << json(it.key()).dump() << ": ";
+    if (it.key() == "trajectory")
+      writeTruthColumns(os, truth.samples);
+    else
+      os << it.value().dump();
+    file.check();
     first = false;
   }
-  writeAtomically(path, out + "\n}\n");
+  os << "\n}\n";
+  file.commit();
 }
 
 SimulationResult readTruth(const std::string& path) {

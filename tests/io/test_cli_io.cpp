@@ -87,7 +87,10 @@ TEST(CliIo, InfoReportsPerStreamStatistics) {
 TEST(CliIo, OutOfOrderTimestampsAreCountedByInfo) {
   TempDir tmp;
   io::writeTextRecording(test::syntheticRecording(1.0), tmp / "src");
-  test::writeFile(tmp / "src/sonar.csv", "t,range\n1.0,2.5\n1.2,2.4\n1.1,2.3\n1.1,2.2\n");
+  // On the recording's clock (syntheticRecording starts at 1600000000.25 s).
+  test::writeFile(tmp / "src/sonar.csv",
+                  "t,range\n1600000000.5,2.5\n1600000000.7,2.4\n1600000000.6,2.3\n"
+                  "1600000000.6,2.2\n");
   auto r = cli("import " + (tmp / "src") + " -o " + (tmp / "r.rawlog"));
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("warning"), std::string::npos);
