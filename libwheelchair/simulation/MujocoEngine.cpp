@@ -432,7 +432,8 @@ MujocoChair::MujocoChair(const config::WheelchairConfig& cfg, const MujocoOption
   const int idx = mj_findFileVFS(vfs.get(), name);
   std::memcpy(vfs->filedata[idx], xml_.data(), xml_.size());
   char err[1000] = "";
-  mju_user_warning = quietWarning;
+  static const bool quiet = (mju_user_warning = quietWarning, true);  // once, thread-safe
+  (void)quiet;
   I.m = mj_loadXML(name, vfs.get(), err, sizeof err);
   mj_deleteVFS(vfs.get());
   if (!I.m)

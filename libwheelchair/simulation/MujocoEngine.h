@@ -127,7 +127,7 @@ class MujocoChair {
   /// Distance (m) from the sonar at (x, y) heading yaw (start frame) to the nearest obstacle
   /// surface hit by one of the rays fanned over +-half_angle; +inf when no ray hits.
   double sonarRange(double x_m, double y_m, double yaw_rad, double half_angle_rad) const;
-  /// Total mass of the multibody (kg) and the drive wheels' gear eta k r_G (N m / A).
+  /// Total mass of the multibody (kg): m_b + 2 m_w (+ a payload).
   double totalMass() const;
   /// The MJCF the chair was compiled from.
   const std::string& xml() const { return xml_; }
