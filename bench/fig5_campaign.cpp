@@ -8,7 +8,11 @@
 // standard errors and win counts (docs/estimation.md, "Fig. 5 campaign").
 //
 //   build/bench/fig5_campaign [--runs N] [--seed S] [--config F] [--effects a;b;...]
-//                             [--reference truth|pozyx] [--check] [--json OUT]
+//                             [--reference truth|pozyx] [--engine model|mujoco] [--check]
+//                             [--json OUT]
+//
+// --engine: the truth simulator (default model; mujoco = the chair as a MuJoCo multibody,
+// whose physics is not the EKF's model, docs/simulation.md).
 //
 // --check: exit 1 unless the EKF's trajectory error is lower than that of both raw variants
 // (encoders only; encoder v + gyro omega) and of the baseline filter, each with a paired
@@ -17,6 +21,7 @@
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Metrics.h"
 #include "libwheelchair/simulation/Effects.h"
+#include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Simulator.h"
 
 #include <fmt/core.h>
@@ -45,12 +50,14 @@ struct RunMetrics {
 };
 
 RunMetrics runOne(const config::WheelchairConfig& cfg, uint64_t seed,
-                  const std::vector<simulation::EffectSpec>& effects, bool against_truth) {
+                  const std::vector<simulation::EffectSpec>& effects, bool against_truth,
+                  const std::string& engine) {
   RunMetrics out;
   out.seed = seed;
   try {
     simulation::SimulationOptions so;
     so.loadFromConfig(cfg.ini());
+    so.engine = engine;
     const auto sim = simulation::simulate(cfg, "three_task", seed, 0, effects, so);
     const auto est = evaluation::estimateVariants(sim.recording, cfg, true);
     evaluation::MetricOptions mo;
@@ -120,7 +127,7 @@ int main(int argc, char** argv) {
   bool against_truth = true;
   bool check = false;
   uint64_t seed = 20200612;
-  std::string cfg_path, json_path;
+  std::string cfg_path, json_path, engine = "model";
   std::string effects_text =
       "encoder_scale:side=left,scale=0.95;motor_asymmetry:side=right,friction_ratio=1.3;"
       "sonar_dropout:probability=0.15,burst_length=3";
@@ -144,11 +151,17 @@ int main(int argc, char** argv) {
       const std::string r = next();
       if (r != "truth" && r != "pozyx") throw std::runtime_error("--reference: truth | pozyx");
       against_truth = r == "truth";
+    } else if (a == "--engine") {
+      engine = next();
+      if (engine != "model" && engine != "mujoco") {
+        std::cerr << "fig5_campaign: --engine must be model or mujoco\n";
+        return 2;
+      }
     } else if (a == "--json")
       json_path = next();
     else {
       std::cerr << "usage: fig5_campaign [--runs N] [--seed S] [--config F] [--effects a;b] "
-                   "[--reference truth|pozyx] [--check] [--json OUT]\n";
+                   "[--reference truth|pozyx] [--engine model|mujoco] [--check] [--json OUT]\n";
       return 2;
     }
   }
@@ -157,7 +170,7 @@ int main(int argc, char** argv) {
   std::vector<simulation::EffectSpec> effects;
   std::stringstream ss(effects_text);
   for (std::string t; std::getline(ss, t, ';');)
-    if (!t.empty()) effects.push_back(simulation::parseValidEffect(t));
+    if (!t.empty()) effects.push_back(simulation::parseEngineEffect(t, engine));
 
   // Two workers (the reference machine's cores); each run is independent and seeded.
   const unsigned workers = std::max(1u, std::min(2u, std::thread::hardware_concurrency()));
@@ -166,7 +179,7 @@ int main(int argc, char** argv) {
   for (unsigned w = 0; w < workers; ++w)
     pool.emplace_back([&, w] {
       for (int k = static_cast<int>(w); k < runs; k += static_cast<int>(workers))
-        results[k] = runOne(cfg, seed + static_cast<uint64_t>(k), effects, against_truth);
+        results[k] = runOne(cfg, seed + static_cast<uint64_t>(k), effects, against_truth, engine);
     });
   for (auto& t : pool) t.join();
 
@@ -199,9 +212,12 @@ int main(int argc, char** argv) {
   j["seed"] = seed;
   j["effects"] = effects_text;
   j["reference"] = against_truth ? "truth" : "pozyx";
-  fmt::print("Fig. 5 campaign: three_task, {} drives (seeds {}..{}), effects {}; reference: {}\n",
-             ok, seed, seed + runs - 1, effects_text,
-             against_truth ? "simulator truth at 10 Hz" : "Pozyx (as `wheelchair evaluate`)");
+  j["engine"] = engine;
+  fmt::print(
+      "Fig. 5 campaign: three_task, {} drives (seeds {}..{}), engine {}, effects {}; reference: "
+      "{}\n",
+      ok, seed, seed + runs - 1, engine, effects_text,
+      against_truth ? "simulator truth at 10 Hz" : "Pozyx (as `wheelchair evaluate`)");
   fmt::print("{:<14} {:>16} {:>18}\n", "variant", "ATE rmse (m)", "terminal (m)");
   for (const auto& v : names) {
     const auto a = summarise(ate[v]), t = summarise(term[v]);

@@ -11,6 +11,7 @@ PACKAGES=(
   libopencv-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libcli11-dev libfmt-dev nlohmann-json3-dev
+  libmujoco-dev
   xvfb xauth time
 )
 

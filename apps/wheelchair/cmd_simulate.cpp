@@ -1,6 +1,6 @@
 // wheelchair simulate --scenario NAME --seed N [--duration S] [--effect ID:key=value,...]...
 //                     [--format rawlog|csv] [--config F] [--supervisory on|off]
-//                     [--truth PATH] -o OUT
+//                     [--truth PATH] [--engine model|mujoco] -o OUT
 // Runs the truth simulator (libwheelchair/simulation) and writes the recording (a rawlog,
 // or a plain-text recording directory) plus the truth (OUT.truth.json unless --truth).
 #include "Command.h"
@@ -8,6 +8,7 @@
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/TextFormat.h"
+#include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Simulator.h"
 
 #include <fmt/core.h>
@@ -20,6 +21,7 @@ namespace {
 
 struct SimulateOptions {
   std::string scenario, output, truth, config_path, format = "rawlog", supervisory;
+  std::string engine = "model";
   uint64_t seed = 1;
   double duration_s = 0;
   std::vector<std::string> effects;
@@ -37,6 +39,13 @@ void printCatalogue() {
                  p.default_value.empty() ? (p.optional ? " (optional)" : " (required)")
                                          : " (default " + p.default_value + ")");
   }
+  fmt::print("effects of --engine mujoco only (docs/simulation.md):\n");
+  for (const auto& e : simulation::mujocoEffectCatalogue()) {
+    fmt::print("  {}\n", e.id);
+    for (const auto& p : e.params)
+      fmt::print("      {:<22} {:<9} {}{}\n", p.name, p.unit, p.description,
+                 p.optional ? " (optional)" : " (required)");
+  }
 }
 
 int runSimulate(const SimulateOptions& o) {
@@ -50,7 +59,7 @@ int runSimulate(const SimulateOptions& o) {
   }
   std::vector<simulation::EffectSpec> effects;
   try {
-    for (const auto& t : o.effects) effects.push_back(simulation::parseValidEffect(t));
+    for (const auto& t : o.effects) effects.push_back(simulation::parseEngineEffect(t, o.engine));
     bool known = false;
     for (const auto& s : simulation::scenarioNames()) known |= s == o.scenario;
     if (!known) (void)simulation::makeScenario(o.scenario, 0, {});  // throws with the list
@@ -65,6 +74,7 @@ int runSimulate(const SimulateOptions& o) {
   if (o.supervisory == "on") opt.supervisory.enabled = true;
   if (o.supervisory == "off") opt.supervisory.enabled = false;
   if (o.ground_truth) opt.record_ground_truth = true;
+  opt.engine = o.engine;
 
   const auto res = simulation::simulate(cfg, o.scenario, o.seed, o.duration_s, effects, opt);
   if (o.format == "rawlog")
@@ -75,8 +85,8 @@ int runSimulate(const SimulateOptions& o) {
   res.writeTruth(truth_path);
 
   const auto& r = res.recording;
-  fmt::print("simulated '{}' seed {}: {:.2f} s, supervisory control {}\n", o.scenario, o.seed,
-             res.duration_s, res.supervisory ? "on" : "off");
+  fmt::print("simulated '{}' seed {} (engine {}): {:.2f} s, supervisory control {}\n", o.scenario,
+             o.seed, res.engine, res.duration_s, res.supervisory ? "on" : "off");
   fmt::print("  samples: encoders {}, imu {}, motors {}, sonar {}, pozyx {}, joystick {}\n",
              r.encoders.size(), r.imu.size(), r.motors.size(), r.sonar.size(), r.pozyx.size(),
              r.joystick.size());
@@ -110,6 +120,10 @@ const RegisterCommand reg{Command{
       sub.add_option("--supervisory", o->supervisory,
                      "Assist-as-needed supervisory control (default: [simulation] supervisory)")
           ->check(CLI::IsMember({"on", "off"}));
+      sub.add_option("--engine", o->engine,
+                     "Truth engine: model (torque balance, default) or mujoco (multibody)")
+          ->check(CLI::IsMember({"model", "mujoco"}))
+          ->default_val("model");
       sub.add_flag("--ground-truth-stream", o->ground_truth,
                    "Also store the true pose as a GROUND_TRUTH stream in the recording");
       sub.add_option("--truth", o->truth, "Truth file (default OUT.truth.json; .csv = table)");

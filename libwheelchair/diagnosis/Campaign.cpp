@@ -10,6 +10,7 @@
 #include <cmath>
 #include <iostream>
 #include <limits>
+#include <map>
 #include <set>
 
 namespace wheelchair::diagnosis {
@@ -101,22 +102,26 @@ nlohmann::json CaseResult::toJson() const {
   j["val_rms_before"] = val_rms_before;
   j["val_rms_after"] = val_rms_after;
   j["runtime_s"] = runtime_s;
+  j["mismatch"] = mismatch;
+  j["named_correct"] = named_correct;
   return j;
 }
 
 CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scenario, uint64_t seed,
                    double duration_s, const std::vector<simulation::EffectSpec>& effects,
-                   const DiagnosisOptions& dopt) {
+                   const DiagnosisOptions& dopt, const std::string& engine) {
   CaseResult c;
   c.truth = effects;
   simulation::SimulationOptions so;
   so.loadFromConfig(cfg.ini());
   so.record_ground_truth = true;
+  so.engine = engine;
   auto sim =
       simulation::simulate(cfg, scenario, seed, scenario == "excite" ? duration_s : 0, effects, so);
   auto t0 = std::chrono::steady_clock::now();
   DiagnosisReport rep = diagnose({sim.recording}, {}, cfg, dopt);
   c.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  c.mismatch = rep.mismatch;
   std::multiset<std::string> rs, ts;
   for (auto& f : rep.findings)
     c.reported.push_back(f.effect + (f.effectText().empty() ? "" : " " + f.effectText())),
@@ -124,6 +129,8 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
   for (auto& e : effects) ts.insert(e.id);
   std::set<std::string> rset(rs.begin(), rs.end()), tset(ts.begin(), ts.end());
   c.correct = rset == tset;
+  rset.erase("unmodeled");
+  c.named_correct = rset == tset;
   for (auto& e : effects) {
     double err = 1.0;
     for (auto& f : rep.findings)
@@ -155,27 +162,28 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       std::cerr << label << (c.correct ? " OK  " : " FAIL") << " " << c.toJson().dump() << "\n";
   };
   nlohmann::json single = nlohmann::json::object();
-  int tot = 0, totc = 0;
+  int tot = 0, totc = 0, totn = 0;
   for (auto& id : opt.effects) {
-    int n = 0, ok = 0;
+    int n = 0, ok = 0, named = 0;
     std::vector<double> errs;
     for (int k = 0; k < opt.runs_per_effect; ++k) {
       auto e = randomEffect(id, rng);
       std::string sc = pickScenario();
       uint64_t seed = rng();
-      CaseResult c = runCase(cfg, sc, seed % 1000000, opt.duration_s, {e}, dopt);
+      CaseResult c = runCase(cfg, sc, seed % 1000000, opt.duration_s, {e}, dopt, opt.engine);
       log(sc, c);
-      ++n, ok += c.correct;
+      ++n, ok += c.correct, named += c.named_correct;
       errs.push_back(c.param_errors[0]);
       auto j = c.toJson();
       j["scenario"] = sc, j["seed"] = seed % 1000000, j["kind"] = "single";
       cases.push_back(j);
     }
-    tot += n, totc += ok;
+    tot += n, totc += ok, totn += named;
     int within = 0;
     for (double e : errs) within += e <= 0.25;
     single[id] = {{"runs", n},
                   {"correct", ok},
+                  {"named_correct", named},
                   {"rate", n ? double(ok) / n : 0},
                   {"median_param_error", median(errs)},
                   {"p90_param_error", quantile(errs, 0.9)},
@@ -183,8 +191,9 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
   }
   out["single"] = single;
   out["single_rate"] = tot ? double(totc) / tot : 0;
+  out["single_named_rate"] = tot ? double(totn) / tot : 0;
   {
-    int n = 0, ok = 0;
+    int n = 0, ok = 0, named = 0;
     std::vector<double> errs;
     for (int k = 0; k < opt.pair_runs && opt.effects.size() >= 2; ++k) {
       size_t a = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng), b = a;
@@ -192,9 +201,9 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       auto ea = randomEffect(opt.effects[a], rng), eb = randomEffect(opt.effects[b], rng);
       std::string sc = pickScenario();
       uint64_t seed = rng() % 1000000;
-      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {ea, eb}, dopt);
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {ea, eb}, dopt, opt.engine);
       log(sc, c);
-      ++n, ok += c.correct;
+      ++n, ok += c.correct, named += c.named_correct;
       for (double e : c.param_errors) errs.push_back(e);
       auto j = c.toJson();
       j["scenario"] = sc, j["seed"] = seed, j["kind"] = "pair";
@@ -204,25 +213,79 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
     for (double e : errs) within += e <= 0.25;
     out["pairs"] = {{"runs", n},
                     {"correct", ok},
+                    {"named_correct", named},
                     {"rate", n ? double(ok) / n : 0},
                     {"median_param_error", median(errs)},
                     {"within_25pct", within},
                     {"params", errs.size()}};
   }
   {
-    int n = 0, alarms = 0;
+    int n = 0, alarms = 0, named_alarms = 0;
     for (int k = 0; k < opt.clean_runs; ++k) {
       std::string sc = pickScenario();
       uint64_t seed = rng() % 1000000;
-      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {}, dopt);
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {}, dopt, opt.engine);
       log(sc, c);
-      ++n, alarms += !c.correct;
+      ++n, alarms += !c.correct, named_alarms += !c.named_correct;
       auto j = c.toJson();
       j["scenario"] = sc, j["seed"] = seed, j["kind"] = "clean";
       cases.push_back(j);
     }
-    out["clean"] = {{"runs", n}, {"false_alarms", alarms}, {"rate", n ? double(alarms) / n : 0}};
+    out["clean"] = {{"runs", n},
+                    {"false_alarms", alarms},
+                    {"rate", n ? double(alarms) / n : 0},
+                    {"named_false_alarms", named_alarms}};
   }
+  if (opt.triple_runs > 0 && opt.effects.size() >= 3) {
+    int n = 0, ok = 0, named = 0;
+    std::vector<double> errs;
+    for (int k = 0; k < opt.triple_runs; ++k) {
+      std::vector<std::size_t> idx;
+      while (idx.size() < 3) {
+        const std::size_t a = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng);
+        if (std::find(idx.begin(), idx.end(), a) == idx.end()) idx.push_back(a);
+      }
+      std::vector<simulation::EffectSpec> es;
+      for (std::size_t a : idx) es.push_back(randomEffect(opt.effects[a], rng));
+      std::string sc = pickScenario();
+      uint64_t seed = rng() % 1000000;
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
+      log(sc, c);
+      ++n, ok += c.correct, named += c.named_correct;
+      for (double e : c.param_errors) errs.push_back(e);
+      auto j = c.toJson();
+      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "triple";
+      cases.push_back(j);
+    }
+    int within = 0;
+    for (double e : errs) within += e <= 0.25;
+    out["triples"] = {{"runs", n},
+                      {"correct", ok},
+                      {"named_correct", named},
+                      {"rate", n ? double(ok) / n : 0},
+                      {"median_param_error", median(errs)},
+                      {"within_25pct", within},
+                      {"params", errs.size()}};
+  }
+  if (opt.unknown_runs > 0 && opt.unknown_effects) {
+    int n = 0, flagged = 0;
+    std::map<std::string, int> named;
+    for (int k = 0; k < opt.unknown_runs; ++k) {
+      const auto es = opt.unknown_effects(rng);
+      std::string sc = pickScenario();
+      uint64_t seed = rng() % 1000000;
+      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
+      log(sc, c);
+      ++n, flagged += c.mismatch || !c.reported.empty();
+      for (const auto& r : c.reported) ++named[r.substr(0, r.find(' '))];
+      auto j = c.toJson();
+      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "unknown";
+      cases.push_back(j);
+    }
+    out["unknown"] = {
+        {"runs", n}, {"flagged", flagged}, {"rate", n ? double(flagged) / n : 0}, {"named", named}};
+  }
+  out["engine"] = opt.engine;
   out["cases"] = cases;
   return out;
 }

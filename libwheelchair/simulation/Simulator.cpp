@@ -7,6 +7,7 @@
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/sensors/Encoders.h"
 #include "libwheelchair/sensors/VoltageCircuit.h"
+#include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Random.h"
 #include "libwheelchair/util/AtomicFile.h"
 
@@ -22,6 +23,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 
@@ -234,7 +236,7 @@ void SimulationOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
 SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string& scenario_name,
                           uint64_t seed, double duration_s, const std::vector<EffectSpec>& effects,
                           const SimulationOptions& opt) {
-  for (const auto& e : effects) validateEffect(e);
+  for (const auto& e : effects) validateEngineEffect(e, opt.engine);
   if (!(opt.step_s > 0 && opt.step_s <= 0.01))
     throw std::invalid_argument("simulation step_s must be in (0, 0.01] s");
 
@@ -319,6 +321,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
 
   SimulationResult res;
   res.scenario = scenario_name;
+  res.engine = opt.engine;
   res.seed = seed;
   res.duration_s = T;
   res.effects = effects;
@@ -333,6 +336,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     for (const auto& e : effects) eff += (eff.empty() ? "" : " ") + formatEffect(e);
     rec.meta["source"] = "wheelchair simulate (libwheelchair truth simulator)";
     rec.meta["scenario"] = scenario_name;
+    rec.meta["engine"] = opt.engine;
     rec.meta["seed"] = std::to_string(seed);
     rec.meta["effects"] = eff.empty() ? "none" : eff;
     rec.meta["supervisory"] = opt.supervisory.enabled ? "on" : "off";
@@ -344,6 +348,15 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   // --- state ------------------------------------------------------------------------------
   Mech s;
   PowerModule pm(pmp, lw, h);
+  // The MuJoCo engine replaces the mechanics (and the sonar geometry) only.
+  std::unique_ptr<MujocoChair> mj;
+  if (opt.engine == "mujoco") {
+    MujocoOptions mo;
+    mo.loadFromConfig(cfg.ini(), "mujoco");
+    mj = std::make_unique<MujocoChair>(cfg, mo, effects, sc.obstacles);
+  }
+  const std::vector<Obstacle> no_obstacles;  // the MuJoCo sonar casts rays instead
+  const std::vector<Obstacle>& cone_obstacles = mj ? no_obstacles : sc.obstacles;
   double wire[2][2] = {{0, 0}, {0, 0}};  // V_RC of wire 1 (U > 0) and wire 2 (U < 0), per motor
   for (auto& m : wire)
     for (double& w : m) w = sensors::steadyStateVrc(0.0, vc);
@@ -372,7 +385,10 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     }
     const JoystickDemand cmd{joy.v_m_s * sup_scale, joy.omega_rad_s * sup_scale};
     // Power module: currents within the current limit and what the battery can drive.
-    const Eigen::Vector2d rim(s.v + lw * s.om / 2, s.v - lw * s.om / 2);
+    // Rim speeds r psidot as the power module measures them (no slip in the model engine).
+    const Eigen::Vector2d rim =
+        mj ? Eigen::Vector2d(r * mj->state().psidot_right_rad_s, r * mj->state().psidot_left_rad_s)
+           : Eigen::Vector2d(s.v + lw * s.om / 2, s.v - lw * s.om / 2);
     Eigen::Vector2d i_lo, i_hi;
     for (int m = 0; m < 2; ++m) {
       const double emf = km[m] * rG * rim(m) / r;
@@ -402,13 +418,21 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     // Mechanics over [t, t + h] with the currents held.
     const Mech s_prev = s;
     const double vrc_prev[2] = {vrcOf(0), vrcOf(1)};
-    s = rk4(s, dt, I, h);
+    if (mj) {
+      mj->step(I, h);
+      const ChairState c = mj->state();
+      s = {c.x_m, c.y_m, c.phi_rad, c.v_m_s, c.omega_rad_s, c.psi_right_rad, c.psi_left_rad};
+    } else {
+      s = rk4(s, dt, I, h);
+    }
     // Voltage circuit (11) on each wire. Its time constant (R_par C = 0.17 ms) is shorter
     // than the step, so it is integrated exponentially (exact for the linear part) around
     // the steady state of the end-of-step lead voltage, with the local rate constant of
     // (11) there (the Zener conductance included).
     for (int m = 0; m < 2; ++m) {
-      const double u_end = m == 0 ? s.v + lw * s.om / 2 : s.v - lw * s.om / 2;
+      const double u_end =
+          mj ? r * (m == 0 ? mj->state().psidot_right_rad_s : mj->state().psidot_left_rad_s)
+             : (m == 0 ? s.v + lw * s.om / 2 : s.v - lw * s.om / 2);
       const double Uend = Rm * I(m) + km[m] * rG * u_end / r;
       const double Vw[2] = {std::max(Uend, 0.0), std::max(-Uend, 0.0)};
       for (int w = 0; w < 2; ++w) {
@@ -486,7 +510,8 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
             const double sy = q.y + sn * son.x_m + c * son.y_m;
             const double syaw = q.phi + son.yaw_deg * kDeg;
             double best = std::numeric_limits<double>::infinity();
-            for (const auto& o : sc.obstacles) {
+            if (mj) best = mj->sonarRange(sx, sy, syaw, son.cone_half_angle_deg * kDeg);
+            for (const auto& o : cone_obstacles) {
               const double dx = o.x_m - sx, dy = o.y_m - sy;
               const double d = std::hypot(dx, dy);
               if (d <= o.radius_m) {
@@ -632,6 +657,7 @@ void SimulationResult::writeTruth(const std::string& path) const {
   json j;
   j["format"] = "libwheelchair-truth-1";
   j["scenario"] = scenario;
+  j["engine"] = engine;
   j["seed"] = seed;
   j["duration_s"] = duration_s;
   j["supervisory"] = supervisory;
@@ -690,6 +716,7 @@ SimulationResult readTruth(const std::string& path) {
   SimulationResult r;
   try {
     r.scenario = j.at("scenario").get<std::string>();
+    r.engine = j.value("engine", "model");
     r.seed = j.at("seed").get<uint64_t>();
     r.duration_s = j.at("duration_s").get<double>();
     r.supervisory = j.value("supervisory", false);

@@ -55,6 +55,9 @@ struct SimulationOptions {
   SupervisoryParams supervisory;
   ScenarioSettings scenario;
   bool record_ground_truth = false;  ///< also put the true pose into recording.ground_truth
+  /// Truth engine: "model" (per-wheel torque balance, RK4) or "mujoco" (the chair as a MuJoCo
+  /// multibody, MujocoEngine.h; its [mujoco] section is read from the configuration).
+  std::string engine = "model";
 
   /// Reads the keys present in `section` (missing keys keep their defaults). Throws
   /// std::runtime_error naming the key on a malformed value.
@@ -94,6 +97,7 @@ struct SimulationResult {
   std::vector<EffectSpec> effects;
   int collisions = 0;
   std::string scenario;
+  std::string engine = "model";  ///< truth engine that produced the run
   uint64_t seed = 0;
   double duration_s = 0;
   bool supervisory = false;
@@ -106,7 +110,7 @@ struct SimulationResult {
 };
 
 /// Runs a scenario. duration_s <= 0: the scenario's default. Throws std::invalid_argument
-/// for an unknown scenario or an invalid effect.
+/// for an unknown scenario or engine or an invalid effect (validateEngineEffect).
 SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string& scenario,
                           uint64_t seed, double duration_s, const std::vector<EffectSpec>& effects,
                           const SimulationOptions& options);

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 
 using namespace wheelchair;
 namespace wt = wheelchair::test;
@@ -50,4 +51,46 @@ TEST(CliSimulate, UsageErrors) {
   const auto l = wt::cli("simulate --list");
   EXPECT_EQ(l.exit_code, 0);
   EXPECT_NE(l.out.find("motor_asymmetry"), std::string::npos);
+}
+
+TEST(CliSimulate, MujocoEngine) {
+  wt::TempDir tmp;
+  const std::string out = tmp / "mj.rawlog";
+  const auto r =
+      wt::cli("simulate --engine mujoco --scenario three_task --seed 2 --duration 8 -o " + out +
+              " --effect tyre_scrub:torsion_m=0.01 gyro_bias:bias_rad_s=0.01");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("engine mujoco"), std::string::npos) << r.out;
+  const auto rec = io::readRawlog(out);
+  EXPECT_NEAR(rec.encoders.size(), 400, 2);
+  EXPECT_GT(rec.encoders.back().right_ticks, 1000);  // it drove
+  const auto truth = simulation::readTruth(out + ".truth.json");
+  EXPECT_EQ(truth.engine, "mujoco");
+  EXPECT_EQ(truth.effects.size(), 2u);
+  EXPECT_NE(truth.config_text.find("[vehicle]"), std::string::npos);
+  // Engine-only effects are refused by the model engine; unknown engines are usage errors;
+  // a bad [mujoco] value is bad input naming the key.
+  const auto m =
+      wt::cli("simulate --scenario excite --effect tyre_scrub:torsion_m=0.01 -o " + (tmp / "x"));
+  EXPECT_EQ(m.exit_code, 2);
+  EXPECT_NE(m.out.find("only with --engine mujoco"), std::string::npos) << m.out;
+  EXPECT_EQ(wt::cli("simulate --engine bullet --scenario excite -o " + (tmp / "x")).exit_code, 2);
+  const std::string ini = tmp / "bad.ini";
+  {
+    std::ofstream f(ini);
+    f << "[mujoco]\ntimestep_s = fast\n";
+  }
+  const auto b = wt::cli("simulate --engine mujoco --config " + ini +
+                         " --scenario excite --duration 1 -o " + (tmp / "y"));
+  EXPECT_EQ(b.exit_code, 1) << b.out;
+  EXPECT_NE(b.out.find("timestep_s"), std::string::npos) << b.out;
+  EXPECT_FALSE(std::filesystem::exists(tmp / "y"));
+  {
+    std::ofstream f(ini);
+    f << "[mujoco]\ntimestep = 0.001\n";
+  }
+  const auto u = wt::cli("simulate --engine mujoco --config " + ini +
+                         " --scenario excite --duration 1 -o " + (tmp / "y"));
+  EXPECT_EQ(u.exit_code, 1) << u.out;
+  EXPECT_NE(u.out.find("[mujoco] timestep: unknown key"), std::string::npos) << u.out;
 }
