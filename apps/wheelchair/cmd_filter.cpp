@@ -21,6 +21,7 @@
 #include "libwheelchair/estimation/EkfOptions.h"
 #include "libwheelchair/estimation/Estimator.h"
 #include "libwheelchair/estimation/ModelExtensions.h"
+#include "libwheelchair/estimation/SensorVerdict.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Trajectory.h"
 #include "libwheelchair/io/MrclamImport.h"
@@ -403,6 +404,8 @@ int runFilter(const FilterCliOptions& o) {
   fmt::print(
       "(mean NIS over the accepted updates; 95% band of that mean for a consistent filter; "
       "'in band': share of single NIS values inside chi2(dof)'s two-sided 95% interval)\n");
+  for (const auto& v : estimation::sensorVerdicts(res, opt.gate_probability))
+    fmt::print("verdict: {}\n", v);
   if (res.cvode.intervals > 0) {
     const auto& c = res.cvode;
     fmt::print(
