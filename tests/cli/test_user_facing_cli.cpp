@@ -68,3 +68,77 @@ TEST_F(UserFacingCli, FilterPrintsOneVerdictPerSensor) {
 
 }  // namespace
 }  // namespace wheelchair::test
+
+namespace wheelchair::test {
+namespace {
+
+// evaluate prints the metrics table (with units) on the console, not just a count.
+TEST_F(UserFacingCli, EvaluatePrintsTheMetricsTable) {
+  const auto r = cli("evaluate " + rawlog("three_task_faulty") + " -q --no-baseline");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("ATE RMSE (m)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("heading (deg)"), std::string::npos) << r.out;
+  for (const char* v : {" ekf ", " encoders ", " encoders_gyro "}) {
+    const auto rows = linesStartingWith(r.out, rawlog("three_task_faulty"));
+    bool found = false;
+    for (const auto& row : rows) found |= row.find(v) != std::string::npos;
+    EXPECT_TRUE(found) << v << "\n" << r.out;
+  }
+  // `--csv -`: the CSV on stdout instead.
+  const auto c = cli("evaluate " + rawlog("three_task_faulty") + " -q --no-baseline --csv -");
+  ASSERT_EQ(c.exit_code, 0) << c.out;
+  EXPECT_EQ(c.out.rfind("recording,variant,ground_truth,", 0), 0u) << c.out;
+}
+
+// A recording whose imu.csv has only its header: import warns naming the file; evaluate lists
+// encoders_gyro as n/a (console, CSV, JSON, Markdown) instead of an ATE computed without a
+// gyro, and that is not a failure.
+TEST_F(UserFacingCli, EvaluateListsVariantsWithoutTheirSensorAsNotApplicable) {
+  const std::string dir = tmp("nogyro");
+  std::filesystem::create_directories(dir);
+  for (const auto& e :
+       std::filesystem::directory_iterator(sourcePath("datasets/three_task_faulty")))
+    std::filesystem::copy_file(e.path(), dir + "/" + e.path().filename().string(),
+                               std::filesystem::copy_options::overwrite_existing);
+  const std::string imu = readFile(dir + "/imu.csv");
+  writeFile(dir + "/imu.csv", imu.substr(0, imu.find('\n') + 1));
+  const auto imp = cli("import " + dir + " -o " + tmp("nogyro.rawlog"));
+  ASSERT_EQ(imp.exit_code, 0) << imp.out;
+  EXPECT_NE(imp.out.find("warning: " + dir + "/imu.csv: header only"), std::string::npos)
+      << imp.out;
+
+  const auto r = cli("evaluate " + tmp("nogyro.rawlog") + " --no-baseline --csv " + tmp("ng.csv") +
+                     " --json " + tmp("ng.json") + " --markdown " + tmp("ng.md"));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  bool console = false;
+  for (const auto& row : linesStartingWith(r.out, tmp("nogyro.rawlog")))
+    if (row.find("encoders_gyro") != std::string::npos) {
+      console = true;
+      EXPECT_NE(row.find("n/a: no gyro"), std::string::npos) << row;
+    }
+  EXPECT_TRUE(console) << r.out;
+  EXPECT_NE(r.out.find("0 failed, 1 variant(s) not applicable"), std::string::npos) << r.out;
+
+  const std::string csv = readFile(tmp("ng.csv"));
+  EXPECT_NE(csv.find(",encoders_gyro,pozyx,n/a,n/a,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find(",no gyro (imu) readings\n"), std::string::npos) << csv;
+  const auto j = nlohmann::json::parse(readFile(tmp("ng.json")));
+  int na = 0;
+  for (const auto& row : j["rows"]) {
+    if (row["variant"] == "encoders_gyro") {
+      ++na;
+      EXPECT_EQ(row["not_applicable"], "no gyro (imu) readings");
+      EXPECT_TRUE(row["ate_rmse_m"].is_null());
+      EXPECT_EQ(row["error"], "");
+    } else {
+      EXPECT_EQ(row["not_applicable"], "");
+      EXPECT_TRUE(row["ate_rmse_m"].is_number());
+    }
+  }
+  EXPECT_EQ(na, 1);
+  EXPECT_NE(readFile(tmp("ng.md")).find("| encoders_gyro | pozyx | n/a | n/a |"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace wheelchair::test
