@@ -87,7 +87,10 @@ int runDiagnose(const DiagnoseOptions& o) {
   j["config"] = o.config_path.empty() ? "<nominal>" : o.config_path;
   writeAtomic(o.json_path, j.dump(2) + "\n");
   std::string text;
-  text += fmt::format("mismatch: {}\n", rep.mismatch ? "yes" : "no");
+  const bool insufficient = rep.info.contains("insufficient_data");
+  text += fmt::format("mismatch: {}\n", rep.mismatch   ? "yes"
+                                        : insufficient ? "none found (see 'insufficient data')"
+                                                       : "no");
   for (const auto& f : rep.findings) {
     text +=
         fmt::format("- {}{}: {}\n", f.effect, f.is_fault ? " (sensor fault)" : "", f.description);
@@ -101,6 +104,9 @@ int runDiagnose(const DiagnoseOptions& o) {
     else if (!f.effectText().empty() && !f.is_fault)
       text += fmt::format("    as effect: {}\n", f.effectText());
   }
+  if (insufficient)
+    for (const auto& why : rep.info["insufficient_data"])
+      text += fmt::format("insufficient data: {}\n", why.get<std::string>());
   if (rep.fit_before.contains("drift_10s_m")) {
     auto d = [](const nlohmann::json& j, const char* k) {
       return j.contains(k) && j[k].is_number() ? j[k].get<double>() : std::nan("");

@@ -142,3 +142,70 @@ TEST_F(UserFacingCli, EvaluateListsVariantsWithoutTheirSensorAsNotApplicable) {
 
 }  // namespace
 }  // namespace wheelchair::test
+
+namespace wheelchair::test {
+namespace {
+
+// A cut [t0, t1] s of a bundled recording directory, imported.
+std::string importCut(const std::string& dataset, double t0, double t1, const std::string& out) {
+  const std::string dir = out + ".d";
+  std::filesystem::create_directories(dir);
+  for (const auto& e : std::filesystem::directory_iterator(sourcePath("datasets/" + dataset))) {
+    const std::string name = e.path().filename().string();
+    std::istringstream in(readFile(e.path().string()));
+    std::string text, line;
+    bool header = true;
+    while (std::getline(in, line)) {
+      if (header || name == "meta.ini") {
+        text += line + "\n";
+        header = name == "meta.ini";
+        continue;
+      }
+      const double t = std::stod(line.substr(0, line.find(',')));
+      if (t >= t0 && t <= t1) text += line + "\n";
+    }
+    writeFile(dir + "/" + name, text);
+  }
+  const auto r = cli("import " + dir + " -o " + out);
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  return out;
+}
+
+// diagnose on 2 s of the faulty drive (the left encoder is 5 % short) must not name an
+// encoder: the first 2 s (standing) cannot show an encoder fault at all, 2 s of steady driving
+// cannot tell a short left from a long right encoder; both say "insufficient data" and what to
+// drive. The full drive still names the left encoder.
+TEST_F(UserFacingCli, DiagnoseSaysInsufficientDataOnShortDrives) {
+  const auto first = cli("diagnose " + importCut("three_task_faulty", 0, 2, tmp("first2.rawlog")) +
+                         " --json " + tmp("first2.json"));
+  ASSERT_EQ(first.exit_code, 0) << first.out;
+  EXPECT_EQ(first.out.find("- encoder_scale"), std::string::npos) << first.out;
+  EXPECT_NE(first.out.find("insufficient data: whether an encoder is off"), std::string::npos)
+      << first.out;
+  EXPECT_NE(first.out.find("drive about"), std::string::npos) << first.out;
+  EXPECT_EQ(first.out.find("mismatch: no\n"), std::string::npos) << first.out;
+
+  for (const double t0 : {4.0, 10.0}) {
+    const auto r = cli("diagnose " +
+                       importCut("three_task_faulty", t0, t0 + 2,
+                                 tmp("cut" + std::to_string(int(t0)) + ".rawlog")) +
+                       " --json " + tmp("cut.json"));
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+    EXPECT_EQ(r.out.find("- encoder_scale"), std::string::npos) << t0 << ":\n" << r.out;
+    EXPECT_NE(r.out.find("insufficient data: which encoder is off"), std::string::npos)
+        << t0 << ":\n"
+        << r.out;
+    EXPECT_NE(r.out.find("turn in both directions"), std::string::npos) << r.out;
+    const auto j = nlohmann::json::parse(readFile(tmp("cut.json")));
+    EXPECT_EQ(j["info"]["insufficient_data"].size(), 1u) << j["info"].dump();
+  }
+
+  const auto full = cli("diagnose " + rawlog("three_task_faulty") + " --json " + tmp("full.json"));
+  ASSERT_EQ(full.exit_code, 0) << full.out;
+  EXPECT_NE(full.out.find("- encoder_scale: the left encoder reports 0.95"), std::string::npos)
+      << full.out;
+  EXPECT_EQ(full.out.find("insufficient data"), std::string::npos) << full.out;
+}
+
+}  // namespace
+}  // namespace wheelchair::test
