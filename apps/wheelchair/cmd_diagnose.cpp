@@ -120,16 +120,32 @@ int runDiagnose(const DiagnoseOptions& o) {
         d(rep.fit_before, "drift_60s_m"), d(rep.fit_after, "drift_60s_m"),
         d(rep.fit_before, "heading_drift_60s_deg"), d(rep.fit_after, "heading_drift_60s_deg"));
   }
+  // Residual RMS on the validation data, in the units (and of the model) of the report figures.
+  auto rms = [&](const char* ch, const char* which) {
+    const auto& c = rep.channels[ch];
+    return c.contains(which) && c[which].contains("rms") ? c[which]["rms"].get<double>()
+                                                         : std::nan("");
+  };
   for (const char* ch : {"v", "omega"})
     if (rep.channels.contains(ch) && rep.channels[ch]["before"].contains("rms"))
-      text += fmt::format("  {} window residual rms (validation): before {:.4g}, after {:.4g}\n",
-                          ch, rep.channels[ch]["before"]["rms"].get<double>(),
-                          rep.channels[ch]["after"]["rms"].get<double>());
-  for (const char* ch : {"gyro_vs_encoders", "current_right", "current_left"})
+      text += fmt::format("  {} window residual RMS (validation): before {:.4g}, after {:.4g} {}\n",
+                          ch, rms(ch, "before"), rms(ch, "after"),
+                          rep.channels[ch].value("unit", std::string("(no unit recorded)")));
+  if (rep.channels.contains("gyro_vs_encoders") &&
+      rep.channels["gyro_vs_encoders"]["before"].contains("rms")) {
+    // The channel is in rad per window of window_s: / window_s = rad/s, as in the figure.
+    const double w = rep.channels["gyro_vs_encoders"].value("window_s", opt.window_s);
+    text += fmt::format(
+        "  gyro minus encoder turn rate ({:.2f} s window means), validation RMS: before {:.4g} "
+        "rad/s, after {:.4g} rad/s\n",
+        w, rms("gyro_vs_encoders", "before") / w, rms("gyro_vs_encoders", "after") / w);
+  }
+  for (const char* ch : {"current_right", "current_left"})
     if (rep.channels.contains(ch) && rep.channels[ch]["before"].contains("rms"))
-      text += fmt::format("  {} validation rms: before {:.4g}, after {:.4g}\n", ch,
-                          rep.channels[ch]["before"]["rms"].get<double>(),
-                          rep.channels[ch]["after"]["rms"].get<double>());
+      text += fmt::format(
+          "  {} model error, validation RMS: nominal model {:.4g} A, corrected {:.4g} A (sensor "
+          "corrections alone {:.4g} A)\n",
+          ch, rms(ch, "before_nominal"), rms(ch, "after"), rms(ch, "before"));
   if (rep.validation.contains("trajectory_full_recordings")) {
     auto& t = rep.validation["trajectory_full_recordings"];
     for (size_t k = 0; k < t["before"].size(); ++k)

@@ -739,6 +739,9 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
             o.push_back(left ? std::make_pair(a - nR, b - nR) : std::make_pair(a, b));
         return o;
       };
+      // The fully nominal model (no sensor corrections either), as the report's figures show it.
+      const DynRows dn = dynamicRows(valS, Corrections{}, cfg, opt);
+      const int nRn = static_cast<int>(dn.y.size() / 2);
       for (int sd2 = 0; sd2 < 2; ++sd2) {
         std::string ch = sd2 == 0 ? "current_right" : "current_left";
         int nRf = static_cast<int>(df.y.size() / 2);
@@ -753,6 +756,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
                                       lags2, dv.noise_var)},
             {"after", channelMetrics(rv_after.segment(sd2 * nRv2, nRv2),
                                      half(dv2.groups, nRv2, sd2 == 1), lags2, dv.noise_var)},
+            {"before_nominal", channelMetrics(dn.y.segment(sd2 * nRn, nRn),
+                                              half(dn.groups, nRn, sd2 == 1), lags2, dn.noise_var)},
             {"regimes_before",
              regimeStats(df.y.segment(sd2 * nRf, nRf), v, w, vd, ph, lags2, opt.alpha)},
             {"rejected_candidates", sel.log}};

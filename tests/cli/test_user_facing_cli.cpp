@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -205,6 +206,63 @@ TEST_F(UserFacingCli, DiagnoseSaysInsufficientDataOnShortDrives) {
   EXPECT_NE(full.out.find("- encoder_scale: the left encoder reports 0.95"), std::string::npos)
       << full.out;
   EXPECT_EQ(full.out.find("insufficient data"), std::string::npos) << full.out;
+}
+
+}  // namespace
+}  // namespace wheelchair::test
+
+namespace wheelchair::test {
+namespace {
+
+double numberAfter(const std::string& text, const std::string& key) {
+  const auto p = text.find(key);
+  if (p == std::string::npos) return std::nan("");
+  return std::stod(text.substr(p + key.size()));
+}
+
+// Every validation RMS diagnose prints has its unit and is the quantity the report's figures
+// show (index.md "Residuals and trajectories in the figures": nominal model before, corrected
+// after, gyro channel in rad/s). Agreement within 5 %: the figures apply the corrected
+// configuration through the model extensions, the printed "after" is the regression's.
+TEST_F(UserFacingCli, DiagnosePrintedRmsHasUnitsAndMatchesTheFigures) {
+  const auto imp =
+      cli("import " + sourcePath("datasets/three_task_faulty_b") + " -o " + tmp("faulty_b.rawlog"));
+  ASSERT_EQ(imp.exit_code, 0) << imp.out;
+  const auto r =
+      cli("diagnose " + rawlog("three_task_faulty") + " --validate " + tmp("faulty_b.rawlog") +
+          " --json " + tmp("d.json") + " --report " + tmp("rep"));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto lines = linesStartingWith(r.out, "  ");
+  int rms_lines = 0;
+  for (const auto& l : lines) {
+    if (l.find("RMS") == std::string::npos && l.find("rms") == std::string::npos) continue;
+    ++rms_lines;
+    EXPECT_TRUE(l.find(" A") != std::string::npos || l.find(" rad/s") != std::string::npos ||
+                l.find(" m/s") != std::string::npos)
+        << "no unit: " << l;
+  }
+  EXPECT_EQ(rms_lines, 3) << r.out;
+  const std::string md = readFile(tmp("rep/index.md"));
+  const auto figure = [&](const std::string& row) {
+    const auto p = md.find("| " + row + " |");
+    EXPECT_NE(p, std::string::npos) << row << "\n" << md;
+    std::vector<double> v;
+    std::istringstream in(md.substr(p + row.size() + 4, md.find('\n', p) - p - row.size() - 4));
+    for (std::string cell; std::getline(in, cell, '|');) v.push_back(std::stod(cell));
+    return v;  // mean before, mean after, RMS before, RMS after
+  };
+  const auto near = [](double printed, double fig, const std::string& what) {
+    EXPECT_NEAR(printed, fig, 0.05 * std::abs(fig) + 1e-4) << what;
+  };
+  const auto gyro = figure("gyro_vs_encoders (rad/s)");
+  near(numberAfter(r.out, "validation RMS: before "), gyro[2], "gyro before");
+  near(numberAfter(r.out, "rad/s, after "), gyro[3], "gyro after");
+  for (const std::string ch : {"current_right", "current_left"}) {
+    const auto fig = figure(ch + " (A)");
+    const std::string line = linesStartingWith(r.out, "  " + ch)[0];
+    near(numberAfter(line, "nominal model "), fig[2], ch + " before");
+    near(numberAfter(line, "A, corrected "), fig[3], ch + " after");
+  }
 }
 
 }  // namespace
