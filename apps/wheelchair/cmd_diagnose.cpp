@@ -7,6 +7,7 @@
 // go to the command-response analyser (diagnosis/CommandResponse.h): actuator_lag etc., with
 // the held-out open-loop drift in fit_before / fit_after and [mrclam_response] written.
 #include "Command.h"
+#include "Progress.h"
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/CommandResponse.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
@@ -21,12 +22,15 @@
 #include <iostream>
 #include <tuple>
 
+#include <unistd.h>
+
 namespace wheelchair::cli {
 namespace {
 
 struct DiagnoseOptions {
   std::vector<std::string> inputs, validate;
   std::string config_path, json_path, write_config, report_dir;
+  bool no_progress = false;
 };
 
 void writeAtomic(const std::string& path, const std::string& text) {
@@ -45,9 +49,18 @@ int runDiagnose(const DiagnoseOptions& o) {
                                          : config::WheelchairConfig::load(o.config_path);
   diagnosis::DiagnosisOptions opt;
   opt.loadFromConfig(cfg.ini());
+  Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   std::vector<io::Recording> fit, val;
-  for (const auto& p : o.inputs) fit.push_back(io::readRawlog(p));
-  for (const auto& p : o.validate) val.push_back(io::readRawlog(p));
+  const double n_files = double(o.inputs.size() + o.validate.size());
+  for (const auto& p : o.inputs) {
+    progress.update(double(fit.size()) / n_files, "reading");
+    fit.push_back(io::readRawlog(p));
+  }
+  for (const auto& p : o.validate) {
+    progress.update(double(fit.size() + val.size()) / n_files, "reading");
+    val.push_back(io::readRawlog(p));
+  }
+  progress.tick("diagnosing");
   // Command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor currents: e.g. MRCLAM
   // imports): the command-response analyser; encoders, if any, still go through the
   // wheelchair stages.
@@ -86,6 +99,7 @@ int runDiagnose(const DiagnoseOptions& o) {
   j["validate"] = o.validate;
   j["config"] = o.config_path.empty() ? "<nominal>" : o.config_path;
   writeAtomic(o.json_path, j.dump(2) + "\n");
+  progress.stop();
   std::string text;
   const bool insufficient = rep.info.contains("insufficient_data");
   text += fmt::format("mismatch: {}\n", rep.mismatch   ? "yes"
@@ -171,8 +185,10 @@ int runDiagnose(const DiagnoseOptions& o) {
     fo.max_gap_s = opt.max_gap_s;
     fo.edge_trim_s = opt.edge_trim_s;
     fo.fit_fraction = opt.fit_fraction;
+    progress.tick("figures");
     const auto fr = visualization::writeDiagnosisFigures(
         j, cfg, diagnosis::correctedConfig(cfg, rep), o.inputs, o.validate, fo);
+    progress.stop();
     for (const auto& n : fr.notes) std::cout << "report: " << n << "\n";
     std::cout << fmt::format("wrote {} ({} figures)\n", fr.index_path, fr.figures.size());
   }
@@ -198,6 +214,8 @@ const RegisterCommand reg{Command{
       sub.add_option("--report", o->report_dir,
                      "Write figures (residuals and trajectories before/after), index.md, the "
                      "summary and the full JSON into this directory");
+      sub.add_flag("--no-progress", o->no_progress,
+                   "No progress display on stderr (it is shown only when stderr is a terminal)");
       return [o] { return runDiagnose(*o); };
     }}};
 

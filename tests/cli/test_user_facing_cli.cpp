@@ -267,3 +267,28 @@ TEST_F(UserFacingCli, DiagnosePrintedRmsHasUnitsAndMatchesTheFigures) {
 
 }  // namespace
 }  // namespace wheelchair::test
+
+namespace wheelchair::test {
+namespace {
+
+// diagnose shows progress like filter when stderr is a terminal (a pseudo-terminal from
+// script(1) here): the reading bar and the stage with elapsed seconds; --no-progress and a
+// non-terminal stderr show none.
+TEST_F(UserFacingCli, DiagnoseShowsProgressOnATerminal) {
+  if (run("command -v script").exit_code != 0) GTEST_SKIP() << "script(1) not installed";
+  const std::string cmd = std::string(WHEELCHAIR_CLI) + " diagnose " + rawlog("three_task_faulty") +
+                          " --json " + tmp("p.json");
+  const auto tty = run("script -qec '" + cmd + "' /dev/null");
+  ASSERT_EQ(tty.exit_code, 0) << tty.out;
+  EXPECT_NE(tty.out.find("reading      ["), std::string::npos) << tty.out;
+  EXPECT_NE(tty.out.find("diagnosing   ..."), std::string::npos) << tty.out;
+  EXPECT_NE(tty.out.find("mismatch: yes"), std::string::npos) << tty.out;
+  const auto quiet = run("script -qec '" + cmd + " --no-progress' /dev/null");
+  ASSERT_EQ(quiet.exit_code, 0) << quiet.out;
+  EXPECT_EQ(quiet.out.find("diagnosing"), std::string::npos) << quiet.out;
+  const auto pipe = cli("diagnose " + rawlog("three_task_faulty") + " --json " + tmp("p.json"));
+  EXPECT_EQ(pipe.out.find("diagnosing"), std::string::npos) << pipe.out;
+}
+
+}  // namespace
+}  // namespace wheelchair::test
