@@ -84,7 +84,9 @@ const RegisterCommand reg{Command{
                      "Configuration INI (default: nominal vehicle; MRCLAM: config/mrclam.ini)");
       sub.add_option("-j,--jobs", o->jobs, "Parallel jobs (default: all cores)")
           ->check(CLI::NonNegativeNumber);
-      sub.add_option("--csv", o->csv, "CSV output (+ OUT.csv.config.ini with the configuration)");
+      sub.add_option("--csv", o->csv,
+                     "CSV output (+ OUT.csv.config.ini with the configuration); - : the CSV on "
+                     "stdout instead of the table");
       sub.add_option("--json", o->json, "JSON output (includes the full configuration)");
       sub.add_option("--markdown", o->markdown, "Markdown table (includes the configuration)");
       sub.add_option("--alignment", o->alignment, "none | origin | se2 | se2-first:SECONDS")

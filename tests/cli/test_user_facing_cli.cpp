@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <regex>
 #include <sstream>
@@ -288,6 +289,71 @@ TEST_F(UserFacingCli, DiagnoseShowsProgressOnATerminal) {
   EXPECT_EQ(quiet.out.find("diagnosing"), std::string::npos) << quiet.out;
   const auto pipe = cli("diagnose " + rawlog("three_task_faulty") + " --json " + tmp("p.json"));
   EXPECT_EQ(pipe.out.find("diagnosing"), std::string::npos) << pipe.out;
+}
+
+}  // namespace
+}  // namespace wheelchair::test
+
+namespace wheelchair::test {
+namespace {
+
+// Every subcommand's --help ends with a working example (run from the repository root on the
+// bundled recordings) and shows option defaults; the examples that need no hardware or display
+// are run as written, in a scratch directory that links datasets/ and config/.
+TEST(CliHelp, EveryCommandEndsWithAWorkingExample) {
+  const auto top = cli("--help");
+  ASSERT_EQ(top.exit_code, 0) << top.out;
+  std::vector<std::string> commands;
+  bool in_list = false;
+  std::istringstream in(top.out);
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("Subcommands:", 0) == 0)
+      in_list = true;
+    else if (in_list && line.rfind("  ", 0) == 0)
+      commands.push_back(line.substr(2, line.find(' ', 2) - 2));
+  }
+  ASSERT_GE(commands.size(), 12u) << top.out;
+
+  TempDir dir;
+  std::filesystem::create_directories(dir / "bin");
+  std::filesystem::create_symlink(WHEELCHAIR_CLI, dir / "bin/wheelchair");
+  std::filesystem::create_directory_symlink(sourcePath("datasets"), dir / "datasets");
+  std::filesystem::create_directory_symlink(sourcePath("config"), dir / "config");
+  const std::vector<std::string> runnable{"import", "info",     "filter",   "evaluate", "diagnose",
+                                          "export", "identify", "simulate", "report"};
+  int ran = 0;
+  for (const auto& c : commands) {
+    const auto h = cli(c + " --help");
+    ASSERT_EQ(h.exit_code, 0) << c << ": " << h.out;
+    const auto at = h.out.find("\nExample (from the repository root):\n  wheelchair ");
+    ASSERT_NE(at, std::string::npos) << c << " --help has no example:\n" << h.out;
+    std::string example = h.out.substr(at + 1);
+    example = example.substr(example.find('\n') + 3);
+    example = example.substr(0, example.find('\n'));
+    EXPECT_EQ(h.out.find('\n', h.out.find(example) + example.size()) + 1, h.out.size())
+        << c << ": the example is not the end of --help";
+    if (std::find(runnable.begin(), runnable.end(), c) == runnable.end()) continue;
+    example = example.substr(0, example.find("   ("));  // a trailing note
+    const auto r = run("cd " + dir.path().string() + " && export PATH=" + (dir / "bin") +
+                       ":$PATH && " + example);
+    EXPECT_EQ(r.exit_code, 0) << c << " example failed: " << example << "\n" << r.out;
+    ++ran;
+  }
+  EXPECT_EQ(ran, static_cast<int>(runnable.size()));
+  // Defaults are shown (CLI11 "=value"), e.g. evaluate's alignment and report's.
+  EXPECT_NE(cli("evaluate --help").out.find("--alignment TEXT=se2"), std::string::npos);
+  EXPECT_NE(cli("view --help").out.find("--width INT=1200"), std::string::npos);
+}
+
+// info names its timestamp-health columns in words, with units on every numeric column.
+TEST_F(UserFacingCli, InfoColumnsHavePlainNamesAndUnits) {
+  const auto r = cli("info " + rawlog("three_task_faulty"));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  for (const char* col :
+       {"rate (Hz)", "span (s)", "largest gap (s)", "out of order", "same timestamp"})
+    EXPECT_NE(r.out.find(col), std::string::npos) << col << "\n" << r.out;
+  EXPECT_EQ(r.out.find(" dups"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("  order "), std::string::npos) << r.out;
 }
 
 }  // namespace
