@@ -307,7 +307,8 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
       row.variant = variant;
       row.ground_truth = toString(gt.source);
       row.error = oneLine(err);
-      if (!command_driven) row.not_applicable = variantNotApplicable(variant, rec);
+      if (!estimation::isCommandDrivenRecording(rec))
+        row.not_applicable = variantNotApplicable(variant, rec);
       if (!row.not_applicable.empty()) row.error.clear();
       if (err.empty() && row.not_applicable.empty()) {
         try {
