@@ -7,7 +7,7 @@
 // go to the command-response analyser (diagnosis/CommandResponse.h): actuator_lag etc., with
 // the held-out open-loop drift in fit_before / fit_after and [mrclam_response] written.
 #include "Command.h"
-
+#include "Progress.h"
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/CommandResponse.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
@@ -24,6 +24,8 @@
 #include <iostream>
 #include <tuple>
 
+#include <unistd.h>
+
 namespace wheelchair::cli {
 namespace {
 
@@ -31,6 +33,7 @@ struct DiagnoseOptions {
   std::vector<std::string> inputs, validate;
   std::string config_path, json_path, write_config, report_dir;
   bool salvage = false;
+  bool no_progress = false;
 };
 
 void writeAtomic(const std::string& path, const std::string& text) {
@@ -42,6 +45,7 @@ int runDiagnose(const DiagnoseOptions& o) {
                                          : config::WheelchairConfig::load(o.config_path);
   diagnosis::DiagnosisOptions opt;
   opt.loadFromConfig(cfg.ini());
+  Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   std::vector<io::Recording> fit, val;
   auto read = [&](const std::string& p) {
     std::string warning;
@@ -49,8 +53,16 @@ int runDiagnose(const DiagnoseOptions& o) {
     if (!warning.empty()) std::cerr << "wheelchair diagnose: warning: " << warning << "\n";
     return rec;
   };
-  for (const auto& p : o.inputs) fit.push_back(read(p));
-  for (const auto& p : o.validate) val.push_back(read(p));
+  const double n_files = double(o.inputs.size() + o.validate.size());
+  for (const auto& p : o.inputs) {
+    progress.update(double(fit.size()) / n_files, "reading");
+    fit.push_back(read(p));
+  }
+  for (const auto& p : o.validate) {
+    progress.update(double(fit.size() + val.size()) / n_files, "reading");
+    val.push_back(read(p));
+  }
+  progress.tick("diagnosing");
   // Command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor currents: e.g. MRCLAM
   // imports): the command-response analyser; encoders, if any, still go through the
   // wheelchair stages.
@@ -92,8 +104,12 @@ int runDiagnose(const DiagnoseOptions& o) {
   j["config"] = o.config_path.empty() ? "<nominal>" : o.config_path;
   writeAtomic(o.json_path, j.dump(2) + "\n");
   outputs.add(o.json_path);
+  progress.stop();
   std::string text;
-  text += fmt::format("mismatch: {}\n", rep.mismatch ? "yes" : "no");
+  const bool insufficient = rep.info.contains("insufficient_data");
+  text += fmt::format("mismatch: {}\n", rep.mismatch   ? "yes"
+                                        : insufficient ? "none found (see 'insufficient data')"
+                                                       : "no");
   for (const auto& f : rep.findings) {
     text +=
         fmt::format("- {}{}: {}\n", f.effect, f.is_fault ? " (sensor fault)" : "", f.description);
@@ -107,6 +123,9 @@ int runDiagnose(const DiagnoseOptions& o) {
     else if (!f.effectText().empty() && !f.is_fault)
       text += fmt::format("    as effect: {}\n", f.effectText());
   }
+  if (insufficient)
+    for (const auto& why : rep.info["insufficient_data"])
+      text += fmt::format("insufficient data: {}\n", why.get<std::string>());
   if (rep.fit_before.contains("drift_10s_m")) {
     auto d = [](const nlohmann::json& j, const char* k) {
       return j.contains(k) && j[k].is_number() ? j[k].get<double>() : std::nan("");
@@ -120,16 +139,32 @@ int runDiagnose(const DiagnoseOptions& o) {
         d(rep.fit_before, "drift_60s_m"), d(rep.fit_after, "drift_60s_m"),
         d(rep.fit_before, "heading_drift_60s_deg"), d(rep.fit_after, "heading_drift_60s_deg"));
   }
+  // Residual RMS on the validation data, in the units (and of the model) of the report figures.
+  auto rms = [&](const char* ch, const char* which) {
+    const auto& c = rep.channels[ch];
+    return c.contains(which) && c[which].contains("rms") ? c[which]["rms"].get<double>()
+                                                         : std::nan("");
+  };
   for (const char* ch : {"v", "omega"})
     if (rep.channels.contains(ch) && rep.channels[ch]["before"].contains("rms"))
-      text += fmt::format("  {} window residual rms (validation): before {:.4g}, after {:.4g}\n",
-                          ch, rep.channels[ch]["before"]["rms"].get<double>(),
-                          rep.channels[ch]["after"]["rms"].get<double>());
-  for (const char* ch : {"gyro_vs_encoders", "current_right", "current_left"})
+      text += fmt::format("  {} window residual RMS (validation): before {:.4g}, after {:.4g} {}\n",
+                          ch, rms(ch, "before"), rms(ch, "after"),
+                          rep.channels[ch].value("unit", std::string("(no unit recorded)")));
+  if (rep.channels.contains("gyro_vs_encoders") &&
+      rep.channels["gyro_vs_encoders"]["before"].contains("rms")) {
+    // The channel is in rad per window of window_s: / window_s = rad/s, as in the figure.
+    const double w = rep.channels["gyro_vs_encoders"].value("window_s", opt.window_s);
+    text += fmt::format(
+        "  gyro minus encoder turn rate ({:.2f} s window means), validation RMS: before {:.4g} "
+        "rad/s, after {:.4g} rad/s\n",
+        w, rms("gyro_vs_encoders", "before") / w, rms("gyro_vs_encoders", "after") / w);
+  }
+  for (const char* ch : {"current_right", "current_left"})
     if (rep.channels.contains(ch) && rep.channels[ch]["before"].contains("rms"))
-      text += fmt::format("  {} validation rms: before {:.4g}, after {:.4g}\n", ch,
-                          rep.channels[ch]["before"]["rms"].get<double>(),
-                          rep.channels[ch]["after"]["rms"].get<double>());
+      text += fmt::format(
+          "  {} model error, validation RMS: nominal model {:.4g} A, corrected {:.4g} A (sensor "
+          "corrections alone {:.4g} A)\n",
+          ch, rms(ch, "before_nominal"), rms(ch, "after"), rms(ch, "before"));
   if (rep.validation.contains("trajectory_full_recordings")) {
     auto& t = rep.validation["trajectory_full_recordings"];
     for (size_t k = 0; k < t["before"].size(); ++k)
@@ -155,8 +190,10 @@ int runDiagnose(const DiagnoseOptions& o) {
     fo.max_gap_s = opt.max_gap_s;
     fo.edge_trim_s = opt.edge_trim_s;
     fo.fit_fraction = opt.fit_fraction;
+    progress.tick("figures");
     const auto fr = visualization::writeDiagnosisFigures(
         j, cfg, diagnosis::correctedConfig(cfg, rep), o.inputs, o.validate, fo);
+    progress.stop();
     for (const auto& n : fr.notes) std::cout << "report: " << n << "\n";
     std::cout << fmt::format("wrote {} ({} figures)\n", fr.index_path, fr.figures.size());
   }
@@ -184,6 +221,8 @@ const RegisterCommand reg{Command{
                      "Write figures (residuals and trajectories before/after), index.md, the "
                      "summary and the full JSON into this directory");
       sub.add_flag("--salvage", o->salvage, kSalvageHelp);
+      sub.add_flag("--no-progress", o->no_progress,
+                   "No progress display on stderr (it is shown only when stderr is a terminal)");
       return [o] { return runDiagnose(*o); };
     }}};
 

@@ -6,8 +6,9 @@
 // landmark sightings / a landmark map (MRCLAM imports) get the variants ekf (command-driven
 // EKF) and commands (open-loop dead reckoning of the commands) instead, against the Vicon
 // GROUND_TRUTH stream; their options come from the configuration's [mrclam_filter] /
-// [mrclam_response] sections (`--config config/mrclam.ini`). Without an output option the CSV
-// goes to stdout. Exit 1 when any recording (or variant) failed.
+// [mrclam_response] sections (`--config config/mrclam.ini`). The metrics table goes to stdout
+// (`--csv -`: the CSV instead); a variant needing a sensor the recording lacks is listed as
+// n/a (not a failure). Exit 1 when any recording (or variant) failed.
 #include "Command.h"
 
 #include "libwheelchair/util/OutputDir.h"
@@ -59,8 +60,13 @@ int runEvaluate(const EvaluateOptions& o) {
     };
   }
   const auto res = evaluation::runBatch(o.files, cfg, bo);
+  // The metrics table on stdout; `--csv -` puts the CSV there instead.
+  if (o.csv == "-")
+    std::cout << evaluation::batchCsv(res);
+  else
+    std::cout << evaluation::batchTable(res);
   util::RemoveUnlessKept outputs;  // a failed later write removes the earlier outputs
-  if (!o.csv.empty()) {
+  if (!o.csv.empty() && o.csv != "-") {
     evaluation::writeBatchCsv(o.csv, res, cfg);
     outputs.add(o.csv);
     outputs.add(o.csv + ".config.ini");
@@ -71,14 +77,15 @@ int runEvaluate(const EvaluateOptions& o) {
   }
   if (!o.markdown.empty()) evaluation::writeBatchMarkdown(o.markdown, res, cfg);
   outputs.keep();
-  if (o.csv.empty() && o.json.empty() && o.markdown.empty()) std::cout << evaluation::batchCsv(res);
   for (const auto& r : res.rows)
     if (!r.error.empty())
       std::cerr << "wheelchair evaluate: " << r.recording
                 << (r.variant.empty() ? "" : " [" + r.variant + "]") << ": " << r.error << "\n";
+  std::size_t not_applicable = 0;
+  for (const auto& r : res.rows) not_applicable += r.not_applicable.empty() ? 0 : 1;
   if (!o.quiet)
-    fmt::print(stderr, "evaluated {} recording(s), {} failed\n", res.recordings,
-               res.failed_recordings);
+    fmt::print(stderr, "evaluated {} recording(s), {} failed, {} variant(s) not applicable\n",
+               res.recordings, res.failed_recordings, not_applicable);
   return res.anyFailed() ? kExitBadInput : kExitOk;
 }
 
@@ -92,7 +99,9 @@ const RegisterCommand reg{Command{
                      "Configuration INI (default: nominal vehicle; MRCLAM: config/mrclam.ini)");
       sub.add_option("-j,--jobs", o->jobs, "Parallel jobs (default: all cores)")
           ->check(CLI::NonNegativeNumber);
-      sub.add_option("--csv", o->csv, "CSV output (+ OUT.csv.config.ini with the configuration)");
+      sub.add_option("--csv", o->csv,
+                     "CSV output (+ OUT.csv.config.ini with the configuration); - : the CSV on "
+                     "stdout instead of the table");
       sub.add_option("--json", o->json, "JSON output (includes the full configuration)");
       sub.add_option("--markdown", o->markdown, "Markdown table (includes the configuration)");
       sub.add_option("--alignment", o->alignment, "none | origin | se2 | se2-first:SECONDS")

@@ -13,6 +13,7 @@
 // Progress on stderr only when stderr is a terminal (and not --no-progress): a bar over the
 // measurements processed (wheelchair filters) or the recording time (command-driven EKF).
 #include "Command.h"
+#include "Progress.h"
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/estimation/ChiSquare.h"
@@ -22,6 +23,7 @@
 #include "libwheelchair/estimation/EstimateWriters.h"
 #include "libwheelchair/estimation/Estimator.h"
 #include "libwheelchair/estimation/ModelExtensions.h"
+#include "libwheelchair/estimation/SensorVerdict.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Trajectory.h"
 #include "libwheelchair/io/MrclamImport.h"
@@ -51,74 +53,6 @@ namespace {
 struct FilterCliOptions {
   std::string input, config_path, trajectory, estimates, filter, obstacle_form, frame = "map";
   bool variants = false, pozyx = false, no_progress = false;
-};
-
-// Progress on stderr, drawn only when enabled (stderr is a terminal). A bar when the fraction
-// is known (update()), else the stage and the elapsed time, refreshed by a ticker thread
-// (tick()) while a long call runs.
-class Progress {
- public:
-  explicit Progress(bool enabled) : enabled_(enabled) {}
-  ~Progress() { stop(); }
-  bool enabled() const { return enabled_; }
-
-  void update(double fraction, const std::string& stage) {
-    if (!enabled_) return;
-    const int pct = static_cast<int>(std::floor(100 * std::clamp(fraction, 0.0, 1.0)));
-    if (pct == last_pct_ && stage == last_stage_) return;
-    last_pct_ = pct;
-    last_stage_ = stage;
-    const int width = 30, filled = pct * width / 100;
-    std::lock_guard<std::mutex> lock(mu_);
-    fmt::print(stderr, "\r{:<12.12} [{}{}] {:3d}%", stage, std::string(filled, '#'),
-               std::string(width - filled, '.'), pct);
-    std::fflush(stderr);
-    drawn_ = true;
-  }
-  /// Shows `stage` with the elapsed time until stop() (or the next tick()/update()).
-  void tick(const std::string& stage) {
-    if (!enabled_) return;
-    stop();
-    running_ = true;
-    const auto t0 = std::chrono::steady_clock::now();
-    ticker_ = std::thread([this, stage, t0] {
-      std::unique_lock<std::mutex> lock(mu_);
-      while (running_) {
-        const double s =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        fmt::print(stderr, "\r{:<12.12} ... {:6.1f} s", stage, s);
-        std::fflush(stderr);
-        drawn_ = true;
-        cv_.wait_for(lock, std::chrono::milliseconds(200), [this] { return !running_; });
-      }
-    });
-  }
-  /// Ends the ticker and clears the line.
-  void stop() {
-    if (ticker_.joinable()) {
-      {
-        std::lock_guard<std::mutex> lock(mu_);
-        running_ = false;
-      }
-      cv_.notify_all();
-      ticker_.join();
-    }
-    if (enabled_ && drawn_) {
-      fmt::print(stderr, "\r{:<60}\r", "");
-      std::fflush(stderr);
-      drawn_ = false;
-      last_pct_ = -1;
-    }
-  }
-
- private:
-  bool enabled_;
-  bool drawn_ = false, running_ = false;
-  int last_pct_ = -1;
-  std::string last_stage_;
-  std::mutex mu_;
-  std::condition_variable cv_;
-  std::thread ticker_;
 };
 
 std::string nisVerdict(double mean, std::pair<double, double> band, long n) {
@@ -364,6 +298,8 @@ int runFilter(const FilterCliOptions& o) {
   fmt::print(
       "(mean NIS over the accepted updates; 95% band of that mean for a consistent filter; "
       "'in band': share of single NIS values inside chi2(dof)'s two-sided 95% interval)\n");
+  for (const auto& v : estimation::sensorVerdicts(res, opt.gate_probability))
+    fmt::print("verdict: {}\n", v);
   if (res.cvode.intervals > 0) {
     const auto& c = res.cvode;
     fmt::print(

@@ -105,7 +105,7 @@ const RegisterCommand reg{Command{
                      "section holds the options");
       sub.add_option("--cutoff-hz", o->cutoff_hz,
                      "Zero-phase Butterworth cut-off (Hz), overrides [identification] cutoff_hz");
-      sub.add_option("--omega-source", o->omega_source, "Angular velocity from: encoders | gyro")
+      sub.add_option("--omega-source", o->omega_source, "Angular velocity from: encoders | gyro (default: [identification] omega_source, else encoders)")
           ->check(CLI::IsMember({"encoders", "gyro"}));
       sub.add_option("--json", o->json_path, "Write the full result as JSON here")->required();
       sub.add_option("--write-config", o->write_config,

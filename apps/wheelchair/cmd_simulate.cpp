@@ -104,7 +104,7 @@ const RegisterCommand reg{Command{
     "simulate", "Simulate a drive of the chair (truth simulator with effects) into a recording",
     [](CLI::App& sub) -> std::function<int()> {
       auto o = std::make_shared<SimulateOptions>();
-      sub.add_option("--scenario", o->scenario, "three_task | excite | square | obstacles");
+      sub.add_option("--scenario", o->scenario, "three_task | excite | square | obstacles (required, no default)");
       sub.add_option("--seed", o->seed, "Random seed (noise, jitter, Pozyx anchor frame)")
           ->default_val(1);
       sub.add_option("--duration", o->duration_s, "Duration in s (default: the scenario's)")

@@ -22,6 +22,38 @@ std::vector<Command>& commandRegistry() {
 }  // namespace wheelchair::cli
 
 namespace {
+// The example that ends every subcommand's --help: run from the repository root, on the bundled
+// recordings (datasets/, docs/recording-format.md). Each line works as given (tests/cli runs
+// those that need no hardware or display).
+const std::map<std::string, std::string>& examples() {
+  static const std::string imp = "wheelchair import datasets/three_task_faulty -o faulty.rawlog";
+  static const std::map<std::string, std::string> ex{
+      {"capture",
+       "wheelchair capture -c config/capture.ini -o drive.rawlog --duration 60   (needs the "
+       "serial sensors of config/capture.ini; see replay-serial to test without them)"},
+      {"diagnose", imp + " && wheelchair diagnose faulty.rawlog --json diagnosis.json"},
+      {"evaluate", imp + " && wheelchair evaluate faulty.rawlog --markdown metrics.md"},
+      {"export", imp + " && wheelchair export faulty.rawlog -o faulty_csv"},
+      {"filter", imp + " && wheelchair filter faulty.rawlog --trajectory ekf.tum --variants"},
+      {"identify",
+       "wheelchair import datasets/excite -o excite.rawlog && wheelchair identify excite.rawlog "
+       "--json identification.json"},
+      {"import", imp},
+      {"info", imp + " && wheelchair info faulty.rawlog"},
+      {"replay-serial",
+       "wheelchair replay-serial datasets/three_task_faulty -c config/capture.ini --link-dir "
+       "/tmp/wc-ptys --write-config replay.ini   (then capture with -c replay.ini)"},
+      {"report", imp + " && wheelchair report faulty.rawlog -o report --no-3d --truth "
+                       "datasets/three_task_faulty.truth.json"},
+      {"simulate",
+       "wheelchair simulate --scenario three_task --effect encoder_scale:side=left,scale=0.95 "
+       "-o sim.rawlog"},
+      {"view", imp + " && wheelchair view faulty.rawlog --screenshot frame.png --at 10   (needs a "
+                     "display)"},
+  };
+  return ex;
+}
+
 // A corrupt rawlog can hold a nonsense container length that MRPT's deserializer would try to
 // allocate (and zero) in full. Capping the address space turns that into std::bad_alloc,
 // which the readers report as a corrupt record, instead of the OOM killer ending the process.
@@ -47,6 +79,7 @@ int main(int argc, char** argv) {
       "wheelchair: localization and model checking for a semi-autonomous power wheelchair"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "libwheelchair 0.1.0");
+  app.option_defaults()->always_capture_default();  // --help shows every option's default
 
   auto& registry = commandRegistry();
   std::sort(registry.begin(), registry.end(),
@@ -55,6 +88,9 @@ int main(int argc, char** argv) {
   for (const auto& cmd : registry) {
     CLI::App* sub = app.add_subcommand(cmd.name, cmd.description);
     actions[sub] = cmd.setup(*sub);
+    const auto ex = examples().find(cmd.name);
+    sub->footer("Example (from the repository root):\n  " +
+                (ex != examples().end() ? ex->second : "wheelchair " + cmd.name + " --help"));
   }
 
   try {

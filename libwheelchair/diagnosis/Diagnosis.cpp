@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <stdexcept>
 
@@ -99,6 +100,83 @@ std::vector<std::pair<double, double>> activeSegments(std::vector<std::pair<doub
   }
   if (out.empty() && !tc.empty()) out.push_back({tc.front().first, tc.back().first});
   return out;
+}
+
+/// Whether the data decide WHICH encoder is off. A short left and a long right encoder predict
+/// the same gyro-vs-encoder residual whenever the ratio of the wheel distances is constant
+/// (straight driving, or one steady curve): their columns are then collinear, and only data
+/// mixing straight driving with turns separates them. The evidence is the likelihood ratio of
+/// the two explanations under the configured sensor noise (not the residual noise of a few
+/// windows): LR = (RSS_other - RSS_chosen) / sigma^2, sigma^2 the predicted variance of one
+/// window's residual (gyro white noise + tick quantisation); the side is decided when LR
+/// exceeds chi2Quantile(1 - alpha_b, 1). Otherwise the returned text says what is missing and
+/// about how much more driving with turns it needs (the LR grows about linearly with it).
+std::string encoderSideUndecided(const KinRows& k, const std::vector<Candidate>& cands,
+                                 const std::vector<int>& accepted, int chosen, int other,
+                                 double alpha_b, int lags) {
+  std::vector<int> swapped = accepted;
+  std::replace(swapped.begin(), swapped.end(), chosen, other);
+  const LinearFit a = fitLinear(acceptedDesign(k.X, cands, accepted), k.y, k.groups, lags);
+  const LinearFit b = fitLinear(acceptedDesign(k.X, cands, swapped), k.y, k.groups, lags);
+  double var_sum = 0, turn_rad = 0, dist_m = 0, duration_s = 0;
+  for (int i = 0; i < k.X.rows(); ++i) {
+    const double T = k.t1[i] - k.t0[i];
+    var_sum += k.noise_var_per_s * T + k.noise_var_const;
+    turn_rad += std::abs(k.omega[i]) * T;
+    dist_m += std::abs(k.v[i]) * T;
+    duration_s += T;
+  }
+  const double var = k.X.rows() > 0 ? var_sum / k.X.rows() : 0.0;
+  const double lr = a.ok && b.ok && var > 0 ? (b.rss - a.rss) / var : 0.0;
+  const double needed = estimation::chi2Quantile(1 - alpha_b, 1);
+  if (lr >= needed) return "";
+  const double factor = std::min(needed / std::max(lr, 1e-3), 100.0);
+  return fmt::format(
+      "which encoder is off (the two encoders disagree by a scale, but a scale error of the {} "
+      "and one of the {} encoder fit this data alike: likelihood ratio {:.2f}, {:.2f} needed); "
+      "drive straight AND "
+      "turn in both directions, about {:.0f} s / {:.0f} m more (this data: {:.1f} s, {:.1f} m, "
+      "{:.0f} deg of turning)",
+      cands[chosen].name == "encoder_scale/left" ? "left" : "right",
+      cands[chosen].name == "encoder_scale/left" ? "right" : "left", lr, needed,
+      std::max(10.0, duration_s * (factor - 1)), std::max(5.0, dist_m * (factor - 1)), duration_s,
+      dist_m, turn_rad * kRad2Deg);
+}
+
+/// A 1 % scale error of one encoder turns the odometry by about 10 deg per 10 m driven straight
+/// (0.55 m track): the smallest encoder fault the diagnosis must be able to see.
+constexpr double kReportableEncoderScale = 0.01;
+
+/// When no encoder scale was found: can the data see one of kReportableEncoderScale? The
+/// smallest detectable scale error is eps = sqrt(chi2Quantile(1 - alpha_b, 1) sigma^2 / |x|^2),
+/// x the encoder-scale column over the fit windows and sigma^2 the predicted variance of one
+/// window's residual (configured sensor noise). "" when eps <= kReportableEncoderScale or an
+/// encoder scale was accepted; else what is missing and how much driving would do (|x|^2 grows
+/// about linearly with the distance driven).
+std::string encoderScaleUndetectable(const KinRows& k, const std::vector<Candidate>& cands,
+                                     const std::vector<int>& accepted, double alpha_b) {
+  for (int a : accepted)
+    if (cands[a].effect == "encoder_scale") return "";
+  if (k.X.rows() == 0 || k.X.cols() < 4) return "";
+  double var_sum = 0, turn_rad = 0, dist_m = 0;
+  for (int i = 0; i < k.X.rows(); ++i) {
+    const double T = k.t1[i] - k.t0[i];
+    var_sum += k.noise_var_per_s * T + k.noise_var_const;
+    turn_rad += std::abs(k.omega[i]) * T;
+    dist_m += std::abs(k.v[i]) * T;
+  }
+  const double x2 = std::min(k.X.col(2).squaredNorm(), k.X.col(3).squaredNorm());
+  const double var = var_sum / k.X.rows();
+  const double eps = x2 > 0 ? std::sqrt(estimation::chi2Quantile(1 - alpha_b, 1) * var / x2)
+                            : std::numeric_limits<double>::infinity();
+  if (eps <= kReportableEncoderScale) return "";
+  const double factor = std::min(std::pow(eps / kReportableEncoderScale, 2), 1e4);
+  return fmt::format(
+      "whether an encoder is off: this data cannot tell an encoder scale error below {} from "
+      "noise (it drove {:.1f} m, turned {:.0f} deg); drive about {:.0f} m or more, straight and "
+      "turning, to see a {:.0f} % error",
+      std::isfinite(eps) ? fmt::format("{:.1f} %", 100 * eps) : std::string("any size"), dist_m,
+      turn_rad * kRad2Deg, std::max(10.0, dist_m * factor), 100 * kReportableEncoderScale);
 }
 
 struct ChannelSet {
@@ -481,6 +559,9 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
       for (int i = 0; i < kv.X.rows(); ++i) T += kv.X(i, 0);
       nv_per = kv.X.rows() ? kf.noise_var_per_s * T / kv.X.rows() + kf.noise_var_const : 0;
     }
+    if (const std::string why = encoderScaleUndetectable(kf, cands, sel.accepted, alpha_b);
+        !why.empty())
+      rep.info["insufficient_data"].push_back(why);
     rep.channels["gyro_vs_encoders"] = {
         {"unit", "rad per window"},
         {"window_s", opt.window_s},
@@ -533,6 +614,15 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
             std::abs(bg) * 100, bg > 0 ? "more" : "less", g, sbg);
       } else if (c.effect == "encoder_scale") {
         int s = c.name == "encoder_scale/right" ? 0 : 1;
+        const int other = c.name == "encoder_scale/right" ? 3 : 2;  // kinematicCandidates order
+        if (const std::string why = encoderSideUndecided(kf2, cands, sel.accepted, sel.accepted[a],
+                                                         other, alpha_b, lags1);
+            !why.empty()) {
+          rep.info["insufficient_data"].push_back(why);
+          rep.mismatch = true;  // the encoders disagree, only the side is undecided
+          corr.enc_scale[0] = corr.enc_scale[1] = 1.0;  // none written, so none applied after
+          continue;
+        }
         double k = corr.enc_scale[s];
         double b = s == 0 ? bR : bL, sb = s == 0 ? sbR : sbL;
         double sk = sb * std::abs(g) / std::pow(1 + bg + b, 2);
@@ -665,6 +755,9 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
             o.push_back(left ? std::make_pair(a - nR, b - nR) : std::make_pair(a, b));
         return o;
       };
+      // The fully nominal model (no sensor corrections either), as the report's figures show it.
+      const DynRows dn = dynamicRows(valS, Corrections{}, cfg, opt);
+      const int nRn = static_cast<int>(dn.y.size() / 2);
       for (int sd2 = 0; sd2 < 2; ++sd2) {
         std::string ch = sd2 == 0 ? "current_right" : "current_left";
         int nRf = static_cast<int>(df.y.size() / 2);
@@ -679,6 +772,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
                                       lags2, dv.noise_var)},
             {"after", channelMetrics(rv_after.segment(sd2 * nRv2, nRv2),
                                      half(dv2.groups, nRv2, sd2 == 1), lags2, dv.noise_var)},
+            {"before_nominal", channelMetrics(dn.y.segment(sd2 * nRn, nRn),
+                                              half(dn.groups, nRn, sd2 == 1), lags2, dn.noise_var)},
             {"regimes_before",
              regimeStats(df.y.segment(sd2 * nRf, nRf), v, w, vd, ph, lags2, opt.alpha)},
             {"rejected_candidates", sel.log}};

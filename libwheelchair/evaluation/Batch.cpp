@@ -318,6 +318,16 @@ std::string alignmentText(Alignment a, double first_s) {
   return a == Alignment::SE2FirstSeconds ? "se2-first:" + num(first_s) : toString(a);
 }
 
+std::string variantNotApplicable(const std::string& variant, const io::Recording& rec) {
+  const bool enc = rec.encoders.size() >= 2, gyro = !rec.imu.empty();
+  if ((variant == "encoders" || variant == "encoders_gyro") && !enc)
+    return "no encoder (encoders) readings";
+  if (variant == "encoders_gyro" && !gyro) return "no gyro (imu) readings";
+  if ((variant == "ekf" || variant == "baseline") && !enc && !gyro && rec.sonar.empty())
+    return "no encoder, gyro or sonar readings";
+  return "";
+}
+
 std::vector<BatchRow> evaluateRecording(const std::string& path,
                                         const config::WheelchairConfig& shared_cfg,
                                         const BatchOptions& options) {
@@ -342,7 +352,10 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
       row.variant = variant;
       row.ground_truth = toString(gt.source);
       row.error = oneLine(err);
-      if (err.empty()) {
+      if (!estimation::isCommandDrivenRecording(rec))
+        row.not_applicable = variantNotApplicable(variant, rec);
+      if (!row.not_applicable.empty()) row.error.clear();
+      if (err.empty() && row.not_applicable.empty()) {
         try {
           const Trajectory t = trajectory();
           row.n_estimates = t.size();
@@ -467,13 +480,18 @@ std::string batchCsv(const BatchResult& r) {
   std::string s = "recording,variant,ground_truth";
   for (const auto& c : metricColumns()) s += std::string(",") + c.name;
   s += ",heading_drift_method,n_matched,n_gt,n_outliers,n_estimates,alignment,align_x_m,align_y_m,"
-       "align_theta_deg,error\n";
+       "align_theta_deg,error,not_applicable\n";
   const std::string al = alignmentText(r.alignment, r.align_first_s);
   for (const auto& row : r.rows) {
     const Metrics& m = row.metrics;
     s += csvField(row.recording) + "," + csvField(row.variant) + "," + row.ground_truth;
+    if (!row.not_applicable.empty()) {
+      for (std::size_t i = 0; i < metricColumns().size(); ++i) s += ",n/a";
+      s += fmt::format(",n/a,0,0,0,0,{},n/a,n/a,n/a,,{}\n", al, csvField(row.not_applicable));
+      continue;
+    }
     for (const auto& c : metricColumns()) s += "," + num(c.get(m));
-    s += fmt::format(",{},{},{},{},{},{},{},{},{},{}\n", toString(m.heading_drift_method),
+    s += fmt::format(",{},{},{},{},{},{},{},{},{},{},\n", toString(m.heading_drift_method),
                      m.n_matched, m.n_gt, m.n_outliers, row.n_estimates, al, num(m.alignment.x),
                      num(m.alignment.y), num(degrees(m.alignment.theta)), csvField(row.error));
   }
@@ -520,6 +538,7 @@ std::string batchJson(const BatchResult& r, const config::WheelchairConfig& cfg)
                                 {"theta_deg", jnum(degrees(row.metrics.alignment.theta))}};
     o["alignment_spread_m"] = jnum(row.metrics.alignment_spread_m);
     o["error"] = row.error;
+    o["not_applicable"] = row.not_applicable;
     rows.push_back(std::move(o));
   }
   j["rows"] = std::move(rows);
@@ -545,17 +564,49 @@ std::string batchMarkdown(const BatchResult& r, const config::WheelchairConfig& 
   s += "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n";
   for (const auto& row : r.rows) {
     const Metrics& m = row.metrics;
-    std::string err = row.error;
+    const bool na = !row.not_applicable.empty();  // every metric cell "n/a"
+    auto g = [&](double v, int prec) { return na ? std::string("n/a") : f(v, prec); };
+    std::string err = na ? "n/a: " + row.not_applicable : row.error;
     for (char& c : err)
       if (c == '|') c = '/';
     s += fmt::format("| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
                      row.recording, row.variant.empty() ? "–" : row.variant, row.ground_truth,
-                     f(m.d_path_m, 2), f(m.terminal_error_m, 3), f(m.loop_error_m, 3),
-                     f(m.ate_rmse_m, 3), f(m.ate_max_m, 3), f(m.rpe_1m_m, 3),
-                     f(m.heading_drift_deg, 2), m.n_matched, err);
+                     g(m.d_path_m, 2), g(m.terminal_error_m, 3), g(m.loop_error_m, 3),
+                     g(m.ate_rmse_m, 3), g(m.ate_max_m, 3), g(m.rpe_1m_m, 3),
+                     g(m.heading_drift_deg, 2), na ? "n/a" : std::to_string(m.n_matched), err);
   }
   if (include_config)
     s += "\n## Configuration used (`" + cfg.origin() + "`)\n\n```ini\n" + cfg.text() + "\n```\n";
+  return s;
+}
+
+std::string batchTable(const BatchResult& r) {
+  auto f = [](double v, int prec) {
+    return std::isfinite(v) ? fmt::format("{:.{}f}", v, prec) : std::string("-");
+  };
+  std::size_t w = 9;  // width of the recording column
+  for (const auto& row : r.rows) w = std::max(w, row.recording.size());
+  std::string s = fmt::format("{:<{}}  {:<13} {:<12} {:>10} {:>12} {:>12} {:>11} {:>10} {:>13}\n",
+                              "recording", w, "variant", "truth", "path (m)", "end err (m)",
+                              "ATE RMSE (m)", "ATE max (m)", "RPE 1m (m)", "heading (deg)");
+  for (const auto& row : r.rows) {
+    const Metrics& m = row.metrics;
+    s += fmt::format("{:<{}}  {:<13} {:<12} ", row.recording, w,
+                     row.variant.empty() ? "-" : row.variant, row.ground_truth);
+    if (!row.not_applicable.empty()) {
+      s += "n/a: " + row.not_applicable + "\n";
+    } else if (!row.error.empty()) {
+      s += "FAILED: " + row.error + "\n";
+    } else {
+      s += fmt::format("{:>10} {:>12} {:>12} {:>11} {:>10} {:>13}\n", f(m.d_path_m, 2),
+                       f(m.terminal_error_m, 3), f(m.ate_rmse_m, 3), f(m.ate_max_m, 3),
+                       f(m.rpe_1m_m, 3), f(m.heading_drift_deg, 2));
+    }
+  }
+  s += fmt::format(
+      "(alignment {}; truth: pozyx = UWB tag positions, ground_truth = motion capture, none = "
+      "no metrics against truth; '-' = not available)\n",
+      alignmentText(r.alignment, r.align_first_s));
   return s;
 }
 

@@ -166,6 +166,9 @@ struct BatchRow {
   Metrics metrics;
   std::size_t n_estimates = 0;  ///< samples of the estimated trajectory
   std::string error;            ///< "" = ok
+  /// Why the variant does not apply to this recording ("" = it does), e.g. "no gyro (imu)
+  /// readings": such a row is listed as n/a, not computed and not a failure.
+  std::string not_applicable;
 };
 
 struct BatchResult {
@@ -182,6 +185,11 @@ void parseAlignment(const std::string& text, MetricOptions& o);
 /// The textual form parseAlignment accepts ("se2-first:10").
 std::string alignmentText(Alignment a, double first_s);
 
+/// Why wheelchair `variant` (variantNames()) cannot be computed from `rec`, "" when it can:
+/// encoders needs ENCODERS readings, encoders_gyro ENCODERS and IMU, ekf/baseline any of
+/// ENCODERS, IMU or SONAR.
+std::string variantNotApplicable(const std::string& variant, const io::Recording& rec);
+
 /// Evaluates one recording (never throws: failures become error rows).
 std::vector<BatchRow> evaluateRecording(const std::string& path,
                                         const config::WheelchairConfig& cfg,
@@ -194,15 +202,19 @@ BatchResult runBatch(const std::vector<std::string>& files, const config::Wheelc
 /// Columns: recording,variant,ground_truth,d_path_m,d_path_gt_m,terminal_error_m,loop_error_m,
 /// ate_rmse_m,ate_mean_m,ate_median_m,ate_max_m,ate_std_m,rpe_1m_m,rpe_5m_m,n_rpe_1m,n_rpe_5m,
 /// heading_drift_deg,heading_drift_method,n_matched,n_gt,n_outliers,n_estimates,alignment,
-/// align_x_m,align_y_m,align_theta_deg,error
+/// align_x_m,align_y_m,align_theta_deg,error,not_applicable. A not-applicable row has "n/a"
+/// in every metric column and the reason in not_applicable.
 std::string batchCsv(const BatchResult& r);
+/// Fixed-width console table (one line per row: path length, terminal error, ATE RMSE / max,
+/// RPE over 1 m, heading drift, with units in the header; "n/a" / "FAILED" rows say why).
+std::string batchTable(const BatchResult& r);
 /// Writes batchCsv atomically to `path` and the configuration used (full INI text, preceded by
 /// comment lines naming its origin and the alignment) to `path` + ".config.ini".
 void writeBatchCsv(const std::string& path, const BatchResult& r,
                    const config::WheelchairConfig& cfg);
 /// JSON: {"alignment", "config_origin", "config" (full INI text), "recordings",
-/// "failed_recordings", "rows": [{recording, variant, ground_truth, metrics..., error}]}
-/// (NaN -> null).
+/// "failed_recordings", "rows": [{recording, variant, ground_truth, metrics..., error,
+/// not_applicable}]} (NaN -> null; a not-applicable row has null metrics).
 std::string batchJson(const BatchResult& r, const config::WheelchairConfig& cfg);
 void writeBatchJson(const std::string& path, const BatchResult& r,
                     const config::WheelchairConfig& cfg);

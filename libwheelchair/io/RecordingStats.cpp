@@ -71,16 +71,19 @@ nlohmann::json RecordingStats::toJson() const {
 }
 
 std::string RecordingStats::toText() const {
-  std::string out = fmt::format("{:<13} {:<36} {:>8} {:>9} {:>10} {:>10} {:>6} {:>5}\n", "label",
-                                "MRPT class", "count", "rate_Hz", "span_s", "max_gap_s",
-                                "order", "dups");
+  std::string out = fmt::format("{:<13} {:<36} {:>8} {:>9} {:>10} {:>15} {:>12} {:>15}\n",
+                                "label", "MRPT class", "count", "rate (Hz)", "span (s)",
+                                "largest gap (s)", "out of order", "same timestamp");
   for (const auto& [k, s] : streams_) {
-    out += fmt::format("{:<13} {:<36} {:>8} {:>9.2f} {:>10.3f} {:>10.3f} {:>6} {:>5}\n", s.label,
+    out += fmt::format("{:<13} {:<36} {:>8} {:>9.2f} {:>10.3f} {:>15.3f} {:>12} {:>15}\n", s.label,
                        s.mrpt_class, s.count, s.meanRate_hz(), s.span_s(), s.largest_gap_s,
                        s.out_of_order, s.duplicates);
   }
   out += fmt::format("total {} observations over {:.3f} s (from t = {:.6f} to {:.6f})\n", total(),
                      duration_s(), start_s(), end_s());
+  out +=
+      "(out of order: timestamps earlier than the one before in the file; same timestamp: equal "
+      "to the one before)\n";
   return out;
 }
 

@@ -278,6 +278,10 @@ std::vector<std::string> TextRecordingReader::warnings() const {
           "{}: {} out-of-order and {} duplicated timestamps (first at line {}); kept as recorded",
           s->reader.path(), s->issues.out_of_order, s->issues.duplicates,
           s->issues.first_bad_line));
+    if (s->last_t == -std::numeric_limits<double>::infinity() && layoutOf(s->kind).required_file)
+      w.push_back(fmt::format("{}: header only, no data rows (a required stream: what needs it "
+                              "will be not applicable)",
+                              s->reader.path()));
   }
   return w;
 }
