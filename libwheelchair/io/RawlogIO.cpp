@@ -1,5 +1,7 @@
 #include "libwheelchair/io/RawlogIO.h"
 
+#include "libwheelchair/config/Options.h"
+
 #include <fmt/format.h>
 #include <mrpt/core/Clock.h>
 #include <mrpt/obs/CObservationBearingRange.h>
@@ -28,6 +30,14 @@ double floatAsDecimal(float x) { return std::strtod(fmt::format("{}", x).c_str()
 
 constexpr double kUnknownZVariance_m2 = 1e6;
 constexpr const char* kHeaderFirstLine = "# libwheelchair recording";
+
+// [recording]: free-form metadata of a recording (meta.ini, the rawlog header, capture.ini),
+// so that a header text loads as a configuration (WheelchairConfig::fromText) strictly.
+[[maybe_unused]] const bool kRegistered = config::registerOptions([] {
+  return std::vector<config::Options>{
+      config::Options("recording")
+          .anyKey("free-form metadata of the recording (operator, notes, scenario, ...)")};
+});
 const mrpt::obs::TIMUDataIndex kImuExtra[5] = {IMU_WX, IMU_WY, IMU_X_ACC, IMU_Y_ACC, IMU_Z_ACC};
 
 template <class T>

@@ -56,8 +56,10 @@ struct SimulationOptions {
   ScenarioSettings scenario;
   bool record_ground_truth = false;  ///< also put the true pose into recording.ground_truth
 
+  /// The key table (config/Options.h), bound to this object.
+  config::Options options(const std::string& section = "simulation");
   /// Reads the keys present in `section` (missing keys keep their defaults). Throws
-  /// std::runtime_error naming the key on a malformed value.
+  /// std::runtime_error naming file, line and key on a malformed or out-of-range value.
   void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                       const std::string& section = "simulation");
 };
