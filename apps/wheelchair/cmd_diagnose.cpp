@@ -184,12 +184,7 @@ int runDiagnose(const DiagnoseOptions& o) {
     visualization::DiagnosisFigureOptions fo;
     fo.out_dir = o.report_dir;
     fo.summary_text = text;
-    fo.window_s = opt.window_s;
-    fo.cutoff_hz = opt.cutoff_hz;
-    fo.grid_rate_hz = opt.grid_rate_hz;
-    fo.max_gap_s = opt.max_gap_s;
-    fo.edge_trim_s = opt.edge_trim_s;
-    fo.fit_fraction = opt.fit_fraction;
+    fo.diagnosis_options = opt;
     progress.tick("figures");
     const auto fr = visualization::writeDiagnosisFigures(
         j, cfg, diagnosis::correctedConfig(cfg, rep), o.inputs, o.validate, fo);

@@ -114,7 +114,8 @@ int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progre
   if (!o.config_path.empty()) {
     if (!std::filesystem::exists(o.config_path))
       return fail("configuration " + o.config_path + ": no such file");
-    const mrpt::config::CConfigFile ini(o.config_path);
+    const auto cfg = config::WheelchairConfig::load(o.config_path);  // strict key check
+    const auto& ini = cfg.ini();
     opt = estimation::loadCommandDrivenEkfOptions(ini);
     config_note = o.config_path;
     if (!estimation::hasCommandDrivenSections(ini))

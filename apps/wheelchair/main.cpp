@@ -1,6 +1,7 @@
 // `wheelchair`: command-line front end of libwheelchair. Dispatches to the registered
 // subcommands (cmd_*.cpp); turns exceptions into the documented exit codes.
 #include "Command.h"
+#include "libwheelchair/config/Options.h"
 
 #include <fmt/core.h>
 
@@ -80,6 +81,14 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_version_flag("--version", "libwheelchair 0.1.0");
   app.option_defaults()->always_capture_default();  // --help shows every option's default
+  bool lenient = false;
+  app.add_flag("--lenient", lenient,
+               "Configuration files: unknown sections/keys and an empty file only warn "
+               "(for files written by older versions); by default they are errors");
+  app.fallthrough();  // --lenient is accepted after the subcommand name too
+  // Every module is linked into this program, so every options table has registered itself
+  // (config/Options.h): a section no table knows is a typo, not a module left out.
+  wheelchair::config::setAllSectionsRegistered(true);
 
   auto& registry = commandRegistry();
   std::sort(registry.begin(), registry.end(),
@@ -100,6 +109,7 @@ int main(int argc, char** argv) {
     return rc == 0 ? kExitOk : kExitUsage;
   }
 
+  wheelchair::config::setLenient(lenient);
   for (auto& [sub, action] : actions) {
     if (sub->parsed()) {
       try {

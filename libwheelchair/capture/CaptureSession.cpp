@@ -1,6 +1,7 @@
 #include "libwheelchair/capture/CaptureSession.h"
 
 #include "libwheelchair/capture/HostClock.h"
+#include "libwheelchair/config/Options.h"
 
 #include <fmt/format.h>
 #include <mrpt/config/CConfigFileMemory.h>
@@ -36,12 +37,40 @@ std::string readText(const std::string& path) {
 
 CaptureSession::CaptureSession(CaptureOptions opt) : opt_(std::move(opt)) {
   ini_text_ = readText(opt_.config_path);
-  mrpt::config::CConfigFileMemory ini(ini_text_);
+  const config::IniFile ini(ini_text_, opt_.config_path);
   const std::string g = "capture";
+  // [capture]: the session's keys, one table (config/Options.h): strict numbers and ranges,
+  // unknown keys are errors naming file, line and key.
+  std::string vc_key, log_opt;
+  config::Options session(g, "capture session (docs/capture.md)");
+  session
+      .text("vehicle_config", vc_key,
+            "vehicle configuration, relative to this file; empty: nominal")
+      .real("reorder_window_s", window_s_, "reorder window (s)", config::Range::between(0, 10))
+      .real("flush_period_s", out_opt_.flush_period_s,
+            "complete gzip member at least this often (s)", config::Range{0, 1, true, false})
+      .integer("compression_level", out_opt_.compression_level, "gzip level",
+               config::Range::between(0, 9))
+      .flag("fsync", out_opt_.fsync, "fsync after every flush")
+      .real("status_period_s", status_period_s_, "live status period (s)", config::Range::above(0))
+      .text("log_file", log_opt, "event log; empty = OUTPUT.log, none = off");
+  session.checkUnknownKeys(ini);
+  try {
+    session.load(ini);
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument(e.what());
+  }
+  // Sections: [capture], [recording] (free-form) and the sources (a `driver` key).
+  for (const auto& e : ini.entries())
+    if (e.key.empty() && e.section != g && e.section != "recording" &&
+        ini.read_string(e.section, "driver", "", false).empty())
+      throw std::invalid_argument(fmt::format(
+          "{}:{}: [{}]: unknown section (not [capture], [recording] or a source with `driver`)",
+          ini.origin(), e.line, e.section));
   // Vehicle configuration: sensor geometry for the observations, recorded in the header.
   std::string vc = opt_.vehicle_config;
   if (vc.empty()) {
-    vc = ini.read_string(g, "vehicle_config", "", false);
+    vc = vc_key;
     if (!vc.empty() && fs::path(vc).is_relative())
       vc = (fs::path(opt_.config_path).parent_path() / vc).string();
   }
@@ -50,18 +79,6 @@ CaptureSession::CaptureSession(CaptureOptions opt) : opt_(std::move(opt)) {
   } catch (const std::exception& e) {
     throw std::invalid_argument(e.what());
   }
-  window_s_ = ini.read_double(g, "reorder_window_s", window_s_, false);
-  status_period_s_ = ini.read_double(g, "status_period_s", status_period_s_, false);
-  out_opt_.flush_period_s = ini.read_double(g, "flush_period_s", out_opt_.flush_period_s, false);
-  out_opt_.compression_level =
-      ini.read_int(g, "compression_level", out_opt_.compression_level, false);
-  out_opt_.fsync = ini.read_bool(g, "fsync", out_opt_.fsync, false);
-  if (window_s_ < 0 || window_s_ > 10)
-    throw std::invalid_argument("[capture] reorder_window_s: expected 0..10 s");
-  if (out_opt_.flush_period_s <= 0 || out_opt_.flush_period_s > 1.0)
-    throw std::invalid_argument("[capture] flush_period_s: expected (0, 1] s");
-  if (out_opt_.compression_level < 0 || out_opt_.compression_level > 9)
-    throw std::invalid_argument("[capture] compression_level: expected 0..9");
 
   std::vector<std::string> keys;
   ini.getAllKeys("recording", keys);
@@ -104,7 +121,6 @@ CaptureSession::CaptureSession(CaptureOptions opt) : opt_(std::move(opt)) {
   rates_.assign(sources_.size(), 0.0);
 
   out_ = std::make_unique<RawlogAppender>(opt_.output, out_opt_, opt_.overwrite);
-  const std::string log_opt = ini.read_string(g, "log_file", "", false);
   log_path_ = log_opt == "none" ? "" : (log_opt.empty() ? opt_.output + ".log" : log_opt);
   if (!log_path_.empty()) log_.open(log_path_, std::ios::app);
   tty_ = opt_.status_out && isatty(fileno(opt_.status_out));

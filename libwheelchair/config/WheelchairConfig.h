@@ -2,7 +2,9 @@
 // (config/wheelchair.ini is the commented template). This struct holds the sections every
 // module shares (vehicle, sensors); module-specific sections ([estimator], [simulation],
 // [identification], [diagnosis], ...) are read by those modules' own option structs from
-// `ini()`. `text()` is the full configuration as used, to be recorded with every result.
+// `ini()`. Every section is described by a key table (config/Options.h), the one place where
+// a key, its unit, range and default are defined. `text()` is the full configuration as used, to be
+// recorded with every result.
 //
 // Example:
 //   auto cfg = config::WheelchairConfig::load("config/wheelchair.ini");
@@ -14,7 +16,7 @@
 #include "libwheelchair/sensors/Encoders.h"
 #include "libwheelchair/sensors/VoltageCircuit.h"
 
-#include <mrpt/config/CConfigFileMemory.h>
+#include "libwheelchair/config/Options.h"
 
 #include <memory>
 #include <string>
@@ -78,8 +80,13 @@ class WheelchairConfig {
   WheelchairConfig& operator=(const WheelchairConfig& other);
   WheelchairConfig(WheelchairConfig&&) = default;
   WheelchairConfig& operator=(WheelchairConfig&&) = default;
-  /// Loads `path`; throws std::runtime_error naming the file and key on bad values.
+  /// Loads `path` strictly (config/Options.h): every section and key must be known to a
+  /// registered key table, numbers must parse whole and lie in range, an empty file is an
+  /// error; throws std::runtime_error naming file, line and key (config::setLenient(true):
+  /// unknown keys/sections and an empty file only warn).
   static WheelchairConfig load(const std::string& path);
+  /// The same for INI text (e.g. a recording's embedded configuration); `origin` names it
+  /// in errors. An empty text is the nominal configuration.
   static WheelchairConfig fromText(const std::string& ini_text, const std::string& origin);
 
   /// The INI as used (after any `set`), for module-specific sections.
@@ -99,7 +106,7 @@ class WheelchairConfig {
 
  private:
   void loadShared();
-  std::shared_ptr<mrpt::config::CConfigFileMemory> ini_;
+  std::shared_ptr<IniFile> ini_;
   std::string origin_ = "<nominal>";
 };
 

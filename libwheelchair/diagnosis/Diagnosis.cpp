@@ -421,30 +421,41 @@ double rmsOf(double rss, Eigen::Index n) {
 
 }  // namespace
 
+namespace {
+[[maybe_unused]] const bool kRegistered = config::registerOptionsOf<DiagnosisOptions>("diagnosis");
+}  // namespace
+
+config::Options DiagnosisOptions::options(const std::string& section) {
+  using config::Range;
+  const Range pos = Range::above(0), nonneg = Range::atLeast(0);
+  return config::Options(section, "model-mismatch diagnosis (docs/discovery.md)")
+      .real("fit_fraction", fit_fraction, "without --validate: fit on this first fraction (-)",
+            Range{0.1, 0.95, true, true})
+      .real("window_s", window_s, "stage 1 encoder window (s)", pos)
+      .real("cutoff_hz", cutoff_hz, "stage 2 zero-phase low-pass (Hz)", pos)
+      .real("grid_rate_hz", grid_rate_hz, "stage 2 time base (Hz); > 2 cutoff_hz", pos)
+      .real("edge_trim_s", edge_trim_s, "dropped at both ends of every segment (s)", nonneg)
+      .real("max_gap_s", max_gap_s, "a longer stream gap splits a segment (s)", pos)
+      .real("alpha", alpha, "family-wise false-alarm level (-)", Range{0, 1, true, true})
+      .real("min_bic_drop", min_bic_drop, "BIC drop required (-)", nonneg)
+      .real("min_relevance", min_relevance, "minimum effect, fraction of one sample's noise (-)",
+            nonneg)
+      .real("validation_fraction_of_expected", validation_fraction_of_expected,
+            "held-out gain >= this x predicted gain (-)", nonneg)
+      .real("validation_min_expected_lr", validation_min_expected_lr,
+            "below: validation cannot test the term (-)", nonneg)
+      .flag("enable_unmodeled", enable_unmodeled, "sparse regression on what remains")
+      .real("stlsq_threshold_sigma", stlsq_threshold_sigma,
+            "STLSQ keeps terms with |coef| > this x HAC sigma (-)", nonneg)
+      .flag("enable_delay", enable_delay, "fit stream delays");
+}
+
 void DiagnosisOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                                       const std::string& s) {
-  fit_fraction = ini.read_double(s, "fit_fraction", fit_fraction);
-  window_s = ini.read_double(s, "window_s", window_s);
-  cutoff_hz = ini.read_double(s, "cutoff_hz", cutoff_hz);
-  grid_rate_hz = ini.read_double(s, "grid_rate_hz", grid_rate_hz);
-  edge_trim_s = ini.read_double(s, "edge_trim_s", edge_trim_s);
-  max_gap_s = ini.read_double(s, "max_gap_s", max_gap_s);
-  alpha = ini.read_double(s, "alpha", alpha);
-  min_bic_drop = ini.read_double(s, "min_bic_drop", min_bic_drop);
-  validation_fraction_of_expected =
-      ini.read_double(s, "validation_fraction_of_expected", validation_fraction_of_expected);
-  validation_min_expected_lr =
-      ini.read_double(s, "validation_min_expected_lr", validation_min_expected_lr);
-  enable_unmodeled = ini.read_bool(s, "enable_unmodeled", enable_unmodeled);
-  min_relevance = ini.read_double(s, "min_relevance", min_relevance);
-  stlsq_threshold_sigma = ini.read_double(s, "stlsq_threshold_sigma", stlsq_threshold_sigma);
-  enable_delay = ini.read_bool(s, "enable_delay", enable_delay);
-  if (!(fit_fraction > 0.1 && fit_fraction < 0.95))
-    throw std::runtime_error("[diagnosis] fit_fraction must be in (0.1, 0.95)");
-  if (!(window_s > 0) || !(cutoff_hz > 0) || !(grid_rate_hz > 2 * cutoff_hz) ||
-      !(alpha > 0 && alpha < 1))
-    throw std::runtime_error(
-        "[diagnosis] window_s, cutoff_hz > 0, grid_rate_hz > 2 cutoff_hz, alpha in (0,1)");
+  options(s).load(ini);  // ranges of single keys
+  if (!(grid_rate_hz > 2 * cutoff_hz))
+    throw std::runtime_error(config::keyLocation(ini, s, "grid_rate_hz") +
+                             ": must be > 2 cutoff_hz");
 }
 
 DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,

@@ -50,8 +50,10 @@ struct DiagnosisOptions {
   bool enable_unmodeled = true;        ///< sparse regression on what remains
   double stlsq_threshold_sigma = 4.0;  ///< STLSQ keeps terms with |coef| > this x HAC sigma
   bool enable_delay = true;
-  bool enable_pozyx = true;
 
+  /// The key table (config/Options.h), bound to this object.
+  config::Options options(const std::string& section = "diagnosis");
+  /// Reads the keys present (strict numbers, ranges); throws naming file, line and key.
   void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                       const std::string& section = "diagnosis");
 };

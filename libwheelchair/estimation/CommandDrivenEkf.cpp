@@ -6,7 +6,7 @@
 #include "libwheelchair/model/Kinematics.h"
 
 #include <fmt/format.h>
-#include <mrpt/config/CConfigFile.h>
+#include "libwheelchair/config/WheelchairConfig.h"
 
 #include <Eigen/Dense>
 
@@ -68,8 +68,8 @@ void addUnmodeled(model::CommandState& x, const Eigen::Vector2d& dv, double h,
 
 CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const std::string& path) {
   if (!std::filesystem::exists(path)) throw std::runtime_error(path + ": no such file");
-  const mrpt::config::CConfigFile ini(path);
-  return loadCommandDrivenEkfOptions(ini);
+  const auto cfg = config::WheelchairConfig::load(path);  // strict: every key checked
+  return loadCommandDrivenEkfOptions(cfg.ini());
 }
 
 std::map<std::string, std::string> responseConfigKeys(const CommandDrivenEkfOptions& o) {
@@ -157,61 +157,104 @@ std::pair<double, double> CommandDrivenEkfResult::meanNisBand95() const {
   return chi2MeanBand(0.95, 2, static_cast<double>(accepted));
 }
 
+namespace {
+[[maybe_unused]] const bool kRegistered = config::registerOptions([] {
+  auto o = std::make_shared<CommandDrivenEkfOptions>();
+  auto t = o->options();
+  for (auto& x : t) x.keepAlive(o);
+  return t;
+});
+
+// A density given as its square root (the INI's unit) and stored squared.
+config::Options& sqrtKey(config::Options& t, const char* key, double& squared, const char* help) {
+  return t.custom(
+      key,
+      [&squared](const std::string& s) {
+        const double x = config::parseStrictNumber(s, "value");
+        if (!(x >= 0)) throw std::runtime_error(fmt::format("{} is out of range >= 0", s));
+        squared = x * x;
+      },
+      [&squared] { return fmt::format("{}", std::sqrt(squared)); }, help);
+}
+
+// unmodeled_v / unmodeled_omega: JSON {feature: coefficient}.
+config::Options& unmodeledKey(config::Options& t, const char* key,
+                              std::array<double, model::kNumCommandFeatures>& coef) {
+  return t.custom(
+      key,
+      [&coef](const std::string& text) {
+        nlohmann::json j;
+        try {
+          j = nlohmann::json::parse(text);
+        } catch (const std::exception& e) {
+          throw std::runtime_error(
+              fmt::format("not a JSON object of feature -> coefficient ({})", e.what()));
+        }
+        const auto& names = model::commandFeatureNames();
+        for (auto it = j.begin(); it != j.end(); ++it) {
+          const auto at = std::find(names.begin(), names.end(), it.key());
+          if (at == names.end() || !it.value().is_number())
+            throw std::runtime_error(
+                fmt::format("unknown feature '{}' (known: 1, v_cmd, omega_cmd, |omega_cmd|, "
+                            "v_cmd*|omega_cmd|) or non-numeric coefficient",
+                            it.key()));
+          coef[at - names.begin()] = it.value().get<double>();
+        }
+      },
+      [&coef] {
+        nlohmann::json u = nlohmann::json::object();
+        for (int j = 0; j < model::kNumCommandFeatures; ++j)
+          if (coef[j] != 0) u[model::commandFeatureNames()[j]] = coef[j];
+        return u.empty() ? std::string() : u.dump();
+      },
+      "terms outside the catalogue (JSON {feature: coefficient}; written by diagnose)");
+}
+}  // namespace
+
+std::vector<config::Options> CommandDrivenEkfOptions::options() {
+  using config::Range;
+  using K = model::CommandKind;
+  const Range pos = Range::above(0), nonneg = Range::atLeast(0);
+  auto& p = response;
+  config::Options r("mrclam_response", "drive response to the commanded (v, omega)");
+  r.real("v_delay_s", p.v.delay_s, "pure delay of v (s)", nonneg)
+      .real("v_time_constant_s", p.v.time_constant_s, "lag time constant of v (s)", nonneg)
+      .real("v_deadband_m_s", p.v.deadband, "deadband of v (m/s)", nonneg)
+      .real("omega_delay_s", p.omega.delay_s, "pure delay of omega (s)", nonneg)
+      .real("omega_time_constant_s", p.omega.time_constant_s, "lag time constant of omega (s)",
+            nonneg)
+      .real("omega_deadband_rad_s", p.omega.deadband, "deadband of omega (rad/s)", nonneg)
+      .real("v_gain_straight", p.v_gain[static_cast<int>(K::Straight)], "gain on v, straight (-)")
+      .real("v_gain_arc", p.v_gain[static_cast<int>(K::Arc)], "gain on v, arcs (-)")
+      .real("v_gain_backward", p.v_gain_backward, "extra gain on v, backward (-)")
+      .real("omega_gain_turn_in_place", p.omega_gain[static_cast<int>(K::TurnInPlace)],
+            "gain on omega, turning in place (-)")
+      .real("omega_gain_arc", p.omega_gain[static_cast<int>(K::Arc)], "gain on omega, arcs (-)")
+      .flag("ignore_zero_runs", ignore_zero_runs, "ignore short (0,0) command runs")
+      .real("max_zero_run_s", max_zero_run_s, "longest (0,0) run treated as a blip (s)", nonneg);
+  unmodeledKey(r, "unmodeled_v", unmodeled[0]);
+  unmodeledKey(r, "unmodeled_omega", unmodeled[1]);
+  config::Options f("mrclam_filter", "command-driven EKF (docs/real-data.md)");
+  f.real("dt_s", dt_s, "propagation step (s)", pos)
+      .real("output_every_s", output_every_s, "output interval (s)", pos);
+  sqrtKey(f, "v_noise_m_s_sqrt_s", q_v, "white-noise density on v (m/s/sqrt(s))");
+  sqrtKey(f, "omega_noise_rad_s_sqrt_s", q_omega, "white-noise density on omega (rad/s/sqrt(s))");
+  f.real("range_sigma_m", range_sigma_m, "sighting range noise, 1 sigma (m)", pos)
+      .real("bearing_sigma_rad", bearing_sigma_rad, "sighting bearing noise, 1 sigma (rad)", pos)
+      .real("gate_probability", gate_probability, "NIS gate probability (-; 0 = no gate)",
+            Range{0, 1, false, true})
+      .real("init_window_s", init_window_s, "two initialising sightings within (s)", pos)
+      .real("init_min_separation_m", init_min_separation_m,
+            "of landmarks at least this far apart (m)", nonneg)
+      .real("init_sigma_xy_m", init_sigma_xy_m, "initial position 1 sigma (m)", nonneg)
+      .real("init_sigma_phi_rad", init_sigma_phi_rad, "initial heading 1 sigma (rad)", nonneg)
+      .flag("init_from_geometry", init_from_geometry, "initial covariance from the geometry");
+  return {r, f};
+}
+
 CommandDrivenEkfOptions loadCommandDrivenEkfOptions(const mrpt::config::CConfigFileBase& ini) {
   CommandDrivenEkfOptions o;
-  const std::string f = "mrclam_filter", r = "mrclam_response";
-  o.dt_s = ini.read_double(f, "dt_s", o.dt_s);
-  o.output_every_s = ini.read_double(f, "output_every_s", o.output_every_s);
-  o.q_v = std::pow(ini.read_double(f, "v_noise_m_s_sqrt_s", std::sqrt(o.q_v)), 2);
-  o.q_omega = std::pow(ini.read_double(f, "omega_noise_rad_s_sqrt_s", std::sqrt(o.q_omega)), 2);
-  o.range_sigma_m = ini.read_double(f, "range_sigma_m", o.range_sigma_m);
-  o.bearing_sigma_rad = ini.read_double(f, "bearing_sigma_rad", o.bearing_sigma_rad);
-  o.gate_probability = ini.read_double(f, "gate_probability", o.gate_probability);
-  o.init_window_s = ini.read_double(f, "init_window_s", o.init_window_s);
-  o.init_min_separation_m = ini.read_double(f, "init_min_separation_m", o.init_min_separation_m);
-  o.init_sigma_xy_m = ini.read_double(f, "init_sigma_xy_m", o.init_sigma_xy_m);
-  o.init_sigma_phi_rad = ini.read_double(f, "init_sigma_phi_rad", o.init_sigma_phi_rad);
-  o.init_from_geometry = ini.read_bool(f, "init_from_geometry", o.init_from_geometry);
-  for (int ch = 0; ch < 2; ++ch) {
-    const char* key = ch == 0 ? "unmodeled_v" : "unmodeled_omega";
-    const std::string text = ini.read_string(r, key, "");
-    if (text.empty()) continue;
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(text);
-    } catch (const std::exception& e) {
-      throw std::runtime_error(
-          fmt::format("[{}] {}: not a JSON object of feature -> "
-                      "coefficient ({})",
-                      r, key, e.what()));
-    }
-    const auto& names = model::commandFeatureNames();
-    for (auto it = j.begin(); it != j.end(); ++it) {
-      const auto at = std::find(names.begin(), names.end(), it.key());
-      if (at == names.end() || !it.value().is_number())
-        throw std::runtime_error(
-            fmt::format("[{}] {}: unknown feature '{}' (known: 1, v_cmd, omega_cmd, |omega_cmd|, "
-                        "v_cmd*|omega_cmd|) or non-numeric coefficient",
-                        r, key, it.key()));
-      o.unmodeled[ch][at - names.begin()] = it.value().get<double>();
-    }
-  }
-  auto& p = o.response;
-  p.v.delay_s = ini.read_double(r, "v_delay_s", 0);
-  p.v.time_constant_s = ini.read_double(r, "v_time_constant_s", 0);
-  p.v.deadband = ini.read_double(r, "v_deadband_m_s", 0);
-  p.omega.delay_s = ini.read_double(r, "omega_delay_s", 0);
-  p.omega.time_constant_s = ini.read_double(r, "omega_time_constant_s", 0);
-  p.omega.deadband = ini.read_double(r, "omega_deadband_rad_s", 0);
-  using K = model::CommandKind;
-  p.v_gain[static_cast<int>(K::Straight)] = ini.read_double(r, "v_gain_straight", 1);
-  p.v_gain[static_cast<int>(K::Arc)] = ini.read_double(r, "v_gain_arc", 1);
-  p.v_gain_backward = ini.read_double(r, "v_gain_backward", 1);
-  p.omega_gain[static_cast<int>(K::TurnInPlace)] =
-      ini.read_double(r, "omega_gain_turn_in_place", 1);
-  p.omega_gain[static_cast<int>(K::Arc)] = ini.read_double(r, "omega_gain_arc", 1);
-  o.ignore_zero_runs = ini.read_bool(r, "ignore_zero_runs", false);
-  o.max_zero_run_s = ini.read_double(r, "max_zero_run_s", o.max_zero_run_s);
+  for (const auto& t : o.options()) t.load(ini);
   return o;
 }
 

@@ -30,6 +30,7 @@
 // recording lacks.
 #pragma once
 
+#include "libwheelchair/config/Options.h"
 #include "libwheelchair/io/MrclamImport.h"
 #include "libwheelchair/io/Recording.h"
 #include "libwheelchair/model/CommandDriven.h"
@@ -70,6 +71,9 @@ struct CommandDrivenEkfOptions {
   /// of the command at t (the feature library of docs/discovery.md). Zero: none.
   std::array<std::array<double, model::kNumCommandFeatures>, 2> unmodeled{};
   bool hasUnmodeled() const;
+  /// The key tables of [mrclam_response] and [mrclam_filter] (config/Options.h), bound to
+  /// this object (the noise densities are given as their square roots).
+  std::vector<config::Options> options();
   /// The extra (v, omega) for command `cmd`.
   Eigen::Vector2d unmodeledVelocity(const Eigen::Vector2d& cmd) const;
 };

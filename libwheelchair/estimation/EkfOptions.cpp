@@ -1,11 +1,9 @@
 #include "libwheelchair/estimation/EkfOptions.h"
 
+#include "libwheelchair/config/Options.h"
 #include "libwheelchair/config/WheelchairConfig.h"
 
 #include <cmath>
-#include <cstdlib>
-#include <functional>
-#include <sstream>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -14,29 +12,6 @@ namespace wheelchair::estimation {
 
 namespace {
 
-std::string trim(const std::string& s) {
-  const auto a = s.find_first_not_of(" \t\r\n");
-  if (a == std::string::npos) return {};
-  const auto b = s.find_last_not_of(" \t\r\n");
-  return s.substr(a, b - a + 1);
-}
-
-double parseDouble(const std::string& t, const std::string& where) {
-  char* end = nullptr;
-  const double v = std::strtod(t.c_str(), &end);
-  if (end == t.c_str() || *end != '\0' || !std::isfinite(v))
-    throw std::runtime_error(where + ": expected a number, got '" + t + "'");
-  return v;
-}
-
-std::string fmtDouble(double v) {
-  std::ostringstream os;
-  os.precision(10);
-  os << v;
-  return os.str();
-}
-
-// Enum <-> text tables.
 template <typename E>
 using Names = std::vector<std::pair<E, const char*>>;
 
@@ -53,141 +28,96 @@ const Names<ObstacleInit> kInit{{ObstacleInit::FirstSonar, "first_sonar"},
 const Names<CvodeOptions::Method> kMethod{{CvodeOptions::Method::Adams, "adams"},
                                           {CvodeOptions::Method::Bdf, "bdf"}};
 
-template <typename E>
-const char* nameOf(const Names<E>& t, E e) {
-  for (const auto& [k, n] : t)
-    if (k == e) return n;
-  return "?";
-}
-
-// One key of the section: reader and writer.
-struct Key {
-  const char* name;
-  std::function<void(const std::string& text, const std::string& where)> read;
-  std::function<std::string()> write;
-};
-
-template <typename E>
-Key enumKey(const char* name, E& v, const Names<E>& t) {
-  return {name,
-          [&v, &t](const std::string& s, const std::string& where) {
-            for (const auto& [k, n] : t)
-              if (s == n) {
-                v = k;
-                return;
-              }
-            std::string all;
-            for (const auto& kn : t) all += std::string(all.empty() ? "" : " | ") + kn.second;
-            throw std::runtime_error(where + ": expected " + all + ", got '" + s + "'");
-          },
-          [&v, &t] { return std::string(nameOf(t, v)); }};
-}
-
-Key dblKey(const char* name, double& v) {
-  return {name, [&v](const std::string& s, const std::string& w) { v = parseDouble(s, w); },
-          [&v] { return fmtDouble(v); }};
-}
-
-Key boolKey(const char* name, bool& v) {
-  return {name,
-          [&v](const std::string& s, const std::string& w) {
-            if (s == "true" || s == "on" || s == "yes")
-              v = true;
-            else if (s == "false" || s == "off" || s == "no")
-              v = false;
-            else
-              v = parseDouble(s, w) != 0;
-          },
-          [&v] { return std::string(v ? "1" : "0"); }};
-}
-
-template <typename I>
-Key intKey(const char* name, I& v) {
-  return {name,
-          [&v](const std::string& s, const std::string& w) {
-            const double x = parseDouble(s, w);
-            if (x != std::floor(x)) throw std::runtime_error(w + ": expected an integer");
-            v = static_cast<I>(x);
-          },
-          [&v] { return std::to_string(v); }};
-}
-
-std::vector<Key> keys(EkfOptions& o) {
-  return {
-      enumKey("filter", o.filter, kFilter),
-      enumKey("obstacle_form", o.obstacle_form, kForm),
-      enumKey("encoder_model", o.encoder_model, kEnc),
-      enumKey("input_interpolation", o.input_interpolation, kInterp),
-      boolKey("use_encoders", o.use_encoders),
-      boolKey("use_gyro", o.use_gyro),
-      boolKey("use_sonar", o.use_sonar),
-      boolKey("use_pozyx", o.use_pozyx),
-      dblKey("output_rate_hz", o.output_rate_hz),
-      dblKey("gate_probability", o.gate_probability),
-      intKey("sonar_reinit_after_rejections", o.sonar_reinit_after_rejections),
-      enumKey("cvode_method", o.cvode.method, kMethod),
-      dblKey("cvode_rel_tol", o.cvode.rel_tol),
-      dblKey("cvode_abs_tol_state", o.cvode.abs_tol_state),
-      dblKey("cvode_abs_tol_cov", o.cvode.abs_tol_cov),
-      dblKey("cvode_nonlin_conv_coef", o.cvode.nonlin_conv_coef),
-      boolKey("cvode_adaptive_initial_step", o.cvode.adaptive_initial_step),
-      intKey("cvode_max_num_steps", o.cvode.max_num_steps),
-      dblKey("cvode_max_step_s", o.cvode.max_step_s),
-      intKey("cvode_max_order", o.cvode.max_order),
-      boolKey("cvode_restart_at_input_samples", o.cvode.restart_at_input_samples),
-      dblKey("q_v_m2_s3", o.q_v_m2_s3),
-      dblKey("q_omega_rad2_s3", o.q_omega_rad2_s3),
-      dblKey("q_xy_m2_s", o.q_xy_m2_s),
-      dblKey("q_phi_rad2_s", o.q_phi_rad2_s),
-      dblKey("q_obstacle_m2_s", o.q_obstacle_m2_s),
-      dblKey("q_obstacle_bearing_rad2_s", o.q_obstacle_bearing_rad2_s),
-      dblKey("current_noise_density_A2_s", o.current_noise_density_A2_s),
-      boolKey("encoder_quantisation", o.encoder_quantisation),
-      dblKey("encoder_extra_noise_m_s", o.encoder_extra_noise_m_s),
-      dblKey("max_encoder_interval_s", o.max_encoder_interval_s),
-      dblKey("gyro_noise_rad_s", o.gyro_noise_rad_s),
-      dblKey("sonar_noise_m", o.sonar_noise_m),
-      dblKey("pozyx_noise_m", o.pozyx_noise_m),
-      dblKey("pozyx_anchor_x_m", o.pozyx_anchor_x_m),
-      dblKey("pozyx_anchor_y_m", o.pozyx_anchor_y_m),
-      dblKey("pozyx_anchor_yaw_deg", o.pozyx_anchor_yaw_deg),
-      dblKey("initial_sigma_v_m_s", o.initial_sigma_v_m_s),
-      dblKey("initial_sigma_omega_rad_s", o.initial_sigma_omega_rad_s),
-      dblKey("initial_sigma_xy_m", o.initial_sigma_xy_m),
-      dblKey("initial_sigma_phi_rad", o.initial_sigma_phi_rad),
-      enumKey("initial_obstacle", o.initial_obstacle, kInit),
-      dblKey("initial_obstacle_x_m", o.initial_obstacle_x_m),
-      dblKey("initial_obstacle_y_m", o.initial_obstacle_y_m),
-      dblKey("initial_obstacle_range_sigma_m", o.initial_obstacle_range_sigma_m),
-      dblKey("initial_obstacle_bearing_sigma_deg", o.initial_obstacle_bearing_sigma_deg),
-      dblKey("baseline_q_v_m2_s3", o.baseline_q_v_m2_s3),
-      dblKey("baseline_q_omega_rad2_s3", o.baseline_q_omega_rad2_s3),
-      dblKey("baseline_q_xy_m2_s", o.baseline_q_xy_m2_s),
-      dblKey("baseline_q_phi_rad2_s", o.baseline_q_phi_rad2_s),
-      dblKey("baseline_q_obstacle_m2_s", o.baseline_q_obstacle_m2_s),
-  };
-}
+[[maybe_unused]] const bool kRegistered = config::registerOptionsOf<EkfOptions>("estimator");
 
 }  // namespace
 
+config::Options EkfOptions::options(const std::string& section) {
+  using config::Range;
+  const Range pos = Range::above(0), nonneg = Range::atLeast(0), any = Range::any();
+  const char* sensor = "1 sigma; < 0: the sensor section's datasheet value";
+  auto& c = cvode;
+  return config::Options(section, "state estimation (docs/estimation.md)")
+      .choice("filter", filter, kFilter, "physics EKF or constant-velocity baseline")
+      .choice("obstacle_form", obstacle_form, kForm, "obstacle state, eq. (7) or (8)")
+      .choice("encoder_model", encoder_model, kEnc, "encoder measurement model")
+      .choice("input_interpolation", input_interpolation, kInterp, "motor currents between samples")
+      .flag("use_encoders", use_encoders, "use the encoders")
+      .flag("use_gyro", use_gyro, "use the gyro")
+      .flag("use_sonar", use_sonar, "use the sonar")
+      .flag("use_pozyx", use_pozyx, "use the Pozyx (needs the anchor frame)")
+      .real("output_rate_hz", output_rate_hz, "output rate (Hz); 0: per measurement", nonneg)
+      .real("gate_probability", gate_probability,
+            "NIS gate chi-square probability (-); 0 or 1: no gate", Range::between(0, 1))
+      .integer("sonar_reinit_after_rejections", sonar_reinit_after_rejections,
+               "re-initialise the obstacle after this many gated readings (count; 0 = never)",
+               nonneg)
+      .choice("cvode_method", c.method, kMethod, "CVODE method")
+      .real("cvode_rel_tol", c.rel_tol, "CVODE relative tolerance (-)", pos)
+      .real("cvode_abs_tol_state", c.abs_tol_state, "CVODE absolute tolerance, state", pos)
+      .real("cvode_abs_tol_cov", c.abs_tol_cov, "CVODE absolute tolerance, covariance", pos)
+      .real("cvode_nonlin_conv_coef", c.nonlin_conv_coef, "CVODE corrector safety factor (-)", pos)
+      .flag("cvode_adaptive_initial_step", c.adaptive_initial_step,
+            "initial step from the previous restart")
+      .integer("cvode_max_num_steps", c.max_num_steps, "CVODE max steps per interval", pos)
+      .real("cvode_max_step_s", c.max_step_s, "CVODE max step (s; 0 = none)", nonneg)
+      .integer("cvode_max_order", c.max_order, "CVODE max order (0 = default)", nonneg)
+      .flag("cvode_restart_at_input_samples", c.restart_at_input_samples,
+            "restart CVODE at every motor-current sample")
+      .real("q_v_m2_s3", q_v_m2_s3, "process noise density on vdot (m^2/s^3)", nonneg)
+      .real("q_omega_rad2_s3", q_omega_rad2_s3, "on omegadot (rad^2/s^3)", nonneg)
+      .real("q_xy_m2_s", q_xy_m2_s, "on xdot, ydot (m^2/s)", nonneg)
+      .real("q_phi_rad2_s", q_phi_rad2_s, "on phidot (rad^2/s)", nonneg)
+      .real("q_obstacle_m2_s", q_obstacle_m2_s, "on the obstacle px, py or d (m^2/s)", nonneg)
+      .real("q_obstacle_bearing_rad2_s", q_obstacle_bearing_rad2_s, "on beta (rad^2/s)", nonneg)
+      .real("current_noise_density_A2_s", current_noise_density_A2_s,
+            "motor-current noise density (A^2 s); < 0: [motors] current_noise_A^2 / rate_hz", any)
+      .flag("encoder_quantisation", encoder_quantisation, "add the tick-quantisation variance")
+      .real("encoder_extra_noise_m_s", encoder_extra_noise_m_s,
+            "extra rim-speed noise, 1 sigma (m/s)", nonneg)
+      .real("max_encoder_interval_s", max_encoder_interval_s,
+            "longer encoder intervals give no measurement (s)", pos)
+      .real("gyro_noise_rad_s", gyro_noise_rad_s, sensor, any)
+      .real("sonar_noise_m", sonar_noise_m, sensor, any)
+      .real("pozyx_noise_m", pozyx_noise_m, sensor, any)
+      .real("pozyx_anchor_x_m", pozyx_anchor_x_m, "anchor frame x (m)")
+      .real("pozyx_anchor_y_m", pozyx_anchor_y_m, "anchor frame y (m)")
+      .real("pozyx_anchor_yaw_deg", pozyx_anchor_yaw_deg, "anchor frame yaw (deg)")
+      .real("initial_sigma_v_m_s", initial_sigma_v_m_s, "initial 1 sigma of v (m/s)", pos)
+      .real("initial_sigma_omega_rad_s", initial_sigma_omega_rad_s,
+            "initial 1 sigma of omega (rad/s)", pos)
+      .real("initial_sigma_xy_m", initial_sigma_xy_m, "initial 1 sigma of x, y (m)", pos)
+      .real("initial_sigma_phi_rad", initial_sigma_phi_rad, "initial 1 sigma of phi (rad)", pos)
+      .choice("initial_obstacle", initial_obstacle, kInit, "initial obstacle")
+      .real("initial_obstacle_x_m", initial_obstacle_x_m, "config mode: body-frame x (m)")
+      .real("initial_obstacle_y_m", initial_obstacle_y_m, "config mode: body-frame y (m)")
+      .real("initial_obstacle_range_sigma_m", initial_obstacle_range_sigma_m,
+            "initial range 1 sigma (m)", pos)
+      .real("initial_obstacle_bearing_sigma_deg", initial_obstacle_bearing_sigma_deg,
+            "initial bearing 1 sigma (deg); < 0: cone half-angle / sqrt(3)", any)
+      .real("baseline_q_v_m2_s3", baseline_q_v_m2_s3, "baseline: density of v (m^2/s^3)", nonneg)
+      .real("baseline_q_omega_rad2_s3", baseline_q_omega_rad2_s3,
+            "baseline: density of omega (rad^2/s^3)", nonneg)
+      .real("baseline_q_xy_m2_s", baseline_q_xy_m2_s, "baseline: on x, y (m^2/s)", nonneg)
+      .real("baseline_q_phi_rad2_s", baseline_q_phi_rad2_s, "baseline: on phi (rad^2/s)", nonneg)
+      .real("baseline_q_obstacle_m2_s", baseline_q_obstacle_m2_s,
+            "baseline: on the obstacle (m^2/s)", nonneg);
+}
+
 void EkfOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                                 const std::string& section) {
-  for (const Key& k : keys(*this)) {
-    const std::string t = trim(ini.read_string(section, k.name, "", false));
-    if (t.empty()) continue;
-    k.read(t, "[" + section + "] " + k.name);
-  }
+  options(section).load(ini);
   try {
     validate();
   } catch (const std::invalid_argument& e) {
-    throw std::runtime_error("[" + section + "]: " + e.what());
+    throw std::runtime_error(config::keyLocation(ini, section, "") + ": " + e.what());
   }
 }
 
 void EkfOptions::saveToConfig(mrpt::config::CConfigFileBase& ini,
                               const std::string& section) const {
-  EkfOptions copy = *this;  // keys() binds to a mutable object
-  for (const Key& k : keys(copy)) ini.write(section, k.name, k.write());
+  EkfOptions copy = *this;  // the table binds to a mutable object
+  copy.options(section).save(ini);
 }
 
 void EkfOptions::resolveSensorDefaults(const config::WheelchairConfig& cfg) {

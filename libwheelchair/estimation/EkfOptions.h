@@ -13,6 +13,7 @@
 //   auto res = runEstimator(rec, cfg, opt);
 #pragma once
 
+#include "libwheelchair/config/Options.h"
 #include "libwheelchair/estimation/CdEkf.h"
 
 #include <mrpt/config/CConfigFileBase.h>
@@ -44,7 +45,7 @@ struct EkfOptions {
   double output_rate_hz = 0;  ///< 0: one output per processed measurement time
 
   // --- gating -----------------------------------------------------------------------------
-  double gate_probability = 0.999;  ///< chi2 probability of the NIS gate; 0 or >= 1: no gate
+  double gate_probability = 0.999;  ///< chi2 probability of the NIS gate in [0, 1]; 0 or 1: no gate
   /// After this many consecutive gated sonar readings the obstacle is re-initialised from the
   /// reading (a different obstacle took over the echo); 0: never.
   int sonar_reinit_after_rejections = 5;
@@ -91,8 +92,11 @@ struct EkfOptions {
   double baseline_q_phi_rad2_s = 1e-5;
   double baseline_q_obstacle_m2_s = 1e-5;
 
+  /// The key table of the section (config/Options.h): name, range, help of every key,
+  /// bound to this object. config/wheelchair.ini [estimator] documents the same keys.
+  config::Options options(const std::string& section = "estimator");
   /// Reads the keys present in `section` (missing keys keep their values). Throws
-  /// std::runtime_error naming section and key on a malformed value.
+  /// std::runtime_error naming file, line and key on a malformed or out-of-range value.
   void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                       const std::string& section = "estimator");
   /// Writes every key to `section`.

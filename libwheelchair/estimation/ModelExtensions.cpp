@@ -1,5 +1,7 @@
 #include "libwheelchair/estimation/ModelExtensions.h"
 
+#include "libwheelchair/config/Options.h"
+
 #include "libwheelchair/sensors/Encoders.h"
 
 #include <fmt/format.h>
@@ -24,6 +26,20 @@ struct RimSpeeds {
   }
 };
 
+}  // namespace
+
+namespace {
+// Written by `wheelchair diagnose --write-config`; read here (effect_N) and by the reports.
+[[maybe_unused]] const bool kRegistered = config::registerOptions([] {
+  auto count = std::make_shared<int>(0);
+  config::Options t("model_extensions", "model extensions found by `wheelchair diagnose`");
+  t.integer("count", *count, "number of effects (count)", config::Range::atLeast(0))
+      .numberedKeys("effect_", "an effect `id:key=value,...` (docs/effects.md)")
+      .numberedKeys("sigma_", "its parameters' 1-sigma uncertainties (key=value,...)")
+      .numberedKeys("unmodeled_", "terms outside the catalogue (JSON)")
+      .keepAlive(count);
+  return std::vector<config::Options>{t};
+});
 }  // namespace
 
 ModelExtensions ModelExtensions::fromConfig(const mrpt::config::CConfigFileBase& ini) {

@@ -187,24 +187,47 @@ nlohmann::json residualJson(const ResidualStats& r, const char* unit) {
 
 // ---------------------------------------------------------------------------------------
 
+namespace {
+[[maybe_unused]] const bool kRegistered =
+    config::registerOptionsOf<IdentificationOptions>("identification") &&
+    config::registerOptions([] {
+      return std::vector<config::Options>{
+          config::Options("identified")
+              .anyKey(
+                  "written by `wheelchair identify --write-config`: the identified values, their "
+                  "standard errors and sources (results, not read back)")};
+    });
+}  // namespace
+
+config::Options IdentificationOptions::options(const std::string& section) {
+  using config::Range;
+  const Range pos = Range::above(0), nonneg = Range::atLeast(0);
+  return config::Options(section, "least-squares identification (docs/identification.md)")
+      .real("rate_hz", rate_hz, "common time base (Hz)", pos)
+      .real("cutoff_hz", cutoff_hz, "zero-phase Butterworth cut-off, all signals (Hz)", pos)
+      .oneOf("omega_source", omega_source, {"encoders", "gyro"}, "angular velocity from")
+      .real("standstill_speed_m_s", standstill_speed_m_s,
+            "standstill when both rim speeds are below (m/s)", nonneg)
+      .real("edge_trim_s", edge_trim_s, "dropped at both ends of every segment (s)", nonneg)
+      .real("max_gap_s", max_gap_s, "a longer stream gap splits a segment (s)", pos)
+      .real("min_excitation_snr", min_excitation_snr, "excitation rms / noise floor (-)", nonneg)
+      .real("hac_lag_factor", hac_lag_factor, "HAC bandwidth factor (-)", pos)
+      .real("confidence", confidence, "two-sided confidence level (-)", Range{0, 1, true, true})
+      .real("rank_tol", rank_tol, "relative singular-value threshold (-)", nonneg)
+      .real("qs_max_vdot_m_s2", qs_max_vdot_m_s2, "quasi-steady: |vdot| below (m/s^2)", nonneg)
+      .real("qs_max_omegadot_rad_s2", qs_max_omegadot_rad_s2,
+            "quasi-steady: |omegadot| below (rad/s^2)", nonneg)
+      .real("qs_min_duration_s", qs_min_duration_s, "quasi-steady: lasting at least (s)", nonneg)
+      .real("qs_min_wheel_speed_m_s", qs_min_wheel_speed_m_s,
+            "quasi-steady: motor rim speed beyond (m/s)", nonneg)
+      .flag("update_torque_constant", update_torque_constant,
+            "--write-config: k_m from the back-EMF fit");
+}
+
 void IdentificationOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                                            const std::string& sec) {
-  rate_hz = ini.read_double(sec, "rate_hz", rate_hz);
-  cutoff_hz = ini.read_double(sec, "cutoff_hz", cutoff_hz);
-  omega_source = ini.read_string(sec, "omega_source", omega_source);
-  standstill_speed_m_s = ini.read_double(sec, "standstill_speed_m_s", standstill_speed_m_s);
-  edge_trim_s = ini.read_double(sec, "edge_trim_s", edge_trim_s);
-  max_gap_s = ini.read_double(sec, "max_gap_s", max_gap_s);
-  min_excitation_snr = ini.read_double(sec, "min_excitation_snr", min_excitation_snr);
-  hac_lag_factor = ini.read_double(sec, "hac_lag_factor", hac_lag_factor);
-  confidence = ini.read_double(sec, "confidence", confidence);
-  rank_tol = ini.read_double(sec, "rank_tol", rank_tol);
-  qs_max_vdot_m_s2 = ini.read_double(sec, "qs_max_vdot_m_s2", qs_max_vdot_m_s2);
-  qs_max_omegadot_rad_s2 = ini.read_double(sec, "qs_max_omegadot_rad_s2", qs_max_omegadot_rad_s2);
-  qs_min_duration_s = ini.read_double(sec, "qs_min_duration_s", qs_min_duration_s);
-  qs_min_wheel_speed_m_s = ini.read_double(sec, "qs_min_wheel_speed_m_s", qs_min_wheel_speed_m_s);
-  update_torque_constant = ini.read_bool(sec, "update_torque_constant", update_torque_constant);
-  validate("[" + sec + "]");
+  options(sec).load(ini);
+  validate(config::keyLocation(ini, sec, ""));
 }
 
 void IdentificationOptions::validate(const std::string& sec) const {

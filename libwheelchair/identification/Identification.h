@@ -56,6 +56,9 @@ struct IdentificationOptions {
   double qs_min_wheel_speed_m_s = 0.1;    ///< ... with both |u_i| above this
   bool update_torque_constant = true;     ///< --write-config: k_m from the back-EMF fit
 
+  /// The key table (config/Options.h), bound to this object.
+  config::Options options(const std::string& section = "identification");
+  /// Reads the keys present (strict numbers, ranges); throws naming file, line and key.
   void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                       const std::string& section = "identification");
   /// Throws std::runtime_error (message prefixed by `where`) on inconsistent values.

@@ -2,6 +2,7 @@
 
 #include "libwheelchair/util/AtomicFile.h"
 #include "libwheelchair/util/Text.h"
+#include "libwheelchair/config/Options.h"
 
 #include <fmt/format.h>
 #include <mrpt/core/Clock.h>
@@ -45,6 +46,14 @@ unsigned long headerCrc(std::string_view text, mrpt::Clock::time_point t) {
   return crc32(crc, reinterpret_cast<const Bytef*>(stamp.data()), static_cast<uInt>(stamp.size()));
 }
 
+
+// [recording]: free-form metadata of a recording (meta.ini, the rawlog header, capture.ini),
+// so that a header text loads as a configuration (WheelchairConfig::fromText) strictly.
+[[maybe_unused]] const bool kRegistered = config::registerOptions([] {
+  return std::vector<config::Options>{
+      config::Options("recording")
+          .anyKey("free-form metadata of the recording (operator, notes, scenario, ...)")};
+});
 const mrpt::obs::TIMUDataIndex kImuExtra[5] = {IMU_WX, IMU_WY, IMU_X_ACC, IMU_Y_ACC, IMU_Z_ACC};
 
 // MRPT's clock counts 100 ns ticks since 1601 in an unsigned-compatible range: a negative or

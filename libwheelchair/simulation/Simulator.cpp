@@ -11,6 +11,7 @@
 #include "libwheelchair/simulation/Random.h"
 #include "libwheelchair/util/AtomicFile.h"
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -114,122 +115,118 @@ struct SensorEffects {
   double outlier_rate = 0, outlier_magnitude = 1;
 };
 
-double parseNumber(const std::string& text, const std::string& where) {
-  const char* s = text.c_str();
-  char* end = nullptr;
-  errno = 0;
-  const double x = std::strtod(s, &end);
-  while (end && (*end == ' ' || *end == '\t' || *end == '\r')) ++end;
-  if (end == s || *end != '\0' || errno == ERANGE || !std::isfinite(x))
-    throw std::runtime_error(where + ": '" + util::quoteInput(text) + "' is not a finite number");
-  return x;
-}
+}  // namespace
 
-std::string trimmed(std::string s) {
-  const auto b = s.find_first_not_of(" \t\r\n\"");
-  if (b == std::string::npos) return "";
-  const auto e = s.find_last_not_of(" \t\r\n\"");
-  return s.substr(b, e - b + 1);
+// ------------------------------------------------------------------------------------------
+namespace {
+
+[[maybe_unused]] const bool kRegistered =
+    config::registerOptionsOf<SimulationOptions>("simulation");
+
+// Obstacle list "x y x y ..." (m; commas or semicolons also separate), each of `radius_m`.
+config::Options& obstacleKey(config::Options& t, const char* key, std::vector<Obstacle>& v,
+                             const double& radius_m, const char* help) {
+  return t.custom(
+      key,
+      [&v, &radius_m](const std::string& text) {
+        std::string norm = text;
+        for (char& c : norm)
+          if (c == ',' || c == ';') c = ' ';
+        std::istringstream ss(norm);
+        std::vector<double> xs;
+        for (std::string tok; ss >> tok;) xs.push_back(config::parseStrictNumber(tok, "obstacle"));
+        if (xs.size() % 2) throw std::runtime_error("expected pairs 'x y x y ...' (m)");
+        v.clear();
+        for (std::size_t i = 0; i + 1 < xs.size(); i += 2)
+          v.push_back({xs[i], xs[i + 1], radius_m});
+      },
+      [&v] {
+        std::string out;
+        for (const auto& o : v) out += fmt::format("{}{} {}", out.empty() ? "" : " ", o.x_m, o.y_m);
+        return out;
+      },
+      help);
 }
 
 }  // namespace
 
-// ------------------------------------------------------------------------------------------
+config::Options SimulationOptions::options(const std::string& sec) {
+  using config::Range;
+  const Range P = Range::above(0), any = Range::any();
+  auto& pw = power;
+  auto& sv = supervisory;
+  auto& sc = scenario;
+  config::Options t(sec, "truth simulator (docs/simulation.md); effects are given per run");
+  t.real("step_s", step_s, "RK4 step and power-module control period (s)", Range{0, 0.01, true})
+      .real("truth_rate_hz", truth_rate_hz, "truth trajectory sample rate (Hz)", P)
+      .real("start_time_s", start_time_s, "recording clock at the start (s)", any)
+      .real("timestamp_jitter_s", timestamp_jitter_s, "sampling-instant jitter, uniform +- (s)",
+            any)
+      .real("max_accel_m_s2", pw.max_accel_m_s2, "power module: acceleration limit (m/s^2)", P)
+      .real("max_decel_m_s2", pw.max_decel_m_s2, "power module: deceleration limit (m/s^2)", P)
+      .real("max_angular_accel_rad_s2", pw.max_angular_accel_rad_s2,
+            "power module: angular acceleration limit (rad/s^2)", P)
+      .real("actuator_delay_s", pw.delay_s, "power module: pure delay (s)", any)
+      .real("actuator_time_constant_s", pw.time_constant_s, "power module: lag (s)", any)
+      .real("speed_kp_A_s_m", pw.speed_kp_A_s_m, "PI speed loop: A per m/s", any)
+      .real("speed_ki_A_m", pw.speed_ki_A_m, "PI speed loop: A per m", any)
+      .real("current_limit_A", pw.current_limit_A, "motor current limit (A)", P)
+      .real("battery_voltage_V", pw.battery_voltage_V, "battery voltage (V)", P)
+      .real("coulomb_smoothing_m_s", coulomb_smoothing_m_s, "sgn(u) ~ tanh(u / this) (m/s)", P)
+      .flag("pozyx_anchor_random", pozyx_anchor_random, "random anchor frame per seed")
+      .real("pozyx_anchor_max_offset_m", pozyx_anchor_max_offset_m,
+            "random anchor frame: max translation (m)", any)
+      .real("pozyx_anchor_x_m", pozyx_anchor_x_m, "fixed anchor frame x (m)", any)
+      .real("pozyx_anchor_y_m", pozyx_anchor_y_m, "fixed anchor frame y (m)", any)
+      .real("pozyx_anchor_yaw_deg", pozyx_anchor_yaw_deg, "fixed anchor frame yaw (deg)", any)
+      .integer("encoder_initial_ticks_right", encoder_initial_ticks_right,
+               "right counter at the start (counts)", any)
+      .integer("encoder_initial_ticks_left", encoder_initial_ticks_left,
+               "left counter at the start (counts)", any)
+      .real("footprint_front_m", footprint.front_m, "footprint ahead of the axle (m)", P)
+      .real("footprint_rear_m", footprint.rear_m, "footprint behind the axle (m)", P)
+      .real("footprint_half_width_m", footprint.half_width_m, "footprint half width (m)", P)
+      .flag("supervisory", sv.enabled, "assist-as-needed supervisory control")
+      .real("supervisory_slow_distance_m", sv.slow_distance_m, "slow-down distance (m)", any)
+      .real("supervisory_stop_distance_m", sv.stop_distance_m, "stop distance (m)", any)
+      .real("supervisory_horizon_s", sv.horizon_s, "prediction horizon (s)", P)
+      .real("supervisory_prediction_step_s", sv.prediction_step_s, "prediction step (s)", P)
+      .real("supervisory_margin_m", sv.margin_m, "contact margin (m)", any)
+      .real("supervisory_rate_hz", sv.rate_hz, "supervisory rate (Hz)", P)
+      .flag("record_ground_truth", record_ground_truth, "store the true pose as GROUND_TRUTH")
+      .real("start_pause_s", sc.start_pause_s, "pilot: standstill before moving (s)", any)
+      .real("driver_max_speed_m_s", sc.max_speed_m_s, "pilot: cruise speed (m/s)", P)
+      .real("driver_max_turn_rate_rad_s", sc.max_turn_rate_rad_s,
+            "pilot: turn rate in place (rad/s)", P)
+      .real("driver_decel_m_s2", sc.comfort_decel_m_s2, "pilot: braking (m/s^2)", P)
+      .real("driver_angular_decel_rad_s2", sc.comfort_angular_decel_rad_s2,
+            "pilot: angular braking (rad/s^2)", P)
+      .real("driver_heading_gain_1_s", sc.heading_gain_1_s, "pilot: steering gain (1/s)", P)
+      .real("three_task_length_m", sc.three_task_length_m, "three_task: leg length (m)", P)
+      .real("square_side_m", sc.square_side_m, "square: side (m)", P)
+      .real("excite_mean_speed_m_s", sc.excite_mean_speed_m_s, "excite: mean speed (m/s)", any)
+      .real("obstacles_v_cmd_m_s", sc.field_v_m_s, "obstacles: fixed joystick v (m/s)", any)
+      .real("obstacles_omega_cmd_rad_s", sc.field_omega_rad_s,
+            "obstacles: fixed joystick omega (rad/s)", any)
+      .real("obstacles_drive_s", sc.field_drive_s, "obstacles: drive time (s)", P)
+      .real("obstacle_radius_m", sc.obstacle_radius_m, "post radius (m)", P);
+  // After obstacle_radius_m: the lists take the radius read above.
+  obstacleKey(t, "three_task_obstacles_xy_m", sc.three_task_obstacles, sc.obstacle_radius_m,
+              "three_task: obstacles 'x y x y ...' in the start frame (m)");
+  obstacleKey(t, "obstacle_field_xy_m", sc.field_obstacles, sc.obstacle_radius_m,
+              "obstacles: posts 'x y x y ...' (m; empty = a 1 m lattice)");
+  return t;
+}
+
 void SimulationOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                                        const std::string& sec) {
-  auto raw = [&](const char* key) { return trimmed(ini.read_string(sec, key, "", false)); };
-  auto where = [&](const char* key) { return "[" + sec + "] " + key; };
-  auto D = [&](const char* key, double& v) {
-    const std::string t = raw(key);
-    if (!t.empty()) v = parseNumber(t, where(key));
-  };
-  auto B = [&](const char* key, bool& v) {
-    const std::string t = raw(key);
-    if (t.empty()) return;
-    if (t == "true" || t == "on" || t == "yes")
-      v = true;
-    else if (t == "false" || t == "off" || t == "no")
-      v = false;
-    else
-      v = parseNumber(t, where(key)) != 0;
-  };
-  auto I = [&](const char* key, int64_t& v) {
-    const std::string t = raw(key);
-    if (t.empty()) return;
-    const double x = parseNumber(t, where(key));
-    if (x != std::floor(x)) throw std::runtime_error(where(key) + ": expected an integer");
-    v = static_cast<int64_t>(x);
-  };
-  auto P = [&](const char* key, double& v) {  // strictly positive
-    D(key, v);
-    if (!(v > 0)) throw std::runtime_error(where(key) + ": must be > 0");
-  };
-  auto O = [&](const char* key, std::vector<Obstacle>& v, double radius) {
-    const std::string t = raw(key);
-    if (t.empty()) return;
-    std::string norm = t;
-    for (char& c : norm)
-      if (c == ',' || c == ';') c = ' ';
-    std::istringstream ss(norm);
-    std::vector<double> xs;
-    std::string tok;
-    while (ss >> tok) xs.push_back(parseNumber(tok, where(key)));
-    if (xs.size() % 2) throw std::runtime_error(where(key) + ": expected pairs 'x y x y ...' (m)");
-    v.clear();
-    for (std::size_t i = 0; i + 1 < xs.size(); i += 2) v.push_back({xs[i], xs[i + 1], radius});
-  };
-  P("step_s", step_s);
-  P("truth_rate_hz", truth_rate_hz);
-  D("start_time_s", start_time_s);
-  D("timestamp_jitter_s", timestamp_jitter_s);
-  P("max_accel_m_s2", power.max_accel_m_s2);
-  P("max_decel_m_s2", power.max_decel_m_s2);
-  P("max_angular_accel_rad_s2", power.max_angular_accel_rad_s2);
-  D("actuator_delay_s", power.delay_s);
-  D("actuator_time_constant_s", power.time_constant_s);
-  D("speed_kp_A_s_m", power.speed_kp_A_s_m);
-  D("speed_ki_A_m", power.speed_ki_A_m);
-  P("current_limit_A", power.current_limit_A);
-  P("battery_voltage_V", power.battery_voltage_V);
-  P("coulomb_smoothing_m_s", coulomb_smoothing_m_s);
-  B("pozyx_anchor_random", pozyx_anchor_random);
-  D("pozyx_anchor_max_offset_m", pozyx_anchor_max_offset_m);
-  D("pozyx_anchor_x_m", pozyx_anchor_x_m);
-  D("pozyx_anchor_y_m", pozyx_anchor_y_m);
-  D("pozyx_anchor_yaw_deg", pozyx_anchor_yaw_deg);
-  I("encoder_initial_ticks_right", encoder_initial_ticks_right);
-  I("encoder_initial_ticks_left", encoder_initial_ticks_left);
-  P("footprint_front_m", footprint.front_m);
-  P("footprint_rear_m", footprint.rear_m);
-  P("footprint_half_width_m", footprint.half_width_m);
-  B("supervisory", supervisory.enabled);
-  D("supervisory_slow_distance_m", supervisory.slow_distance_m);
-  D("supervisory_stop_distance_m", supervisory.stop_distance_m);
-  P("supervisory_horizon_s", supervisory.horizon_s);
-  P("supervisory_prediction_step_s", supervisory.prediction_step_s);
-  D("supervisory_margin_m", supervisory.margin_m);
-  P("supervisory_rate_hz", supervisory.rate_hz);
-  B("record_ground_truth", record_ground_truth);
-  auto& sc = scenario;
-  D("start_pause_s", sc.start_pause_s);
-  P("driver_max_speed_m_s", sc.max_speed_m_s);
-  P("driver_max_turn_rate_rad_s", sc.max_turn_rate_rad_s);
-  P("driver_decel_m_s2", sc.comfort_decel_m_s2);
-  P("driver_angular_decel_rad_s2", sc.comfort_angular_decel_rad_s2);
-  P("driver_heading_gain_1_s", sc.heading_gain_1_s);
-  P("three_task_length_m", sc.three_task_length_m);
-  P("square_side_m", sc.square_side_m);
-  D("excite_mean_speed_m_s", sc.excite_mean_speed_m_s);
-  D("obstacles_v_cmd_m_s", sc.field_v_m_s);
-  D("obstacles_omega_cmd_rad_s", sc.field_omega_rad_s);
-  P("obstacles_drive_s", sc.field_drive_s);
-  P("obstacle_radius_m", sc.obstacle_radius_m);
-  for (auto& o : sc.three_task_obstacles) o.radius_m = sc.obstacle_radius_m;
-  O("three_task_obstacles_xy_m", sc.three_task_obstacles, sc.obstacle_radius_m);
-  O("obstacle_field_xy_m", sc.field_obstacles, sc.obstacle_radius_m);
+  const config::Options t = options(sec);
+  t.load(ini);
+  // The default three_task obstacles take a configured radius too (given lists already do).
+  for (auto& o : scenario.three_task_obstacles) o.radius_m = scenario.obstacle_radius_m;
   if (supervisory.stop_distance_m >= supervisory.slow_distance_m)
-    throw std::runtime_error("[" + sec +
-                             "] supervisory_stop_distance_m must be < supervisory_slow_distance_m");
+    throw std::runtime_error(config::keyLocation(ini, sec, "supervisory_stop_distance_m") +
+                             ": must be < supervisory_slow_distance_m");
 }
 
 // ------------------------------------------------------------------------------------------

@@ -59,8 +59,10 @@ struct SimulationOptions {
   /// multibody, MujocoEngine.h; its [mujoco] section is read from the configuration).
   std::string engine = "model";
 
+  /// The key table (config/Options.h), bound to this object.
+  config::Options options(const std::string& section = "simulation");
   /// Reads the keys present in `section` (missing keys keep their defaults). Throws
-  /// std::runtime_error naming the key on a malformed value.
+  /// std::runtime_error naming file, line and key on a malformed or out-of-range value.
   void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                       const std::string& section = "simulation");
 };

@@ -416,21 +416,21 @@ RecordingFigures recordingFigures(const std::string& path, const std::string& su
   TimeFigure base;
   base.t0 = t0;
   if (heldout) {
-    base.fit_end = tb + o.fit_fraction * (te - tb);
+    base.fit_end = tb + o.diagnosis_options.fit_fraction * (te - tb);
     base.val0 = *base.fit_end;
   }
   const std::string name = fs::path(path).filename().string();
   const std::string val_words =
       heldout ? fmt::format("held-out last {:.0f}% of {} (the shaded part was used for fitting)",
-                            100 * (1 - o.fit_fraction), name)
+                            100 * (1 - o.diagnosis_options.fit_fraction), name)
               : "validation recording " + name + " (not used for fitting)";
   auto file = [&](const std::string& stem) { return stem + suffix + ".png"; };
   auto out = [&](const std::string& f) { return (fs::path(o.out_dir) / f).string(); };
 
   // Gyro vs encoders.
   if (raw.imu.size() >= 3) {
-    const auto rb = gyroEncoderResidual(raw, input_cfg, o.window_s);
-    const auto ra = gyroEncoderResidual(corrected, corrected_adj, o.window_s);
+    const auto rb = gyroEncoderResidual(raw, input_cfg, o.diagnosis_options.window_s);
+    const auto ra = gyroEncoderResidual(corrected, corrected_adj, o.diagnosis_options.window_s);
     TimeFigure f = base;
     f.title = "Residual gyro omega - encoder omega, nominal vs corrected model";
     f.ylabel = "omega_gyro - omega_encoders (rad/s)";
@@ -444,7 +444,7 @@ RecordingFigures recordingFigures(const std::string& path, const std::string& su
                      "over windows of {:.2f} s (the kinematic channel of the diagnosis), with the "
                      "nominal model (orange) and the corrected one (blue, sensor effects of "
                      "[model_extensions] undone); {}.",
-                     o.window_s, val_words)});
+                     o.diagnosis_options.window_s, val_words)});
     rf.residual_stats["gyro_vs_encoders (rad/s)"] = {statsIn(rb, f.val0, f.val1),
                                                      statsIn(ra, f.val0, f.val1)};
   }
@@ -461,7 +461,8 @@ RecordingFigures recordingFigures(const std::string& path, const std::string& su
       f.unit = "A";
       f.before = &cb[s];
       f.after = &ca[s];
-      f.xnote = fmt::format("both currents zero-phase low-pass {:.1f} Hz", o.cutoff_hz);
+      f.xnote =
+          fmt::format("both currents zero-phase low-pass {:.1f} Hz", o.diagnosis_options.cutoff_hz);
       const std::string stem = "residual_current_" + side;
       drawTimeFigure(f, out(file(stem)), o.width, o.height);
       rf.figures.push_back(
@@ -470,7 +471,7 @@ RecordingFigures recordingFigures(const std::string& path, const std::string& su
                        "the motion the encoders saw (zero-phase filtered at {:.1f} Hz), with the "
                        "nominal model (orange) and the corrected one (blue: drive-train extension "
                        "currents removed{}); {}.",
-                       s == 0 ? "Right" : "Left", o.cutoff_hz,
+                       s == 0 ? "Right" : "Left", o.diagnosis_options.cutoff_hz,
                        has_slope ? ", floor slope in the model" : "", val_words)});
       rf.residual_stats["current_" + side + " (A)"] = {statsIn(cb[s], f.val0, f.val1),
                                                        statsIn(ca[s], f.val0, f.val1)};
@@ -776,13 +777,15 @@ std::array<ResidualSeries, 2> currentResiduals(const io::Recording& rec,
   model::DriveTrain dt = model::DriveTrain::symmetric(cfg.vehicle);
   dt.slope_rad = slope_rad;
   dt.downhill_heading_rad = downhill_heading_rad;
-  const double fs = o.grid_rate_hz, fc = std::min(o.cutoff_hz, 0.45 * o.grid_rate_hz);
-  for (const auto& se : splitGaps(te, o.max_gap_s))
-    for (const auto& sm : splitGaps(tm, o.max_gap_s)) {
-      const double lo = std::max(se.first, sm.first) + o.edge_trim_s;
-      const double hi = std::min(se.second, sm.second) - o.edge_trim_s;
+  const double fs = o.diagnosis_options.grid_rate_hz,
+               fc =
+                   std::min(o.diagnosis_options.cutoff_hz, 0.45 * o.diagnosis_options.grid_rate_hz);
+  for (const auto& se : splitGaps(te, o.diagnosis_options.max_gap_s))
+    for (const auto& sm : splitGaps(tm, o.diagnosis_options.max_gap_s)) {
+      const double lo = std::max(se.first, sm.first) + o.diagnosis_options.edge_trim_s;
+      const double hi = std::min(se.second, sm.second) - o.diagnosis_options.edge_trim_s;
       if (hi - lo < 3.0) continue;
-      const double margin = std::min(o.edge_trim_s, 1.0);
+      const double margin = std::min(o.diagnosis_options.edge_trim_s, 1.0);
       const double glo = lo - margin, ghi = hi + margin;
       const int n = static_cast<int>(std::floor((ghi - glo) * fs)) + 1;
       if (n < 20) continue;
@@ -888,7 +891,7 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
   md += "* fitted on: " + list(fit_paths) + "\n";
   md += "* validation: " +
         (heldout ? fmt::format("held-out last {:.0f}% of each fitted recording",
-                               100 * (1 - o.fit_fraction))
+                               100 * (1 - o.diagnosis_options.fit_fraction))
                  : list(validate_paths)) +
         "\n";
   md += std::string("* mismatch: **") + (report.value("mismatch", false) ? "yes" : "no") + "**\n";

@@ -40,6 +40,7 @@
 #pragma once
 
 #include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/io/Recording.h"
 
 #include <nlohmann/json.hpp>
@@ -53,12 +54,9 @@ namespace wheelchair::visualization {
 struct DiagnosisFigureOptions {
   std::string out_dir;
   int width = 1000, height = 620;  ///< time plots (px); the trajectory plot is wider
-  double window_s = 0.2;           ///< [diagnosis] window_s: gyro-vs-encoder windows
-  double cutoff_hz = 2.0;          ///< [diagnosis] cutoff_hz: current residual low-pass
-  double grid_rate_hz = 50.0;      ///< [diagnosis] grid_rate_hz
-  double max_gap_s = 0.25;         ///< [diagnosis] max_gap_s: a longer gap splits a segment
-  double edge_trim_s = 1.0;        ///< [diagnosis] edge_trim_s: dropped at segment ends
-  double fit_fraction = 0.7;       ///< [diagnosis] fit_fraction (no validation recordings)
+  /// The diagnosis' own options (window_s, cutoff_hz, grid_rate_hz, max_gap_s, edge_trim_s,
+  /// fit_fraction): the figures recompute the residuals exactly as the diagnosis did.
+  diagnosis::DiagnosisOptions diagnosis_options;
   double align_first_s = 10.0;     ///< ground-truth frame without a truth file (see above)
   std::size_t max_recordings = 4;  ///< validation recordings drawn (the index lists all)
   std::string summary_text;        ///< written as summary.txt and quoted in index.md

@@ -4,6 +4,9 @@
 
 #include "libwheelchair/capture/SerialReplayer.h"
 
+#include <fmt/format.h>
+
+#include <algorithm>
 #include <atomic>
 #include <filesystem>
 #include <sstream>
@@ -258,6 +261,32 @@ TEST(CaptureCli, UsageAndConfigurationErrors) {
                 (tmp / "exists.rawlog") + " --duration 0.1");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("already exists"), std::string::npos) << r.out;
+  // [capture] keys are strict (config/Options.h): a typo, "0,5", an out-of-range level and an
+  // unknown section each exit 1 naming file, line and key; nothing is written.
+  const std::string tmpl = test::readFile(test::captureTemplate());
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"reorder_window_s = 0.5", "reorder_windw_s = 0.5"},
+      {"reorder_window_s = 0.5", "reorder_window_s = 0,5"},
+      {"compression_level = 1", "compression_level = 12"},
+      {"[recording]", "[recordings]"}};
+  const std::vector<std::string> expect = {
+      "[capture] reorder_windw_s: unknown key (did you mean reorder_window_s?)",
+      "[capture] reorder_window_s: '0,5' is not a number",
+      "[capture] compression_level: 12 is out of range [0, 9]", "[recordings]: unknown section"};
+  for (std::size_t i = 0; i < bad.size(); ++i) {
+    std::string text = tmpl;
+    const auto at = text.find(bad[i].first);
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, bad[i].first.size(), bad[i].second);
+    const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + at, '\n'));
+    const std::string path = tmp / ("bad" + std::to_string(i) + ".ini");
+    test::writeFile(path, text);
+    r = test::cli("capture --config " + path + " -o " + (tmp / "y.rawlog"));
+    EXPECT_EQ(r.exit_code, 1) << r.out;
+    EXPECT_NE(r.out.find(fmt::format("{}:{}: {}", path, line, expect[i])), std::string::npos)
+        << r.out;
+    EXPECT_FALSE(std::filesystem::exists(tmp / "y.rawlog"));
+  }
 }
 
 TEST(CaptureCli, ArrivalTimeCaptureIsFilteredLikeTheOriginal) {
