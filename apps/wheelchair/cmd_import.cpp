@@ -37,11 +37,9 @@ int runImport(const ImportOptions& o) {
   io::TextRecordingReader in(o.input);
   // A forward jump of the timeline above max_gap_s (a clock step, a stalled logger) is refused
   // with file, line and size: filtering across it would silently coast for the whole jump.
-  const double max_gap_s = o.max_gap_s >= 0
-                               ? o.max_gap_s
-                               : cfg.ini().read_double("import", "max_gap_s", io::kDefaultMaxGapS);
-  if (!(max_gap_s >= 0))
-    throw std::runtime_error(fmt::format("[import] max_gap_s must be >= 0 (got {})", max_gap_s));
+  io::ImportOptions imp;
+  imp.options().load(cfg.ini());
+  const double max_gap_s = o.max_gap_s >= 0 ? o.max_gap_s : imp.max_gap_s;
   in.setMaxGap(max_gap_s);
   io::RawlogWriter out(o.output);
   io::AnySample s;

@@ -128,7 +128,7 @@ std::string encoderSideUndecided(const KinRows& k, const std::vector<Candidate>&
   }
   const double var = k.X.rows() > 0 ? var_sum / k.X.rows() : 0.0;
   const double lr = a.ok && b.ok && var > 0 ? (b.rss - a.rss) / var : 0.0;
-  const double needed = estimation::chi2Quantile(1 - alpha_b, 1);
+  const double needed = stats::chi2Quantile(1 - alpha_b, 1);
   if (lr >= needed) return "";
   const double factor = std::min(needed / std::max(lr, 1e-3), 100.0);
   return fmt::format(
@@ -167,7 +167,7 @@ std::string encoderScaleUndetectable(const KinRows& k, const std::vector<Candida
   }
   const double x2 = std::min(k.X.col(2).squaredNorm(), k.X.col(3).squaredNorm());
   const double var = var_sum / k.X.rows();
-  const double eps = x2 > 0 ? std::sqrt(estimation::chi2Quantile(1 - alpha_b, 1) * var / x2)
+  const double eps = x2 > 0 ? std::sqrt(stats::chi2Quantile(1 - alpha_b, 1) * var / x2)
                             : std::numeric_limits<double>::infinity();
   if (eps <= kReportableEncoderScale) return "";
   const double factor = std::min(std::pow(eps / kReportableEncoderScale, 2), 1e4);

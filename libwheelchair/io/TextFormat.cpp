@@ -429,4 +429,15 @@ void writeTextRecording(const Recording& rec, const std::string& dir) {
   w.commit();
 }
 
+config::Options ImportOptions::options(const std::string& sec) {
+  return config::Options(sec, "wheelchair import (plain-text recordings)")
+      .real("max_gap_s", max_gap_s,
+            "largest forward jump of the merged timeline accepted at import (s; 0: no check)",
+            config::Range::atLeast(0));
+}
+
+namespace {
+[[maybe_unused]] const bool kImportRegistered = config::registerOptionsOf<ImportOptions>("import");
+}  // namespace
+
 }  // namespace wheelchair::io

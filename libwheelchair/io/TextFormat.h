@@ -14,6 +14,7 @@
 //   for (auto& w : in.warnings()) std::cerr << w << "\n";
 #pragma once
 
+#include "libwheelchair/config/Options.h"
 #include "libwheelchair/io/Samples.h"
 #include "libwheelchair/util/AtomicFile.h"
 
@@ -90,6 +91,12 @@ class TextRecordingReader {
 /// Default of [import] max_gap_s (s): the largest forward jump of a recording's timeline that
 /// `wheelchair import` accepts (docs/recording-format.md).
 constexpr double kDefaultMaxGapS = 5.0;
+
+/// [import] options of `wheelchair import` (config/Options.h key table).
+struct ImportOptions {
+  double max_gap_s = kDefaultMaxGapS;  ///< largest accepted forward jump of the timeline; 0: off
+  config::Options options(const std::string& section = "import");
+};
 
 /// Whole recording in memory (for moderate sizes; use TextRecordingReader to stream).
 Recording readTextRecording(const std::string& dir, std::vector<std::string>* warnings = nullptr);

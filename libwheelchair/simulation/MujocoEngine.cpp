@@ -1,5 +1,7 @@
 #include "libwheelchair/simulation/MujocoEngine.h"
 
+#include "libwheelchair/config/Options.h"
+
 #include <mujoco/mujoco.h>
 
 #include <algorithm>
@@ -204,57 +206,45 @@ std::string tyreGeom(const std::string& name, double radius, const ChairSpec& c)
 }  // namespace
 
 // ------------------------------------------------------------------------------------------
+config::Options MujocoOptions::options(const std::string& sec) {
+  using config::Range;
+  const Range P = Range::above(0), any = Range::any(), nonneg = Range::atLeast(0);
+  return config::Options(sec, "MuJoCo truth engine (simulate --engine mujoco; docs/simulation.md)")
+      .real("timestep_s", timestep_s, "MuJoCo step (s)", Range{0, 0.01, true})
+      .real("settle_s", settle_s, "standstill before t = 0 for the tyres to settle (s)", nonneg)
+      .real("chassis_fraction", chassis_fraction, "share of m_b in the chassis (-)",
+            Range{0, 1, true})
+      .real("seat_fraction", seat_fraction, "share of m_b in the seat (-)", Range::between(0, 1))
+      .real("chassis_com_x_m", chassis_com_x_m, "chassis centre of mass, x (m)", any)
+      .real("chassis_com_z_m", chassis_com_z_m, "chassis centre of mass, z (m)", any)
+      .real("seat_com_x_m", seat_com_x_m, "seat centre of mass, x (m)", any)
+      .real("seat_com_z_m", seat_com_z_m, "seat centre of mass, z (m)", any)
+      .real("occupant_com_x_m", occupant_com_x_m, "occupant centre of mass, x (m)", any)
+      .real("occupant_com_z_m", occupant_com_z_m, "occupant centre of mass, z (m)", any)
+      .real("castor_x_m", castor_x_m, "castor swivel axes, x (m)", P)
+      .real("castor_half_spacing_m", castor_half_spacing_m, "castor swivel axes, +-y (m)", P)
+      .real("castor_trail_m", castor_trail_m, "castor wheel axle behind the swivel axis (m)", P)
+      .real("castor_wheel_radius_m", castor_wheel_radius_m, "castor wheel radius (m)",
+            Range{0, 0.5, true, true})
+      .real("castor_fork_mass_kg", castor_fork_mass_kg, "castor fork mass (kg)", P)
+      .real("castor_wheel_mass_kg", castor_wheel_mass_kg, "castor wheel mass (kg)", P)
+      .real("castor_swivel_damping_Nm_s_rad", castor_swivel_damping_Nm_s_rad,
+            "castor swivel bearing damping (N m s/rad)", nonneg)
+      .real("tyre_friction", tyre_friction, "tyre-floor Coulomb coefficient (-)", P)
+      .real("payload_x_m", payload_x_m, "payload_mass effect: body position, x (m)", any)
+      .real("payload_z_m", payload_z_m, "payload_mass effect: body position, z (m)", any)
+      .real("sonar_height_m", sonar_height_m, "sonar height over the floor (m)", P)
+      .integer("sonar_rays", sonar_rays, "rays across the sonar cone (-)", Range::between(2, 1000));
+}
+
 void MujocoOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                                    const std::string& sec) {
-  std::vector<std::string> known;
-  auto D = [&](const char* key, double& v, bool positive) {
-    known.push_back(key);
-    const std::string t = ini.read_string(sec, key, "", false);
-    if (t.empty()) return;
-    char* end = nullptr;
-    errno = 0;
-    const double x = std::strtod(t.c_str(), &end);
-    while (end && (*end == ' ' || *end == '\t' || *end == '\r')) ++end;
-    if (end == t.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(x))
-      throw std::runtime_error("[" + sec + "] " + key + ": '" + t + "' is not a finite number");
-    if (positive && !(x > 0)) throw std::runtime_error("[" + sec + "] " + key + ": must be > 0");
-    v = x;
-  };
-  D("timestep_s", timestep_s, true);
-  D("settle_s", settle_s, false);
-  D("chassis_fraction", chassis_fraction, true);
-  D("seat_fraction", seat_fraction, false);
-  D("chassis_com_x_m", chassis_com_x_m, false);
-  D("chassis_com_z_m", chassis_com_z_m, false);
-  D("seat_com_x_m", seat_com_x_m, false);
-  D("seat_com_z_m", seat_com_z_m, false);
-  D("occupant_com_x_m", occupant_com_x_m, false);
-  D("occupant_com_z_m", occupant_com_z_m, false);
-  D("castor_x_m", castor_x_m, true);
-  D("castor_half_spacing_m", castor_half_spacing_m, true);
-  D("castor_trail_m", castor_trail_m, true);
-  D("castor_wheel_radius_m", castor_wheel_radius_m, true);
-  D("castor_fork_mass_kg", castor_fork_mass_kg, true);
-  D("castor_wheel_mass_kg", castor_wheel_mass_kg, true);
-  D("castor_swivel_damping_Nm_s_rad", castor_swivel_damping_Nm_s_rad, false);
-  D("tyre_friction", tyre_friction, true);
-  D("payload_x_m", payload_x_m, false);
-  D("payload_z_m", payload_z_m, false);
-  D("sonar_height_m", sonar_height_m, true);
-  double rays = sonar_rays;
-  D("sonar_rays", rays, true);
-  if (rays != std::floor(rays) || rays < 2 || rays > 1000)
-    throw std::runtime_error("[" + sec + "] sonar_rays: an integer in [2, 1000]");
-  sonar_rays = static_cast<int>(rays);
-  std::vector<std::string> keys;
-  ini.getAllKeys(sec, keys);
-  for (const auto& k : keys)
-    if (std::find(known.begin(), known.end(), k) == known.end())
-      throw std::runtime_error("[" + sec + "] " + k + ": unknown key");
-  if (timestep_s > 0.01) throw std::runtime_error("[" + sec + "] timestep_s: must be <= 0.01");
-  if (castor_wheel_radius_m >= 0.5)
-    throw std::runtime_error("[" + sec + "] castor_wheel_radius_m: must be < 0.5");
+  options(sec).load(ini);
 }
+
+namespace {
+[[maybe_unused]] const bool kRegistered = config::registerOptionsOf<MujocoOptions>("mujoco");
+}  // namespace
 
 const std::vector<EffectInfo>& mujocoEffectCatalogue() {
   static const std::vector<EffectInfo> cat = {

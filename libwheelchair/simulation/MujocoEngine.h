@@ -37,6 +37,7 @@
 //   ChairState s = chair.state();                  // pose, speeds, wheel angles
 #pragma once
 
+#include "libwheelchair/config/Options.h"
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/simulation/Effects.h"
 #include "libwheelchair/simulation/Scenarios.h"
@@ -71,8 +72,10 @@ struct MujocoOptions {
   double sonar_height_m = 0.30;  ///< height of the sonar over the floor for the rays
   int sonar_rays = 31;           ///< rays across the sonar cone
 
-  /// Reads the keys present in `section`; throws std::runtime_error naming the key on a bad
-  /// value or an unknown key.
+  /// The key table of the [mujoco] section (config/Options.h: strict numbers, ranges).
+  config::Options options(const std::string& section = "mujoco");
+  /// Reads the keys present in `section`; throws std::runtime_error naming file, line and key
+  /// on a bad value (unknown keys are checked when the file is loaded).
   void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                       const std::string& section = "mujoco");
 };
