@@ -52,7 +52,7 @@ namespace {
 
 struct FilterCliOptions {
   std::string input, config_path, trajectory, estimates, filter, obstacle_form, frame = "map";
-  bool variants = false, pozyx = false, no_progress = false;
+  bool variants = false, pozyx = false, no_progress = false, salvage = false;
 };
 
 std::string nisVerdict(double mean, std::pair<double, double> band, long n) {
@@ -231,8 +231,10 @@ int runFilter(const FilterCliOptions& o) {
   Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   progress.tick("reading");
   io::RawlogReadReport rep;
-  io::Recording rec = io::readRawlog(o.input, &rep);
+  std::string salvaged;
+  io::Recording rec = io::readRawlogSalvaging(o.input, o.salvage, &salvaged, &rep);
   progress.stop();
+  if (!salvaged.empty()) std::cerr << "wheelchair filter: warning: " << salvaged << "\n";
   const bool has_wheelchair_streams =
       !rec.encoders.empty() || !rec.imu.empty() || !rec.sonar.empty() || !rec.pozyx.empty();
   if (o.filter == "command" ||
@@ -380,6 +382,7 @@ const RegisterCommand reg{Command{
       sub.add_option("--obstacle-form", o->obstacle_form, "cartesian (7) or polar (8)")
           ->check(CLI::IsMember({"cartesian", "polar"}));
       sub.add_flag("--pozyx", o->pozyx, "Also fuse Pozyx positions (off: they are ground truth)");
+      sub.add_flag("--salvage", o->salvage, kSalvageHelp);
       return [o] { return runFilter(*o); };
     }}};
 

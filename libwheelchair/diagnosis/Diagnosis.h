@@ -75,11 +75,4 @@ std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep
 config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
                                          const DiagnosisReport& rep);
 
-/// A copy of the recording with the sensor effects undone and the dynamic effects removed
-/// from the currents, so that the NOMINAL model and estimator see consistent data:
-/// ticks / encoder scale, (gyro - bias) / gyro scale, stream delays removed, and each motor
-/// current minus the fitted extension currents (asymmetry, Coulomb, slope, payload).
-io::Recording correctRecording(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                               const std::vector<simulation::EffectSpec>& effects);
-
 }  // namespace wheelchair::diagnosis

@@ -72,7 +72,7 @@ const Files& files() {
 /// The reading commands (FILE and OUT are replaced).
 const std::vector<std::string> kReaders = {
     "info FILE",
-    "filter FILE",
+    "filter FILE --trajectory OUT/t.tum",
     "export FILE -o OUT/x",
     "evaluate -q FILE --json OUT/e.json",
     "report FILE -o OUT/r --no-3d",
@@ -135,7 +135,7 @@ TEST(CliDamaged, ByteFlipInTheHeaderIsReportedAsHeaderDamage) {
 }
 
 TEST(CliDamaged, SalvageUsesTheCompleteRecordsAndSaysWhereItBroke) {
-  for (const std::string cmd : {"export", "evaluate", "report", "diagnose", "identify"}) {
+  for (const std::string cmd : {"filter", "export", "evaluate", "report", "diagnose", "identify"}) {
     const auto it = std::find_if(kReaders.begin(), kReaders.end(),
                                  [&](const std::string& c) { return c.rfind(cmd, 0) == 0; });
     ASSERT_NE(it, kReaders.end());

@@ -93,11 +93,20 @@ TEST(ImportTimeChecks, ForwardJumpOverTheLimitIsRefusedNamingFileLineAndSize) {
   EXPECT_EQ(rec.encoders.size(), test::syntheticRecording(2.0).encoders.size());
   EXPECT_NEAR(rec.endTime() - rec.startTime(), 9.0, 0.1);
   std::filesystem::remove(out);
-  std::string ini = test::readFile(test::sourcePath("config/wheelchair.ini"));
-  test::writeFile(tmp / "cfg.ini", ini + "\n[import]\nmax_gap_s = 8\n");
+  // The template's [import] max_gap_s with another value (a key given twice is an error).
+  const std::string ini = test::readFile(test::sourcePath("config/wheelchair.ini"));
+  const auto withGap = [&](const std::string& v) {
+    const std::string key = "\nmax_gap_s = 5\n";
+    const auto at = ini.find(key);
+    EXPECT_NE(at, std::string::npos) << "config/wheelchair.ini has no max_gap_s = 5";
+    return at == std::string::npos ? ini
+                                   : ini.substr(0, at) + "\nmax_gap_s = " + v + "\n" +
+                                         ini.substr(at + key.size());
+  };
+  test::writeFile(tmp / "cfg.ini", withGap("8"));
   r = cli("import " + dir + " -o " + out + " --config " + (tmp / "cfg.ini"));
   EXPECT_EQ(r.exit_code, 0) << r.out;
-  test::writeFile(tmp / "cfg.ini", ini + "\n[import]\nmax_gap_s = 6\n");
+  test::writeFile(tmp / "cfg.ini", withGap("6"));
   r = cli("import " + dir + " -o " + (tmp / "s.rawlog") + " --config " + (tmp / "cfg.ini"));
   EXPECT_EQ(r.exit_code, 1) << r.out;
   EXPECT_NE(r.out.find("max_gap_s = 6 s"), std::string::npos) << r.out;
