@@ -41,12 +41,21 @@ void writeAtomic(const std::string& path, const std::string& text) {
 }
 
 int runDiagnose(const DiagnoseOptions& o) {
-  const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
-                                         : config::WheelchairConfig::load(o.config_path);
+  std::vector<io::Recording> fit, val;
+  std::string recorded_config;  // the configuration the first input was written with
+  for (const auto& p : o.inputs) {
+    io::RawlogReadReport rr;
+    fit.push_back(io::readRawlog(p, &rr));
+    if (fit.size() == 1) recorded_config = io::headerConfigText(rr.header_text);
+  }
+  // Without --config: the configuration recorded in the first input (e.g. the geometry an
+  // importer took from the dataset's metadata), else the nominal vehicle.
+  const auto cfg = !o.config_path.empty() ? config::WheelchairConfig::load(o.config_path)
+                   : !recorded_config.empty()
+                       ? config::WheelchairConfig::fromText(recorded_config, o.inputs.front())
+                       : config::WheelchairConfig();
   diagnosis::DiagnosisOptions opt;
   opt.loadFromConfig(cfg.ini());
-  std::vector<io::Recording> fit, val;
-  for (const auto& p : o.inputs) fit.push_back(io::readRawlog(p));
   for (const auto& p : o.validate) val.push_back(io::readRawlog(p));
   // Command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor currents: e.g. MRCLAM
   // imports): the command-response analyser; encoders, if any, still go through the
@@ -84,7 +93,9 @@ int runDiagnose(const DiagnoseOptions& o) {
   auto j = rep.toJson();
   j["inputs"] = o.inputs;
   j["validate"] = o.validate;
-  j["config"] = o.config_path.empty() ? "<nominal>" : o.config_path;
+  j["config"] = !o.config_path.empty()      ? o.config_path
+                : !recorded_config.empty() ? "recorded in " + o.inputs.front()
+                                           : "<nominal>";
   writeAtomic(o.json_path, j.dump(2) + "\n");
   std::string text;
   text += fmt::format("mismatch: {}\n", rep.mismatch ? "yes" : "no");
@@ -98,9 +109,22 @@ int runDiagnose(const DiagnoseOptions& o) {
           f.fit_before["drift_10s_m"].get<double>(), f.fit_after["drift_10s_m"].get<double>(),
           f.fit_before["heading_drift_10s_deg"].get<double>(),
           f.fit_after["heading_drift_10s_deg"].get<double>());
-    else if (!f.effectText().empty() && !f.is_fault)
+    else if (!f.effectText().empty() && !f.is_fault && f.effect != "wheel_geometry")
       text += fmt::format("    as effect: {}\n", f.effectText());
   }
+  if (rep.info.contains("kinematic_calibration")) {
+    const auto& k = rep.info["kinematic_calibration"];
+    if (!k.value("tested", false))
+      text += "  not tested: " + k.value("not_tested", std::string()) + "\n";
+    else if (!k.value("accepted", false))
+      text += "  kinematic calibration: " +
+              k.value("rejected", std::string("no wheel-geometry correction predicts left-out "
+                                              "fit data better than the configured geometry")) +
+              "\n";
+  }
+  if (rep.info.contains("skipped"))
+    for (auto it = rep.info["skipped"].begin(); it != rep.info["skipped"].end(); ++it)
+      if (it->is_string()) text += "  not tested: " + it->get<std::string>() + "\n";
   if (rep.fit_before.contains("drift_10s_m")) {
     auto d = [](const nlohmann::json& j, const char* k) {
       return j.contains(k) && j[k].is_number() ? j[k].get<double>() : std::nan("");

@@ -31,6 +31,8 @@ std::vector<Binding> bindings(WheelchairConfig& c) {
   auto& vc = c.motors.circuit;
   return {
       {"vehicle", "wheel_radius_m", &g.wheel_radius_m},
+      {"vehicle", "wheel_radius_right_m", &g.wheel_radius_right_m},
+      {"vehicle", "wheel_radius_left_m", &g.wheel_radius_left_m},
       {"vehicle", "track_width_m", &g.track_width_m},
       {"vehicle", "gear_ratio", &g.gear_ratio},
       {"vehicle", "wheel_mass_kg", &g.wheel_mass_kg},
@@ -149,6 +151,10 @@ void WheelchairConfig::loadShared() {
   };
   positive(g.wheel_radius_m, "[vehicle] wheel_radius_m");
   positive(g.track_width_m, "[vehicle] track_width_m");
+  if (g.wheel_radius_right_m < 0 || g.wheel_radius_left_m < 0)
+    throw std::runtime_error(fmt::format(
+        "{}: [vehicle] wheel_radius_right_m / wheel_radius_left_m must be >= 0 (0 = wheel_radius_m)",
+        origin_));
   positive(g.gear_ratio, "[vehicle] gear_ratio");
   positive(vehicle.torque_constant_Nm_A, "[vehicle] torque_constant_Nm_A");
   positive(vehicle.gearbox_efficiency, "[vehicle] gearbox_efficiency");
