@@ -93,7 +93,7 @@ int runDiagnose(const DiagnoseOptions& o) {
   auto j = rep.toJson();
   j["inputs"] = o.inputs;
   j["validate"] = o.validate;
-  j["config"] = !o.config_path.empty()      ? o.config_path
+  j["config"] = !o.config_path.empty()     ? o.config_path
                 : !recorded_config.empty() ? "recorded in " + o.inputs.front()
                                            : "<nominal>";
   writeAtomic(o.json_path, j.dump(2) + "\n");
@@ -118,8 +118,9 @@ int runDiagnose(const DiagnoseOptions& o) {
       text += "  not tested: " + k.value("not_tested", std::string()) + "\n";
     else if (!k.value("accepted", false))
       text += "  kinematic calibration: " +
-              k.value("rejected", std::string("no wheel-geometry correction predicts left-out "
-                                              "fit data better than the configured geometry")) +
+              k.value("rejected",
+                      std::string("no wheel-geometry correction predicts left-out fit data 5 % "
+                                  "better than the configured geometry")) +
               "\n";
   }
   if (rep.info.contains("skipped"))

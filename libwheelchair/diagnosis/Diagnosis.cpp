@@ -847,7 +847,7 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   if (!skipped.empty()) rep.info["skipped"] = skipped;
 
   // ---------------- odometric geometry against ground truth (with or without a gyro) -------------
-  addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt), cfg, rep);
+  addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
 
   // ---------------- sensor faults (not physics): sonar dropouts, Pozyx outliers ----------------
   {

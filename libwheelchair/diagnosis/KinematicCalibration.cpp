@@ -78,9 +78,13 @@ std::string percentText(double d, double sd, const char* more, const char* less)
 KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
                                          const std::vector<io::Recording>& val,
                                          const config::WheelchairConfig& cfg,
-                                         const DiagnosisOptions& opt) {
+                                         const DiagnosisOptions& opt, const Corrections* stage1) {
   KinematicCalibration kc;
   kc.nominal = identification::odometryGeometry(cfg);
+  if (stage1) {  // reported / true distance: the true metres per tick are k / scale
+    kc.nominal.m_per_tick_right /= stage1->enc_scale[0];
+    kc.nominal.m_per_tick_left /= stage1->enc_scale[1];
+  }
   std::vector<OdometryRun> fitRuns, valRuns;
   for (std::size_t i = 0; i < fit.size(); ++i) {
     OdometryRun r = identification::odometryRun(fit[i], fmt::format("fit {}", i + 1));
@@ -120,7 +124,8 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   const std::vector<OdometryRun> units = fitUnits(fitRuns);
   const int K = std::min<int>(10, static_cast<int>(units.size()));
   kc.folds = K;
-  auto foldOf = [&](std::size_t u) { return static_cast<int>(u % K); };
+  // contiguous folds: recordings given together (one experiment) stay in one fold
+  auto foldOf = [&](std::size_t u) { return static_cast<int>(u * K / units.size()); };
   std::vector<std::vector<OdometryRun>> train(K), test(K);
   for (std::size_t u = 0; u < units.size(); ++u)
     for (int k = 0; k < K; ++k) (foldOf(u) == k ? test : train)[k].push_back(units[u]);
@@ -129,7 +134,7 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
     cv_nominal += identification::meanOdometryError(test[k], kc.nominal).mean_position_m / K;
   const auto models = candidateModels();
   int best = -1;
-  double best_cv = cv_nominal;
+  double best_cv = (1 - kMinCvGain) * cv_nominal;
   std::vector<std::vector<OdometryGeometry>> foldFits(models.size());
   for (std::size_t m = 0; m < models.size(); ++m) {
     double cv = 0;
@@ -150,7 +155,24 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   kc.model = models[best].name;
   kc.fitted = fitModel(models[best], fitRuns, kc.nominal);
   kc.heldout_after = identification::meanOdometryError(valRuns, kc.fitted);
-  kc.accepted = kc.heldout_after.mean_position_m < kc.heldout_before.mean_position_m;
+  const double change =
+      std::max({std::abs(rel(kc.fitted.m_per_tick_right, kc.nominal.m_per_tick_right)),
+                std::abs(rel(kc.fitted.m_per_tick_left, kc.nominal.m_per_tick_left)),
+                std::abs(rel(kc.fitted.track_m, kc.nominal.track_m))});
+  const bool better =
+      kc.heldout_after.mean_position_m < (1 - kMinHeldOutGain) * kc.heldout_before.mean_position_m;
+  kc.accepted = change >= kMinRelativeChange && better;
+  if (!better)
+    kc.rejected = fmt::format(
+        "the {} correction fitted on the fit data does not lower the held-out odometry error "
+        "by {:.0f} % ({:.4f} m -> {:.4f} m): not reported",
+        kc.model, 100 * kMinHeldOutGain, kc.heldout_before.mean_position_m,
+        kc.heldout_after.mean_position_m);
+  else if (!kc.accepted)
+    kc.rejected = fmt::format(
+        "the {} correction changes no parameter by {:.1f} % or more (largest {:.4f} %): within "
+        "the resolution, not reported",
+        kc.model, 100 * kMinRelativeChange, 100 * change);
   // jackknife over the folds
   if (K > 1) {
     const auto& F = foldFits[best];
@@ -185,17 +207,19 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   };
   info["validation"] = kc.validation;
   info["fit_runs"] = kc.fit_runs;
+  if (!kc.lags_s.empty()) {
+    std::vector<double> l = kc.lags_s;
+    std::sort(l.begin(), l.end());
+    info["encoder_lag_behind_truth_s"] = {
+        {"min", l.front()}, {"median", l[l.size() / 2]}, {"max", l.back()}};
+  }
   info["folds"] = kc.folds;
   info["candidates"] = kc.candidates;
   info["chosen"] = kc.model.empty() ? "nominal" : kc.model;
   info["heldout_before"] = errJson(kc.heldout_before);
   info["heldout_after"] = errJson(kc.heldout_after);
   info["accepted"] = kc.accepted;
-  if (!kc.model.empty() && !kc.accepted)
-    info["rejected"] = fmt::format(
-        "the {} correction fitted on the fit data does not lower the held-out odometry error "
-        "({:.4f} m -> {:.4f} m): not reported",
-        kc.model, kc.heldout_before.mean_position_m, kc.heldout_after.mean_position_m);
+  if (!kc.rejected.empty()) info["rejected"] = kc.rejected;
   rep.info["kinematic_calibration"] = info;
   if (!kc.accepted) return;
 
