@@ -234,18 +234,18 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   if (kc.model == "scale" || kc.model == "scale+track")
     what = fmt::format("both wheels' effective radius is {} than configured",
                        percentText(dR, kc.sd_rel[0], "larger", "smaller"));
-  else if (kc.model == "wheels" || kc.model == "wheels+track")
+  else if (kc.model != "track")  // wheels, wheels+track, heading-ls, heading+scale
     what = fmt::format(
         "the right wheel's effective radius is {} and the left wheel's {} than configured "
         "(ratio right/left {:.4f})",
         percentText(dR, kc.sd_rel[0], "larger", "smaller"),
         percentText(dL, kc.sd_rel[1], "larger", "smaller"),
         g.m_per_tick_right / g.m_per_tick_left * n.m_per_tick_left / n.m_per_tick_right);
-  if (kc.model.find("track") != std::string::npos)
+  if (kc.model.find("track") != std::string::npos || kc.model.rfind("heading", 0) == 0)
     what += fmt::format("{}the effective track is {}", what.empty() ? "" : "; ",
                         percentText(db, kc.sd_rel[2], "wider", "narrower"));
   f.description = fmt::format(
-      "the odometric geometry does not match the ground truth: {} ({:.4f} m). Dead reckoning "
+      "the odometric geometry does not match the ground truth: {} (track {:.4f} m). Dead reckoning "
       "with it predicts the held-out runs better: mean position error {:.4f} m -> {:.4f} m, end "
       "error {:.4f} m -> {:.4f} m ({}, {} run(s))",
       what, g.track_m, kc.heldout_before.mean_position_m, kc.heldout_after.mean_position_m,
