@@ -151,14 +151,17 @@ int runDiagnose(const DiagnoseOptions& o) {
                           rep.channels[ch]["after"]["rms"].get<double>());
   if (rep.validation.contains("trajectory_full_recordings")) {
     auto& t = rep.validation["trajectory_full_recordings"];
-    for (size_t k = 0; k < t["before"].size(); ++k)
-      text += fmt::format(
-          "  recording {}: odometry terminal error {:.3f} m -> {:.3f} m, encoder+gyro {:.3f} m -> "
-          "{:.3f} m\n",
-          k, t["before"][k]["odometry_terminal_m"].get<double>(),
-          t["after"][k]["odometry_terminal_m"].get<double>(),
-          t["before"][k]["encoder_gyro_terminal_m"].get<double>(),
-          t["after"][k]["encoder_gyro_terminal_m"].get<double>());
+    const bool gyro = rep.info.contains("streams") && rep.info["streams"].value("gyro", false);
+    for (size_t k = 0; k < t["before"].size(); ++k) {
+      text += fmt::format("  recording {}: odometry terminal error {:.3f} m -> {:.3f} m", k,
+                          t["before"][k]["odometry_terminal_m"].get<double>(),
+                          t["after"][k]["odometry_terminal_m"].get<double>());
+      if (gyro)  // without a gyro there is no encoder+gyro dead reckoning
+        text += fmt::format(", encoder+gyro {:.3f} m -> {:.3f} m",
+                            t["before"][k]["encoder_gyro_terminal_m"].get<double>(),
+                            t["after"][k]["encoder_gyro_terminal_m"].get<double>());
+      text += " (sensor corrections of the gyro stage)\n";
+    }
   }
   if (!rep.config_written.empty()) text += fmt::format("wrote {}\n", rep.config_written);
   text += fmt::format("wrote {}\n", o.json_path);
