@@ -124,6 +124,11 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   const std::vector<OdometryRun> units = fitUnits(fitRuns);
   const int K = std::min<int>(10, static_cast<int>(units.size()));
   kc.folds = K;
+  if (K < 2) {
+    kc.tested = false;
+    kc.not_tested = "too little encoder + ground-truth data for cross-validation (< 2 blocks)";
+    return kc;
+  }
   // contiguous folds: recordings given together (one experiment) stay in one fold
   auto foldOf = [&](std::size_t u) { return static_cast<int>(u * K / units.size()); };
   std::vector<std::vector<OdometryRun>> train(K), test(K);
@@ -139,7 +144,7 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   for (std::size_t m = 0; m < models.size(); ++m) {
     double cv = 0;
     for (int k = 0; k < K; ++k) {
-      const auto g = fitModel(models[m], K > 1 ? train[k] : units, kc.nominal);
+      const auto g = fitModel(models[m], train[k], kc.nominal);
       foldFits[m].push_back(g);
       cv += identification::meanOdometryError(test[k], g).mean_position_m / K;
     }

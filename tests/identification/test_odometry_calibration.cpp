@@ -18,14 +18,17 @@ const OdometryGeometry kSmall{1.001e-4, 0.999e-4, 0.201};  // E_d = 1.002, E_b =
 /// A square of side L driven by odometry (nominal geometry), cw (dir -1) or ccw (+1), with
 /// 20 Hz ticks; truth from the true geometry. Straight legs add a small wobble so that the
 /// least-squares problem is well posed.
-OdometryRun square(double L, int dir, const OdometryGeometry& truth, double t0 = 0) {
+OdometryRun square(double L, int dir, const OdometryGeometry& truth, double t0 = 0,
+                   double lever_x = 0, double lever_y = 0) {
   OdometryRun r;
   double nR = 0, nL = 0, t = t0;
   double x = 0, y = 0, phi = 0;     // truth
   double xo = 0, yo = 0, phio = 0;  // odometry (nominal)
   auto push = [&] {
     r.t_s.push_back(t), r.ticks_right.push_back(nR), r.ticks_left.push_back(nL);
-    r.x_m.push_back(x), r.y_m.push_back(y), r.phi_rad.push_back(phi);
+    r.x_m.push_back(x + std::cos(phi) * lever_x - std::sin(phi) * lever_y);  // tracked point
+    r.y_m.push_back(y + std::sin(phi) * lever_x + std::cos(phi) * lever_y);
+    r.phi_rad.push_back(phi);
   };
   auto step = [&](double dR, double dL) {  // ticks this cycle
     nR += dR, nL += dL, t += 0.05;
@@ -92,6 +95,24 @@ TEST(OdometryCalibration, LeastSquaresAndTrajectoryFitRecoverTheGeometry) {
   const OdometryGeometry tb = trajectoryCalibration(runs, kNominal, only_b);
   EXPECT_DOUBLE_EQ(tb.m_per_tick_right, kNominal.m_per_tick_right);
   EXPECT_NE(tb.track_m, kNominal.track_m);
+}
+
+TEST(OdometryCalibration, LeverArmOfTheTrackedPointIsFittedWithTheGeometry) {
+  // the motion-capture point 3 cm ahead and 1 cm left of the axle midpoint
+  std::vector<OdometryRun> runs{square(2.0, -1, kTrue, 0, 0.03, 0.01),
+                                square(2.0, +1, kTrue, 100, 0.03, 0.01)};
+  TrajectoryFit fit;
+  fit.lever_arm = true;
+  double rms = 0;
+  const OdometryGeometry g = trajectoryCalibration(runs, kNominal, fit, &rms);
+  EXPECT_NEAR(g.lever_x_m, 0.03, 1e-4);
+  EXPECT_NEAR(g.lever_y_m, 0.01, 1e-4);
+  EXPECT_NEAR(g.track_m / kTrue.track_m, 1, 1e-4);
+  EXPECT_LT(rms, 1e-5);
+  // without the lever arm the same data give a worse fit
+  double rms0 = 0;
+  trajectoryCalibration(runs, kNominal, TrajectoryFit{}, &rms0);
+  EXPECT_GT(rms0, 10 * rms);
 }
 
 }  // namespace
