@@ -41,28 +41,35 @@ void writeAtomic(const std::string& path, const std::string& text) {
 }
 
 int runDiagnose(const DiagnoseOptions& o) {
-  const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
-                                         : config::WheelchairConfig::load(o.config_path);
-  diagnosis::DiagnosisOptions opt;
-  opt.loadFromConfig(cfg.ini());
   Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   std::vector<io::Recording> fit, val;
-  auto read = [&](const std::string& p) {
+  std::string recorded_config;  // the configuration the first input was written with
+  auto read = [&](const std::string& p, io::RawlogReadReport* rr) {
     std::string warning;
-    auto rec = io::readRawlogSalvaging(p, o.salvage, &warning);
+    auto rec = io::readRawlogSalvaging(p, o.salvage, &warning, rr);
     if (!warning.empty()) std::cerr << "wheelchair diagnose: warning: " << warning << "\n";
     return rec;
   };
   const double n_files = double(o.inputs.size() + o.validate.size());
   for (const auto& p : o.inputs) {
     progress.update(double(fit.size()) / n_files, "reading");
-    fit.push_back(read(p));
+    io::RawlogReadReport rr;
+    fit.push_back(read(p, &rr));
+    if (fit.size() == 1) recorded_config = io::headerConfigText(rr.header_text);
   }
   for (const auto& p : o.validate) {
     progress.update(double(fit.size() + val.size()) / n_files, "reading");
-    val.push_back(read(p));
+    val.push_back(read(p, nullptr));
   }
   progress.tick("diagnosing");
+  // Without --config: the configuration recorded in the first input (e.g. the geometry an
+  // importer took from the dataset's metadata), else the nominal vehicle.
+  const auto cfg = !o.config_path.empty() ? config::WheelchairConfig::load(o.config_path)
+                   : !recorded_config.empty()
+                       ? config::WheelchairConfig::fromText(recorded_config, o.inputs.front())
+                       : config::WheelchairConfig();
+  diagnosis::DiagnosisOptions opt;
+  opt.loadFromConfig(cfg.ini());
   // Command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor currents: e.g. MRCLAM
   // imports): the command-response analyser; encoders, if any, still go through the
   // wheelchair stages.
@@ -101,7 +108,9 @@ int runDiagnose(const DiagnoseOptions& o) {
   auto j = rep.toJson();
   j["inputs"] = o.inputs;
   j["validate"] = o.validate;
-  j["config"] = o.config_path.empty() ? "<nominal>" : o.config_path;
+  j["config"] = !o.config_path.empty()     ? o.config_path
+                : !recorded_config.empty() ? "recorded in " + o.inputs.front()
+                                           : "<nominal>";
   writeAtomic(o.json_path, j.dump(2) + "\n");
   outputs.add(o.json_path);
   progress.stop();
@@ -120,12 +129,26 @@ int runDiagnose(const DiagnoseOptions& o) {
           f.fit_before["drift_10s_m"].get<double>(), f.fit_after["drift_10s_m"].get<double>(),
           f.fit_before["heading_drift_10s_deg"].get<double>(),
           f.fit_after["heading_drift_10s_deg"].get<double>());
-    else if (!f.effectText().empty() && !f.is_fault)
+    else if (!f.effectText().empty() && !f.is_fault && f.effect != "wheel_geometry")
       text += fmt::format("    as effect: {}\n", f.effectText());
   }
   if (insufficient)
     for (const auto& why : rep.info["insufficient_data"])
       text += fmt::format("insufficient data: {}\n", why.get<std::string>());
+  if (rep.info.contains("kinematic_calibration")) {
+    const auto& k = rep.info["kinematic_calibration"];
+    if (!k.value("tested", false))
+      text += "  not tested: " + k.value("not_tested", std::string()) + "\n";
+    else if (!k.value("accepted", false))
+      text += "  kinematic calibration: " +
+              k.value("rejected",
+                      std::string("no wheel-geometry correction predicts left-out fit data 5 % "
+                                  "better than the configured geometry")) +
+              "\n";
+  }
+  if (rep.info.contains("skipped"))
+    for (auto it = rep.info["skipped"].begin(); it != rep.info["skipped"].end(); ++it)
+      if (it->is_string()) text += "  not tested: " + it->get<std::string>() + "\n";
   if (rep.fit_before.contains("drift_10s_m")) {
     auto d = [](const nlohmann::json& j, const char* k) {
       return j.contains(k) && j[k].is_number() ? j[k].get<double>() : std::nan("");
@@ -167,14 +190,17 @@ int runDiagnose(const DiagnoseOptions& o) {
           ch, rms(ch, "before_nominal"), rms(ch, "after"), rms(ch, "before"));
   if (rep.validation.contains("trajectory_full_recordings")) {
     auto& t = rep.validation["trajectory_full_recordings"];
-    for (size_t k = 0; k < t["before"].size(); ++k)
-      text += fmt::format(
-          "  recording {}: odometry terminal error {:.3f} m -> {:.3f} m, encoder+gyro {:.3f} m -> "
-          "{:.3f} m\n",
-          k, t["before"][k]["odometry_terminal_m"].get<double>(),
-          t["after"][k]["odometry_terminal_m"].get<double>(),
-          t["before"][k]["encoder_gyro_terminal_m"].get<double>(),
-          t["after"][k]["encoder_gyro_terminal_m"].get<double>());
+    const bool gyro = rep.info.contains("streams") && rep.info["streams"].value("gyro", false);
+    for (size_t k = 0; k < t["before"].size(); ++k) {
+      text += fmt::format("  recording {}: odometry terminal error {:.3f} m -> {:.3f} m", k,
+                          t["before"][k]["odometry_terminal_m"].get<double>(),
+                          t["after"][k]["odometry_terminal_m"].get<double>());
+      if (gyro)  // without a gyro there is no encoder+gyro dead reckoning
+        text += fmt::format(", encoder+gyro {:.3f} m -> {:.3f} m",
+                            t["before"][k]["encoder_gyro_terminal_m"].get<double>(),
+                            t["after"][k]["encoder_gyro_terminal_m"].get<double>());
+      text += " (sensor corrections of the gyro stage)\n";
+    }
   }
   if (!rep.config_written.empty()) text += fmt::format("wrote {}\n", rep.config_written);
   text += fmt::format("wrote {}\n", o.json_path);

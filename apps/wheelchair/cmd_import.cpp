@@ -3,6 +3,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/io/MrclamImport.h"
+#include "libwheelchair/io/OptiodomImport.h"
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/TextFormat.h"
 
@@ -16,12 +17,13 @@ namespace {
 struct ImportOptions {
   std::string input, output, config_path, format = "text";
   int robot = 1;
+  int run = 1;
   bool strict = false;
   double max_gap_s = -1;  ///< < 0: [import] max_gap_s of the configuration
 };
 
 int runImport(const ImportOptions& o) {
-  const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
+  auto cfg = o.config_path.empty() ? config::WheelchairConfig()
                                          : config::WheelchairConfig::load(o.config_path);
   if (o.format == "mrclam") {
     io::MrclamImportReport rep;
@@ -30,8 +32,17 @@ int runImport(const ImportOptions& o) {
     fmt::print("imported {} robot {}: {}\ninto {}\n", o.input, o.robot, rep.summary(), o.output);
     return kExitOk;
   }
+  if (o.format == "optiodom") {
+    io::OptiodomImportReport rep;
+    const io::Recording rec = io::importOptiodom(o.input, o.run, &rep);
+    io::applyOptiodomGeometry(rep.geometry, cfg);  // the recording's configuration
+    io::writeRawlog(rec, o.output, cfg);
+    fmt::print("imported {} run {}: {}\ninto {}\n", o.input, o.run, rep.summary(), o.output);
+    return kExitOk;
+  }
   if (o.format != "text") {
-    std::cerr << "wheelchair import: unknown --format '" << o.format << "' (text, mrclam)\n";
+    std::cerr << "wheelchair import: unknown --format '" << o.format
+              << "' (text, mrclam, optiodom)\n";
     return kExitUsage;
   }
   io::TextRecordingReader in(o.input);
@@ -76,13 +87,16 @@ const RegisterCommand reg{Command{
                      "Configuration INI (sensor geometry recorded in the rawlog)");
       sub.add_option("--format", o->format,
                      "Input format: text (default; docs/recording-format.md) or mrclam (UTIAS "
-                     "MRCLAM dataset directory)")
-          ->check(CLI::IsMember({"text", "mrclam"}));
+                     "MRCLAM dataset directory) or optiodom (OptiOdom experiment directory "
+                     "<ID>/ with <ID>_metadata.csv, <ID>.csv, <ID>_run-NN.csv)")
+          ->check(CLI::IsMember({"text", "mrclam", "optiodom"}));
       sub.add_option("--robot", o->robot, "MRCLAM robot number (1-5)")->check(CLI::Range(1, 5));
       sub.add_option("--max-gap", o->max_gap_s,
                      "Largest forward jump of the timestamps accepted, s (default: [import] "
                      "max_gap_s of --config, else 5; 0: no limit)")
           ->check(CLI::NonNegativeNumber);
+      sub.add_option("--run", o->run, "OptiOdom run number (1..N of the metadata)")
+          ->check(CLI::PositiveNumber);
       sub.add_flag("--strict", o->strict,
                    "Fail on out-of-order or duplicated timestamps instead of warning");
       return [o] { return runImport(*o); };

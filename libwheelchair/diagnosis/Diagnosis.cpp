@@ -1,5 +1,6 @@
 #include "libwheelchair/diagnosis/Diagnosis.h"
 
+#include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/diagnosis/SensorFaults.h"
 #include "libwheelchair/diagnosis/Stages.h"
 #include "libwheelchair/model/DriveDynamics.h"
@@ -967,6 +968,9 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   }
   if (!skipped.empty()) rep.info["skipped"] = skipped;
 
+  // ---------------- odometric geometry against ground truth (with or without a gyro) -------------
+  addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
+
   // ---------------- sensor faults (not physics): sonar dropouts, Pozyx outliers ----------------
   {
     SensorFaultOptions so;
@@ -997,7 +1001,9 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
 std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep) {
   std::vector<simulation::EffectSpec> out;
   for (auto& f : rep.findings) {
-    if (f.effect == "unmodeled" || f.is_fault || f.command_response) continue;
+    if (f.effect == "unmodeled" || f.effect == kWheelGeometryEffect || f.is_fault ||
+        f.command_response)
+      continue;
     simulation::EffectSpec e;
     e.id = f.effect;
     for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it) {
@@ -1023,7 +1029,9 @@ config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
   out.set("model_extensions", "count", std::to_string(effects.size()));
   int k = 0;
   for (auto& f : rep.findings) {
-    if (f.effect == "unmodeled" || f.is_fault || f.command_response) continue;
+    if (f.effect == "unmodeled" || f.effect == kWheelGeometryEffect || f.is_fault ||
+        f.command_response)
+      continue;
     ++k;
     out.set("model_extensions", fmt::format("effect_{}", k),
             simulation::formatEffect(effects[k - 1]));

@@ -84,7 +84,7 @@ double filteredNoiseFactor(double fc, double fs) {
 
 Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cfg) {
   Streams s;
-  const double r = cfg.vehicle.geom.wheel_radius_m;
+  const double rR = cfg.vehicle.geom.odometryRadius(0), rL = cfg.vehicle.geom.odometryRadius(1);
   const double rpt = cfg.encoders.params.wheelRadPerTick();
   if (!rec.encoders.empty()) {
     auto un = sensors::unwrapTicks(rec.encoders);
@@ -95,8 +95,8 @@ Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cf
     for (size_t k : idx) {
       if (!s.te.empty() && !(un.t_s[k] > s.te.back())) continue;
       s.te.push_back(un.t_s[k]);
-      s.sR.push_back(r * rpt * double(un.right[k]));
-      s.sL.push_back(r * rpt * double(un.left[k]));
+      s.sR.push_back(rR * rpt * double(un.right[k]));
+      s.sL.push_back(rL * rpt * double(un.left[k]));
     }
     if (!s.sR.empty()) {
       double r0 = s.sR.front(), l0 = s.sL.front();

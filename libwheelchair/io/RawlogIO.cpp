@@ -464,6 +464,12 @@ std::map<std::string, std::string> headerMeta(const std::string& text) {
   return meta;
 }
 
+std::string headerConfigText(const std::string& text) {
+  const std::string mark = "# configuration used when writing this file\n";
+  const auto at = text.find(mark);
+  return at == std::string::npos ? std::string() : text.substr(at + mark.size());
+}
+
 std::string describeBreak(const std::string& path, const RawlogBreak& b) {
   return fmt::format("{}: record {} (uncompressed byte {}): {}", path, b.record_index,
                      b.byte_offset, b.what);

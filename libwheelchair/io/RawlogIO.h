@@ -128,6 +128,10 @@ std::optional<std::string> headerText(const mrpt::serialization::CSerializable& 
 /// The `[recording]` keys (meta.ini) stored in a header text.
 std::map<std::string, std::string> headerMeta(const std::string& header_text);
 
+/// The configuration part of a header text (what writeHeader stored after the meta keys),
+/// empty when the header holds none.
+std::string headerConfigText(const std::string& header_text);
+
 /// Human-readable "file: record N at byte B: what" for a break.
 std::string describeBreak(const std::string& path, const RawlogBreak& b);
 

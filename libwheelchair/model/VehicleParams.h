@@ -20,10 +20,21 @@ namespace wheelchair::model {
 /// Geometry and masses: what the regressor Y needs besides the state.
 struct Geometry {
   double wheel_radius_m = 0.17;  ///< r
+  /// Effective rolling radius of each wheel for odometry (ticks -> rim distance), m; 0 = r.
+  /// Set by odometry calibration (diagnosis/KinematicCalibration.h) or an importer whose
+  /// robot has unequal wheels; the dynamics keep using r.
+  double wheel_radius_right_m = 0;
+  double wheel_radius_left_m = 0;
   double track_width_m = 0.55;   ///< l_w, distance between the drive wheels
   double gear_ratio = 18.0;      ///< r_G, motor turns per wheel turn
   double wheel_mass_kg = 8.0;    ///< m_w, one drive wheel with its rotating parts
   double body_mass_kg = 130.0;   ///< m_b, chair body with its user
+
+  /// Odometric radius of side 0 (right) / 1 (left): the per-side value if set, else r.
+  double odometryRadius(int side) const {
+    const double rs = side == 0 ? wheel_radius_right_m : wheel_radius_left_m;
+    return rs > 0 ? rs : wheel_radius_m;
+  }
 };
 
 /// Everything physical. Defaults are the nominal vehicle of vehicle.md; a program loads

@@ -1,0 +1,284 @@
+#include "libwheelchair/diagnosis/KinematicCalibration.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace wheelchair::diagnosis {
+
+namespace {
+
+using identification::OdometryGeometry;
+using identification::OdometryRun;
+using identification::TrajectoryFit;
+
+struct CandidateModel {
+  const char* name;
+  TrajectoryFit fit;
+  bool heading_first = false;  ///< heading rates from heading increments, then the fit
+};
+
+OdometryGeometry fitModel(const CandidateModel& m, const std::vector<OdometryRun>& runs,
+                          const OdometryGeometry& nominal) {
+  OdometryGeometry start = nominal;
+  if (m.heading_first) {
+    start = identification::leastSquaresCalibration(runs, 1.0);
+    start.lever_x_m = nominal.lever_x_m, start.lever_y_m = nominal.lever_y_m;
+  }
+  return identification::trajectoryCalibration(runs, start, m.fit);
+}
+
+std::vector<CandidateModel> candidateModels() {
+  std::vector<CandidateModel> c(5);
+  c[0] = {"track", {}};
+  c[0].fit.free = {false, false, true};
+  c[1] = {"scale", {}};
+  c[1].fit.free = {true, true, false}, c[1].fit.common_scale = true;
+  c[2] = {"scale+track", {}};
+  c[2].fit.free = {true, true, true}, c[2].fit.common_scale = true;
+  c[3] = {"wheels", {}};
+  c[3].fit.free = {true, true, false};
+  c[4] = {"wheels+track", {}};
+  {
+    CandidateModel h{"heading+scale", {}, true};
+    h.fit.free = {false, false, false}, h.fit.uniform_scale = true;
+    c.push_back(h);
+    CandidateModel h2{"heading-ls", {}, true};
+    h2.fit.free = {false, false, false};
+    c.push_back(h2);
+  }
+  return c;
+}
+
+double rel(double a, double b) {
+  return a / b - 1;
+}
+
+/// Fit units: one per recording, or 4 time blocks of a single recording.
+std::vector<OdometryRun> fitUnits(const std::vector<OdometryRun>& runs) {
+  if (runs.size() >= 2) return runs;
+  std::vector<OdometryRun> out;
+  for (const auto& r : runs) {
+    if (r.size() < 8) continue;
+    const double t0 = r.t_s.front(), T = r.t_s.back() - t0;
+    for (int k = 0; k < 4; ++k)
+      out.push_back(identification::cropRun(r, t0 + k * T / 4, t0 + (k + 1) * T / 4));
+  }
+  return out;
+}
+
+std::string percentText(double d, double sd, const char* more, const char* less) {
+  return fmt::format("{:.2f} % {} (+- {:.2f} %)", std::abs(d) * 100, d >= 0 ? more : less,
+                     sd * 100);
+}
+
+}  // namespace
+
+KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
+                                         const std::vector<io::Recording>& val,
+                                         const config::WheelchairConfig& cfg,
+                                         const DiagnosisOptions& opt, const Corrections* stage1) {
+  KinematicCalibration kc;
+  kc.nominal = identification::odometryGeometry(cfg);
+  if (stage1) {  // reported / true distance: the true metres per tick are k / scale
+    kc.nominal.m_per_tick_right /= stage1->enc_scale[0];
+    kc.nominal.m_per_tick_left /= stage1->enc_scale[1];
+  }
+  std::vector<OdometryRun> fitRuns, valRuns;
+  for (std::size_t i = 0; i < fit.size(); ++i) {
+    OdometryRun r = identification::odometryRun(fit[i], fmt::format("fit {}", i + 1));
+    if (r.size() < 8) continue;
+    if (val.empty()) {
+      const double tc = r.t_s.front() + opt.fit_fraction * (r.t_s.back() - r.t_s.front());
+      fitRuns.push_back(identification::cropRun(r, r.t_s.front(), tc));
+      valRuns.push_back(identification::cropRun(r, tc, r.t_s.back()));
+    } else {
+      fitRuns.push_back(r);
+    }
+  }
+  for (std::size_t i = 0; i < val.size(); ++i) {
+    OdometryRun r = identification::odometryRun(val[i], fmt::format("validate {}", i + 1));
+    if (r.size() >= 8) valRuns.push_back(r);
+  }
+  kc.validation = val.empty() ? fmt::format("held-out last {:.0f}% of each recording",
+                                            100 * (1 - opt.fit_fraction))
+                              : fmt::format("{} --validate recording(s)", val.size());
+  if (fitRuns.empty() || valRuns.empty()) {
+    kc.not_tested =
+        "no recording with both wheel encoders and ground-truth poses (motion capture): the "
+        "odometric geometry (wheel radii, track) was not calibrated";
+    return kc;
+  }
+  // timing nuisance: the fit runs' truth re-sampled at the encoder-lag-corrected times
+  for (auto& r : fitRuns) {
+    const double d = identification::estimateTimeOffset(r, kc.nominal);
+    kc.lags_s.push_back(d);
+    r = identification::shiftTruth(r, d);
+  }
+  kc.tested = true;
+  kc.fit_runs = static_cast<int>(fitRuns.size());
+  kc.validation_runs = static_cast<int>(valRuns.size());
+
+  // ---- choose a candidate by k-fold cross-validation over the fit units
+  const std::vector<OdometryRun> units = fitUnits(fitRuns);
+  const int K = std::min<int>(10, static_cast<int>(units.size()));
+  kc.folds = K;
+  if (K < 2) {
+    kc.tested = false;
+    kc.not_tested = "too little encoder + ground-truth data for cross-validation (< 2 blocks)";
+    return kc;
+  }
+  // contiguous folds: recordings given together (one experiment) stay in one fold
+  auto foldOf = [&](std::size_t u) { return static_cast<int>(u * K / units.size()); };
+  std::vector<std::vector<OdometryRun>> train(K), test(K);
+  for (std::size_t u = 0; u < units.size(); ++u)
+    for (int k = 0; k < K; ++k) (foldOf(u) == k ? test : train)[k].push_back(units[u]);
+  double cv_nominal = 0;
+  for (int k = 0; k < K; ++k)
+    cv_nominal += identification::meanOdometryError(test[k], kc.nominal).mean_position_m / K;
+  const auto models = candidateModels();
+  int best = -1;
+  double best_cv = (1 - kMinCvGain) * cv_nominal;
+  std::vector<std::vector<OdometryGeometry>> foldFits(models.size());
+  for (std::size_t m = 0; m < models.size(); ++m) {
+    double cv = 0;
+    for (int k = 0; k < K; ++k) {
+      const auto g = fitModel(models[m], train[k], kc.nominal);
+      foldFits[m].push_back(g);
+      cv += identification::meanOdometryError(test[k], g).mean_position_m / K;
+    }
+    kc.candidates.push_back({{"model", models[m].name}, {"cv_mean_position_error_m", cv}});
+    if (cv < best_cv) best_cv = cv, best = static_cast<int>(m);
+  }
+  kc.candidates.push_back({{"model", "nominal"}, {"cv_mean_position_error_m", cv_nominal}});
+  kc.heldout_before = identification::meanOdometryError(valRuns, kc.nominal);
+  kc.heldout_after = kc.heldout_before;
+  if (best < 0) return kc;  // no candidate predicts left-out fit data better than nominal
+
+  // ---- refit on all fit data; keep only if the held-out prediction improves
+  kc.model = models[best].name;
+  kc.fitted = fitModel(models[best], fitRuns, kc.nominal);
+  kc.heldout_after = identification::meanOdometryError(valRuns, kc.fitted);
+  const double change =
+      std::max({std::abs(rel(kc.fitted.m_per_tick_right, kc.nominal.m_per_tick_right)),
+                std::abs(rel(kc.fitted.m_per_tick_left, kc.nominal.m_per_tick_left)),
+                std::abs(rel(kc.fitted.track_m, kc.nominal.track_m))});
+  const bool better =
+      kc.heldout_after.mean_position_m < (1 - kMinHeldOutGain) * kc.heldout_before.mean_position_m;
+  kc.accepted = change >= kMinRelativeChange && better;
+  if (!better)
+    kc.rejected = fmt::format(
+        "the {} correction fitted on the fit data does not lower the held-out odometry error "
+        "by {:.0f} % ({:.4f} m -> {:.4f} m): not reported",
+        kc.model, 100 * kMinHeldOutGain, kc.heldout_before.mean_position_m,
+        kc.heldout_after.mean_position_m);
+  else if (!kc.accepted)
+    kc.rejected = fmt::format(
+        "the {} correction changes no parameter by {:.1f} % or more (largest {:.4f} %): within "
+        "the resolution, not reported",
+        kc.model, 100 * kMinRelativeChange, 100 * change);
+  // jackknife over the folds
+  if (K > 1) {
+    const auto& F = foldFits[best];
+    for (int p = 0; p < 3; ++p) {
+      auto val_of = [&](const OdometryGeometry& g) {
+        return p == 0   ? rel(g.m_per_tick_right, kc.nominal.m_per_tick_right)
+               : p == 1 ? rel(g.m_per_tick_left, kc.nominal.m_per_tick_left)
+                        : rel(g.track_m, kc.nominal.track_m);
+      };
+      double mean = 0, ss = 0;
+      for (const auto& g : F) mean += val_of(g) / K;
+      for (const auto& g : F) ss += std::pow(val_of(g) - mean, 2);
+      kc.sd_rel[p] = std::sqrt((K - 1.0) / K * ss);
+    }
+  }
+  return kc;
+}
+
+void addKinematicCalibration(const KinematicCalibration& kc, const config::WheelchairConfig& cfg,
+                             DiagnosisReport& rep) {
+  nlohmann::json info = {{"tested", kc.tested}};
+  if (!kc.tested) {
+    info["not_tested"] = kc.not_tested;
+    rep.info["kinematic_calibration"] = info;
+    return;
+  }
+  const auto errJson = [](const identification::OdometryError& e) {
+    return nlohmann::json{{"odometry_mean_position_error_m", e.mean_position_m},
+                          {"odometry_end_position_error_m", e.end_position_m},
+                          {"odometry_end_heading_error_deg", e.end_heading_rad * 180 / M_PI},
+                          {"runs", e.runs}};
+  };
+  info["validation"] = kc.validation;
+  info["fit_runs"] = kc.fit_runs;
+  if (!kc.lags_s.empty()) {
+    std::vector<double> l = kc.lags_s;
+    std::sort(l.begin(), l.end());
+    info["encoder_lag_behind_truth_s"] = {
+        {"min", l.front()}, {"median", l[l.size() / 2]}, {"max", l.back()}};
+  }
+  info["folds"] = kc.folds;
+  info["candidates"] = kc.candidates;
+  info["chosen"] = kc.model.empty() ? "nominal" : kc.model;
+  info["heldout_before"] = errJson(kc.heldout_before);
+  info["heldout_after"] = errJson(kc.heldout_after);
+  info["accepted"] = kc.accepted;
+  if (!kc.rejected.empty()) info["rejected"] = kc.rejected;
+  rep.info["kinematic_calibration"] = info;
+  if (!kc.accepted) return;
+
+  const auto& n = kc.nominal;
+  const auto& g = kc.fitted;
+  const double dR = rel(g.m_per_tick_right, n.m_per_tick_right),
+               dL = rel(g.m_per_tick_left, n.m_per_tick_left), db = rel(g.track_m, n.track_m);
+  Finding f;
+  f.effect = kWheelGeometryEffect;
+  f.channels = {"encoders", "ground_truth"};
+  std::string what;
+  if (kc.model == "scale" || kc.model == "scale+track")
+    what = fmt::format("both wheels' effective radius is {} than configured",
+                       percentText(dR, kc.sd_rel[0], "larger", "smaller"));
+  else if (kc.model != "track")  // wheels, wheels+track, heading-ls, heading+scale
+    what = fmt::format(
+        "the right wheel's effective radius is {} and the left wheel's {} than configured "
+        "(ratio right/left {:.4f})",
+        percentText(dR, kc.sd_rel[0], "larger", "smaller"),
+        percentText(dL, kc.sd_rel[1], "larger", "smaller"),
+        g.m_per_tick_right / g.m_per_tick_left * n.m_per_tick_left / n.m_per_tick_right);
+  if (kc.model.find("track") != std::string::npos || kc.model.rfind("heading", 0) == 0)
+    what += fmt::format("{}the effective track is {}", what.empty() ? "" : "; ",
+                        percentText(db, kc.sd_rel[2], "wider", "narrower"));
+  f.description = fmt::format(
+      "the odometric geometry does not match the ground truth: {} (track {:.4f} m). Dead reckoning "
+      "with it predicts the held-out runs better: mean position error {:.4f} m -> {:.4f} m, end "
+      "error {:.4f} m -> {:.4f} m ({}, {} run(s))",
+      what, g.track_m, kc.heldout_before.mean_position_m, kc.heldout_after.mean_position_m,
+      kc.heldout_before.end_position_m, kc.heldout_after.end_position_m, kc.validation,
+      kc.heldout_after.runs);
+  f.parameters = {{"model", kc.model},
+                  {"wheel_radius_right_rel", dR},
+                  {"wheel_radius_left_rel", dL},
+                  {"track_rel", db},
+                  {"m_per_tick_right", g.m_per_tick_right},
+                  {"m_per_tick_left", g.m_per_tick_left},
+                  {"track_width_m", g.track_m}};
+  f.uncertainty = {{"wheel_radius_right_rel", kc.sd_rel[0]},
+                   {"wheel_radius_left_rel", kc.sd_rel[1]},
+                   {"track_rel", kc.sd_rel[2]}};
+  f.evidence = {{"criterion", "k-fold cross-validated dead-reckoning position error"},
+                {"candidates", kc.candidates}};
+  f.fit_before = errJson(kc.heldout_before);
+  f.fit_after = errJson(kc.heldout_after);
+  rep.addFinding(f);
+  // k = r * wheel angle per tick: each configured odometric radius scales like its k
+  const auto& geom = cfg.vehicle.geom;
+  const double rR = geom.odometryRadius(0) * (1 + dR), rL = geom.odometryRadius(1) * (1 + dL);
+  auto& v = rep.config_updates["vehicle"];
+  v["wheel_radius_right_m"] = fmt::format("{:.8g}", rR);
+  v["wheel_radius_left_m"] = fmt::format("{:.8g}", rL);
+  v["wheel_radius_m"] = fmt::format("{:.8g}", 0.5 * (rR + rL));
+  v["track_width_m"] = fmt::format("{:.8g}", g.track_m);
+}
+
+}  // namespace wheelchair::diagnosis

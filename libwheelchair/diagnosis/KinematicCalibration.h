@@ -1,0 +1,87 @@
+// Diagnosis stage "kinematic calibration" (docs/discovery.md, "Real robot without a gyro"):
+// whenever the recordings have wheel encoders and ground-truth poses (OptiTrack, Vicon, ...),
+// with or without a gyro, the odometric geometry - effective rolling radius of each wheel and
+// the track - is fitted to the ground truth and kept ONLY if it predicts held-out data better.
+//
+//   candidates  nested corrections of the configured geometry (identification/
+//               OdometryCalibration.h, relative deltas of k_R, k_L, b): track; common scale;
+//               scale + track; both wheels; both wheels + track. Each is fitted by
+//               Levenberg-Marquardt on the dead-reckoned position error (start aligned);
+//               and "heading-ls" / "heading+scale": the two-step least squares (heading
+//               rates from heading increments, then the track), optionally with one common
+//               scale refitted on the positions.
+//   timing      each fit run's truth is re-sampled at the encoder-lag-corrected times
+//               (identification::estimateTimeOffset, +-0.25 s) before fitting: a lag biases
+//               fits during fast turns; the held-out check uses the runs as recorded.
+//   choose      k-fold cross-validation over the fit recordings (at most 10 folds of
+//               contiguous recordings in the order given, so that runs of one experiment stay
+//               together; a single recording is cut into 4 time blocks): the candidate with the
+//               lowest mean position error on the left-out folds, if below the nominal
+//               geometry's.
+//   keep        the chosen candidate refitted on all fit data must lower the mean dead-reckoned
+//               position error on the validation data (the --validate recordings, else the
+//               held-out last part of each recording); otherwise nothing is reported.
+//   uncertainty jackknife over the folds (1 sigma).
+// The finding (effect "wheel_geometry") says it in words ("the right wheel's effective radius
+// is 0.40 % larger than configured (+- 0.05 %) ...") and sets [vehicle] wheel_radius_right_m,
+// wheel_radius_left_m, wheel_radius_m (their mean) and track_width_m in the corrected
+// configuration.
+//
+// Example:
+//   KinematicCalibration kc = calibrateKinematics(fit, val, cfg, opt);
+//   addKinematicCalibration(kc, cfg, rep);   // finding + config updates + info
+#pragma once
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/diagnosis/Diagnosis.h"
+#include "libwheelchair/diagnosis/Stages.h"
+#include "libwheelchair/identification/OdometryCalibration.h"
+#include "libwheelchair/io/Recording.h"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+namespace wheelchair::diagnosis {
+
+inline constexpr const char* kWheelGeometryEffect = "wheel_geometry";
+
+struct KinematicCalibration {
+  bool tested = false;     ///< the recordings allowed the test (encoders + ground truth)
+  std::string not_tested;  ///< why not, when !tested
+  bool accepted = false;   ///< a correction that improves the held-out prediction
+  std::string model;       ///< chosen candidate (track, scale, scale+track, wheels, wheels+track)
+  identification::OdometryGeometry nominal, fitted;
+  double sd_rel[3] = {0, 0, 0};  ///< 1-sigma of the relative corrections of k_R, k_L, b
+  identification::OdometryError heldout_before, heldout_after;
+  int fit_runs = 0, validation_runs = 0, folds = 0;
+  nlohmann::json candidates = nlohmann::json::array();  ///< per candidate: CV error
+  std::string validation;                               ///< what the held-out data were
+  std::string rejected;                                 ///< why a chosen correction is not reported
+  std::vector<double> lags_s;  ///< per fit run: encoder stamps trail the truth by (s)
+};
+
+/// A candidate must lower the cross-validated error by this fraction of the nominal
+/// geometry's to be chosen (smaller gains are within the run-to-run scatter), and the held-out
+/// error by kMinHeldOutGain to be reported.
+inline constexpr double kMinCvGain = 0.05;
+inline constexpr double kMinHeldOutGain = 0.01;
+/// ... and change some parameter by at least this fraction (0.1 %: 1 cm over 10 m driven):
+/// smaller corrections are within the numerical and ground-truth resolution.
+inline constexpr double kMinRelativeChange = 1e-3;
+
+/// Runs the stage. `val` empty: fit on the first opt.fit_fraction of each recording.
+/// `stage1`: encoder scales already found against the gyro (stage 1); the stage then tests
+/// what remains (the configured geometry with those scales applied).
+KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
+                                         const std::vector<io::Recording>& val,
+                                         const config::WheelchairConfig& cfg,
+                                         const DiagnosisOptions& opt,
+                                         const Corrections* stage1 = nullptr);
+
+/// Adds the finding (if accepted), the [vehicle] config updates and info["kinematic_calibration"].
+void addKinematicCalibration(const KinematicCalibration& kc, const config::WheelchairConfig& cfg,
+                             DiagnosisReport& rep);
+
+}  // namespace wheelchair::diagnosis
