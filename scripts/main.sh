@@ -28,7 +28,6 @@ step "3. replay it through the CVODE-integrated EKF (and the paper's Fig. 5 raw 
 step "4. compare every variant with the Pozyx ground truth (nominal model)"
 "$BIN" evaluate "$OUT/three_task_faulty.rawlog" --config "$CFG" -q \
   --markdown "$OUT/metrics_nominal.md" --csv "$OUT/metrics_nominal.csv"
-sed -n '/^| recording/,/^$/p' "$OUT/metrics_nominal.md"
 
 step "5. diagnose: what physics does the model leave out? (validated on another drive)"
 "$BIN" diagnose "$OUT/three_task_faulty.rawlog" --validate "$OUT/three_task_faulty_b.rawlog" \
@@ -36,12 +35,12 @@ step "5. diagnose: what physics does the model leave out? (validated on another 
   --report "$OUT/diagnosis"
 
 step "6. the other drive, filtered with the nominal and with the corrected configuration"
+echo "nominal model:"
 "$BIN" evaluate "$OUT/three_task_faulty_b.rawlog" --config "$CFG" -q --no-baseline \
   --markdown "$OUT/metrics_validation_nominal.md"
+echo "corrected model:"
 "$BIN" evaluate "$OUT/three_task_faulty_b.rawlog" --config "$OUT/corrected.ini" -q --no-baseline \
   --markdown "$OUT/metrics_validation_corrected.md"
-echo "nominal model:";   sed -n '/^| recording/,/^$/p' "$OUT/metrics_validation_nominal.md"
-echo "corrected model:"; sed -n '/^| recording/,/^$/p' "$OUT/metrics_validation_corrected.md"
 
 step "7. report: figures like the paper's Fig. 5-8 and the metrics"
 "$BIN" report "$OUT/three_task_faulty.rawlog" --config "$CFG" -o "$OUT/report" \
@@ -51,7 +50,6 @@ step "8. real data: a UTIAS MRCLAM robot (commands + landmark sightings), EKF vs
 "$BIN" import --format mrclam datasets/mrclam --robot 3 -o "$OUT/mrclam_robot3.rawlog"
 "$BIN" evaluate "$OUT/mrclam_robot3.rawlog" --config config/mrclam.ini -q --alignment none \
   --markdown "$OUT/metrics_mrclam.md"
-sed -n '/^| recording/,/^$/p' "$OUT/metrics_mrclam.md"
 
 echo
 echo "done: results in $OUT/ (report: $OUT/report/index.md, diagnosis: $OUT/diagnosis/index.md)"
