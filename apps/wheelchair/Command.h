@@ -5,6 +5,10 @@
 // 0 success, 1 bad input (file content, I/O), 2 usage error (command line).
 #pragma once
 
+#include "libwheelchair/io/RawlogIO.h"
+
+#include <iostream>
+
 #include <CLI/CLI.hpp>
 
 #include <functional>
@@ -21,6 +25,17 @@ constexpr int kExitUsage = 2;
 constexpr const char* kSalvageHelp =
     "Damaged rawlog: use every complete record before the break (a warning says where and why "
     "it broke) instead of refusing the file";
+
+/// Reads a rawlog for command `command` (io::readRawlogSalvaging): a damaged file is refused
+/// with one line, or with `salvage` read up to the break with a warning on stderr
+/// ("wheelchair COMMAND: warning: ...").
+inline io::Recording readRawlogFor(const char* command, const std::string& path, bool salvage,
+                                   io::RawlogReadReport* report = nullptr) {
+  std::string warning;
+  io::Recording rec = io::readRawlogSalvaging(path, salvage, &warning, report);
+  if (!warning.empty()) std::cerr << "wheelchair " << command << ": warning: " << warning << "\n";
+  return rec;
+}
 
 struct Command {
   std::string name;

@@ -45,10 +45,7 @@ int runDiagnose(const DiagnoseOptions& o) {
   std::vector<io::Recording> fit, val;
   std::string recorded_config;  // the configuration the first input was written with
   auto read = [&](const std::string& p, io::RawlogReadReport* rr) {
-    std::string warning;
-    auto rec = io::readRawlogSalvaging(p, o.salvage, &warning, rr);
-    if (!warning.empty()) std::cerr << "wheelchair diagnose: warning: " << warning << "\n";
-    return rec;
+    return readRawlogFor("diagnose", p, o.salvage, rr);
   };
   const double n_files = double(o.inputs.size() + o.validate.size());
   for (const auto& p : o.inputs) {

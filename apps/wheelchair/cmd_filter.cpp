@@ -231,10 +231,8 @@ int runFilter(const FilterCliOptions& o) {
   Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   progress.tick("reading");
   io::RawlogReadReport rep;
-  std::string salvaged;
-  io::Recording rec = io::readRawlogSalvaging(o.input, o.salvage, &salvaged, &rep);
+  io::Recording rec = readRawlogFor("filter", o.input, o.salvage, &rep);
   progress.stop();
-  if (!salvaged.empty()) std::cerr << "wheelchair filter: warning: " << salvaged << "\n";
   const bool has_wheelchair_streams =
       !rec.encoders.empty() || !rec.imu.empty() || !rec.sonar.empty() || !rec.pozyx.empty();
   if (o.filter == "command" ||

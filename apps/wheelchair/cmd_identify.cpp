@@ -45,11 +45,7 @@ int runIdentify(const IdentifyOptions& o) {
   if (!o.omega_source.empty()) opt.omega_source = o.omega_source;
   opt.validate("command line / [identification]");
   std::vector<io::Recording> recs;
-  for (const auto& p : o.inputs) {
-    std::string warning;
-    recs.push_back(io::readRawlogSalvaging(p, o.salvage, &warning));
-    if (!warning.empty()) std::cerr << "wheelchair identify: warning: " << warning << "\n";
-  }
+  for (const auto& p : o.inputs) recs.push_back(readRawlogFor("identify", p, o.salvage));
 
   const auto res = identification::identify(recs, cfg, opt, o.inputs);
   auto j = res.toJson();
@@ -105,7 +101,9 @@ const RegisterCommand reg{Command{
                      "section holds the options");
       sub.add_option("--cutoff-hz", o->cutoff_hz,
                      "Zero-phase Butterworth cut-off (Hz), overrides [identification] cutoff_hz");
-      sub.add_option("--omega-source", o->omega_source, "Angular velocity from: encoders | gyro (default: [identification] omega_source, else encoders)")
+      sub.add_option("--omega-source", o->omega_source,
+                     "Angular velocity from: encoders | gyro (default: [identification] "
+                     "omega_source, else encoders)")
           ->check(CLI::IsMember({"encoders", "gyro"}));
       sub.add_option("--json", o->json_path, "Write the full result as JSON here")->required();
       sub.add_option("--write-config", o->write_config,

@@ -25,13 +25,6 @@ struct ReportCliOptions {
   bool salvage = false;
 };
 
-io::Recording readSalvaging(const ReportCliOptions& o) {
-  std::string warning;
-  auto rec = io::readRawlogSalvaging(o.file, o.salvage, &warning);
-  if (!warning.empty()) std::cerr << "wheelchair report: warning: " << warning << "\n";
-  return rec;
-}
-
 int runReport(const ReportCliOptions& o) {
   visualization::ReportOptions ro;
   try {
@@ -45,7 +38,8 @@ int runReport(const ReportCliOptions& o) {
   ro.out_dir = o.out_dir;
   ro.scene3d = !o.no_3d;
   ro.truth_path = o.truth;
-  const auto d = visualization::loadDrive(readSalvaging(o), o.file, cfg, ro.metrics, o.truth);
+  const auto d = visualization::loadDrive(readRawlogFor("report", o.file, o.salvage), o.file, cfg,
+                                          ro.metrics, o.truth);
   if (std::isfinite(o.at_s)) ro.at_s = d.t0_s + o.at_s;
   const auto r = visualization::writeReport(d, ro);
   for (const auto& f : r.figures) fmt::print("wrote {}\n", f);

@@ -25,18 +25,11 @@ struct ViewCliOptions {
   bool salvage = false;
 };
 
-io::Recording readSalvaging(const ViewCliOptions& o) {
-  std::string warning;
-  auto rec = io::readRawlogSalvaging(o.file, o.salvage, &warning);
-  if (!warning.empty()) std::cerr << "wheelchair view: warning: " << warning << "\n";
-  return rec;
-}
-
 int runView(const ViewCliOptions& o) {
   const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
                                          : config::WheelchairConfig::load(o.config_path);
-  const auto d =
-      visualization::loadDrive(readSalvaging(o), o.file, cfg, evaluation::MetricOptions{}, o.truth);
+  const auto d = visualization::loadDrive(readRawlogFor("view", o.file, o.salvage), o.file, cfg,
+                                          evaluation::MetricOptions{}, o.truth);
   visualization::ViewerOptions vo;
   vo.screenshot = o.screenshot;
   vo.at_s = o.at_s;

@@ -192,33 +192,39 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
   out["single"] = single;
   out["single_rate"] = tot ? double(totc) / tot : 0;
   out["single_named_rate"] = tot ? double(totn) / tot : 0;
-  {
+  // Drives with k distinct concealed effects (pairs, triples): counts and parameter errors.
+  auto combinations = [&](std::size_t k, int runs, const char* kind) {
     int n = 0, ok = 0, named = 0;
     std::vector<double> errs;
-    for (int k = 0; k < opt.pair_runs && opt.effects.size() >= 2; ++k) {
-      size_t a = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng), b = a;
-      while (b == a) b = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng);
-      auto ea = randomEffect(opt.effects[a], rng), eb = randomEffect(opt.effects[b], rng);
-      std::string sc = pickScenario();
-      uint64_t seed = rng() % 1000000;
-      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {ea, eb}, dopt, opt.engine);
+    for (int r = 0; r < runs && opt.effects.size() >= k; ++r) {
+      std::vector<std::size_t> idx;
+      while (idx.size() < k) {
+        const std::size_t a = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng);
+        if (std::find(idx.begin(), idx.end(), a) == idx.end()) idx.push_back(a);
+      }
+      std::vector<simulation::EffectSpec> es;
+      for (std::size_t a : idx) es.push_back(randomEffect(opt.effects[a], rng));
+      const std::string sc = pickScenario();
+      const uint64_t seed = rng() % 1000000;
+      const CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
       log(sc, c);
       ++n, ok += c.correct, named += c.named_correct;
       for (double e : c.param_errors) errs.push_back(e);
       auto j = c.toJson();
-      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "pair";
+      j["scenario"] = sc, j["seed"] = seed, j["kind"] = kind;
       cases.push_back(j);
     }
     int within = 0;
     for (double e : errs) within += e <= 0.25;
-    out["pairs"] = {{"runs", n},
-                    {"correct", ok},
-                    {"named_correct", named},
-                    {"rate", n ? double(ok) / n : 0},
-                    {"median_param_error", median(errs)},
-                    {"within_25pct", within},
-                    {"params", errs.size()}};
-  }
+    return nlohmann::json{{"runs", n},
+                          {"correct", ok},
+                          {"named_correct", named},
+                          {"rate", n ? double(ok) / n : 0},
+                          {"median_param_error", median(errs)},
+                          {"within_25pct", within},
+                          {"params", errs.size()}};
+  };
+  out["pairs"] = combinations(2, opt.pair_runs, "pair");
   {
     int n = 0, alarms = 0, named_alarms = 0;
     for (int k = 0; k < opt.clean_runs; ++k) {
@@ -236,37 +242,8 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
                     {"rate", n ? double(alarms) / n : 0},
                     {"named_false_alarms", named_alarms}};
   }
-  if (opt.triple_runs > 0 && opt.effects.size() >= 3) {
-    int n = 0, ok = 0, named = 0;
-    std::vector<double> errs;
-    for (int k = 0; k < opt.triple_runs; ++k) {
-      std::vector<std::size_t> idx;
-      while (idx.size() < 3) {
-        const std::size_t a = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng);
-        if (std::find(idx.begin(), idx.end(), a) == idx.end()) idx.push_back(a);
-      }
-      std::vector<simulation::EffectSpec> es;
-      for (std::size_t a : idx) es.push_back(randomEffect(opt.effects[a], rng));
-      std::string sc = pickScenario();
-      uint64_t seed = rng() % 1000000;
-      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
-      log(sc, c);
-      ++n, ok += c.correct, named += c.named_correct;
-      for (double e : c.param_errors) errs.push_back(e);
-      auto j = c.toJson();
-      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "triple";
-      cases.push_back(j);
-    }
-    int within = 0;
-    for (double e : errs) within += e <= 0.25;
-    out["triples"] = {{"runs", n},
-                      {"correct", ok},
-                      {"named_correct", named},
-                      {"rate", n ? double(ok) / n : 0},
-                      {"median_param_error", median(errs)},
-                      {"within_25pct", within},
-                      {"params", errs.size()}};
-  }
+  if (opt.triple_runs > 0 && opt.effects.size() >= 3)
+    out["triples"] = combinations(3, opt.triple_runs, "triple");
   if (opt.unknown_runs > 0 && opt.unknown_effects) {
     int n = 0, flagged = 0;
     std::map<std::string, int> named;
