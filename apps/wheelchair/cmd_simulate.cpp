@@ -10,6 +10,7 @@
 #include "libwheelchair/io/TextFormat.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Simulator.h"
+#include "libwheelchair/util/OutputDir.h"
 
 #include <fmt/core.h>
 
@@ -77,12 +78,15 @@ int runSimulate(const SimulateOptions& o) {
   opt.engine = o.engine;
 
   const auto res = simulation::simulate(cfg, o.scenario, o.seed, o.duration_s, effects, opt);
+  util::RemoveUnlessKept outputs;  // a failed truth file removes the recording again
   if (o.format == "rawlog")
     io::writeRawlog(res.recording, o.output, cfg);
   else
     io::writeTextRecording(res.recording, o.output);
+  outputs.add(o.output);
   const std::string truth_path = o.truth.empty() ? o.output + ".truth.json" : o.truth;
   res.writeTruth(truth_path);
+  outputs.keep();
 
   const auto& r = res.recording;
   fmt::print("simulated '{}' seed {} (engine {}): {:.2f} s, supervisory control {}\n", o.scenario,
@@ -104,7 +108,8 @@ const RegisterCommand reg{Command{
     "simulate", "Simulate a drive of the chair (truth simulator with effects) into a recording",
     [](CLI::App& sub) -> std::function<int()> {
       auto o = std::make_shared<SimulateOptions>();
-      sub.add_option("--scenario", o->scenario, "three_task | excite | square | obstacles (required, no default)");
+      sub.add_option("--scenario", o->scenario,
+                     "three_task | excite | square | obstacles (required, no default)");
       sub.add_option("--seed", o->seed, "Random seed (noise, jitter, Pozyx anchor frame)")
           ->default_val(1);
       sub.add_option("--duration", o->duration_s, "Duration in s (default: the scenario's)")

@@ -46,7 +46,7 @@ OutputDir::~OutputDir() {
 RemoveUnlessKept::~RemoveUnlessKept() {
   if (kept_) return;
   std::error_code ec;
-  for (const auto& p : paths_) fs::remove(p, ec);
+  for (const auto& p : paths_) fs::remove_all(p, ec);  // a file, or a directory we wrote
 }
 
 }  // namespace wheelchair::util

@@ -43,6 +43,19 @@ TEST(CliSimulate, RawlogWithSupervisoryControl) {
   EXPECT_EQ(simulation::readTruth(tmp / "t.json").collisions, 0);
 }
 
+TEST(CliSimulate, AFailedTruthFileLeavesNoRecordingBehind) {
+  wt::TempDir tmp;
+  for (const std::string format : {"rawlog", "csv"}) {
+    const std::string out = tmp / ("sim_" + format);
+    const auto r = wt::cli("simulate --scenario obstacles --seed 1 --format " + format + " -o " +
+                           out + " --truth " + (tmp.path() / "missing_dir" / "t.json").string());
+    EXPECT_EQ(r.exit_code, 1) << r.out;
+    EXPECT_NE(r.out.find("t.json"), std::string::npos) << r.out;
+    EXPECT_FALSE(std::filesystem::exists(out)) << format;
+  }
+  EXPECT_TRUE(std::filesystem::is_empty(tmp.path()));
+}
+
 TEST(CliSimulate, UsageErrors) {
   wt::TempDir tmp;
   EXPECT_EQ(wt::cli("simulate --scenario moonwalk -o " + (tmp / "x")).exit_code, 2);
