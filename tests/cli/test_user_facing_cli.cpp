@@ -277,6 +277,9 @@ namespace {
 // non-terminal stderr show none.
 TEST_F(UserFacingCli, DiagnoseShowsProgressOnATerminal) {
   if (run("command -v script").exit_code != 0) GTEST_SKIP() << "script(1) not installed";
+  // A bare chroot without devpts has no pseudo-terminals (as the capture pty tests find).
+  if (run("script -qec true /dev/null").exit_code != 0)
+    GTEST_SKIP() << "no pseudo-terminal on this machine (script(1) cannot create one)";
   const std::string cmd = std::string(WHEELCHAIR_CLI) + " diagnose " + rawlog("three_task_faulty") +
                           " --json " + tmp("p.json");
   const auto tty = run("script -qec '" + cmd + "' /dev/null");
