@@ -16,7 +16,6 @@
 #include "Progress.h"
 
 #include "libwheelchair/config/WheelchairConfig.h"
-#include "libwheelchair/estimation/ChiSquare.h"
 #include "libwheelchair/estimation/CommandDrivenEkf.h"
 #include "libwheelchair/estimation/DeadReckoning.h"
 #include "libwheelchair/estimation/EkfOptions.h"

@@ -2,7 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "libwheelchair/estimation/ChiSquare.h"
+#include "libwheelchair/stats/Distributions.h"
 #include "libwheelchair/model/Kinematics.h"
 
 #include <fmt/format.h>
@@ -154,7 +154,7 @@ std::vector<std::string> missingForCommandDrivenEkf(const io::Recording& rec) {
 
 std::pair<double, double> CommandDrivenEkfResult::meanNisBand95() const {
   if (!accepted) return {0.0, 0.0};
-  return chi2MeanBand(0.95, 2, static_cast<double>(accepted));
+  return stats::chi2MeanBand(0.95, 2, static_cast<double>(accepted));
 }
 
 namespace {
@@ -368,7 +368,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
     x(4) = yw;
     res.start_velocity = {yv, yw};
   }
-  const double gate = o.gate_probability > 0 ? chi2Quantile(o.gate_probability, 2) : 0.0;
+  const double gate = o.gate_probability > 0 ? stats::chi2Quantile(o.gate_probability, 2) : 0.0;
   Eigen::Matrix2d R =
       Eigen::Vector2d(o.range_sigma_m * o.range_sigma_m, o.bearing_sigma_rad * o.bearing_sigma_rad)
           .asDiagonal();
@@ -379,7 +379,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   double tau = 0, next_out_tau = 0, t = t_ref;
   const double t_end = std::max(sig.endTime(), z.empty() ? t : z.back().t_s);
   double nis_sum = 0, nis_sum_all = 0;
-  const double band_lo = chi2Quantile(0.025, 2), band_hi = chi2Quantile(0.975, 2);
+  const double band_lo = stats::chi2Quantile(0.025, 2), band_hi = stats::chi2Quantile(0.975, 2);
   const double t_first = t, span = std::max(t_end - t_first, 1e-9);
   double next_progress = t_first;
   const auto emit = [&] {

@@ -2,7 +2,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/estimation/BaselineEkf.h"
-#include "libwheelchair/estimation/ChiSquare.h"
+#include "libwheelchair/stats/Distributions.h"
 #include "libwheelchair/estimation/WheelchairEkf.h"
 
 #include <sys/mman.h>
@@ -57,7 +57,7 @@ const char* sensorName(Sensor s) {
 
 std::pair<double, double> SensorStats::meanNisBand95() const {
   if (nis_count <= 0 || dof <= 0) return {0.0, 0.0};
-  return chi2MeanBand(0.95, dof, static_cast<double>(nis_count));
+  return stats::chi2MeanBand(0.95, dof, static_cast<double>(nis_count));
 }
 
 const EstimateSample& EstimationResult::final() const {
@@ -173,7 +173,7 @@ double Estimator::gate(int dof) const {
   if (!(opt_.gate_probability > 0 && opt_.gate_probability < 1)) return 0.0;
   auto it = gates_.find(dof);
   if (it != gates_.end()) return it->second;
-  const double g = chi2Quantile(opt_.gate_probability, dof);
+  const double g = stats::chi2Quantile(opt_.gate_probability, dof);
   gates_[dof] = g;
   return g;
 }
@@ -190,7 +190,7 @@ void Estimator::record(Sensor s, double t, const UpdateResult& r, double g) {
     auto q = [this](double p, int dof, int key) {
       auto it = gates_.find(key);
       if (it != gates_.end()) return it->second;
-      return gates_[key] = chi2Quantile(p, dof);
+      return gates_[key] = stats::chi2Quantile(p, dof);
     };
     const double lo = q(0.025, r.dof, -2 * r.dof), hi = q(0.975, r.dof, -2 * r.dof - 1);
     if (r.nis >= lo && r.nis <= hi) ++st.nis_inside95;

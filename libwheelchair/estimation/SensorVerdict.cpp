@@ -1,6 +1,6 @@
 #include "libwheelchair/estimation/SensorVerdict.h"
 
-#include "libwheelchair/estimation/ChiSquare.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include <fmt/core.h>
 
@@ -23,7 +23,7 @@ double percent(long part, long whole) {
 double rejectionPValue(const SensorStats& st, double gate_probability) {
   if (st.rejected <= 0 || !hasGate(gate_probability)) return 1.0;
   const double lambda = double(st.used + st.rejected) * (1 - gate_probability);
-  return chi2Cdf(2 * lambda, 2.0 * double(st.rejected));
+  return stats::chi2Cdf(2 * lambda, 2.0 * double(st.rejected));
 }
 
 SensorConsistency sensorConsistency(const SensorStats& st, double gate_probability) {

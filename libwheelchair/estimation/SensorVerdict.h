@@ -2,7 +2,7 @@
 //
 // A consistent filter sees, for a sensor with d-dimensional measurements,
 //   * NIS values ~ chi2(d): their mean over n accepted updates lies, with 95 % probability, in
-//     SensorStats::meanNisBand95() = chi2MeanBand(0.95, d, n) (ChiSquare.h);
+//     SensorStats::meanNisBand95() = chi2MeanBand(0.95, d, n) (stats/Distributions.h);
 //   * gate rejections ~ Binomial(N, q), q = 1 - gate_probability, N = used + rejected,
 //     approximated by Poisson(lambda = N q). The chance of k or more rejections is
 //     P(X >= k) = chi2Cdf(2 lambda, 2 k) (the Poisson-chi2 identity); below 5 % the rejections

@@ -6,18 +6,12 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <tuple>
 
 #include <fmt/format.h>
 #include <Eigen/Cholesky>
 
 namespace wheelchair::evaluation {
-
-double chi2QuantileApprox(double p, double k) {
-  const double z = stats::normalQuantile(p);
-  const double h = 2.0 / (9.0 * k);
-  const double v = 1.0 - h + z * std::sqrt(h);
-  return k * v * v * v;
-}
 
 NeesResult averageNees(const std::vector<PositionEstimateStamped>& est,
                        const std::vector<Position2DStamped>& gt, const NeesOptions& o) {
@@ -68,8 +62,7 @@ NeesResult averageNees(const std::vector<PositionEstimateStamped>& est,
   for (double v : r.nees) sum += v;
   const double N = static_cast<double>(r.n);
   r.mean_nees = sum / N;
-  r.lower95 = chi2QuantileApprox(0.025, 2.0 * N) / N;
-  r.upper95 = chi2QuantileApprox(0.975, 2.0 * N) / N;
+  std::tie(r.lower95, r.upper95) = stats::chi2MeanBand(0.95, 2.0, N);
   r.fraction_inside95 = static_cast<double>(inside) / N;
   return r;
 }

@@ -44,9 +44,6 @@ struct NeesResult {
   std::vector<double> nees;  ///< per matched sample
 };
 
-/// Quantile of chi-square with k degrees of freedom, Wilson-Hilferty (good for k >= 2).
-double chi2QuantileApprox(double p, double k);
-
 /// Throws std::invalid_argument on unordered input.
 NeesResult averageNees(const std::vector<PositionEstimateStamped>& est,
                        const std::vector<Position2DStamped>& gt, const NeesOptions& options);

@@ -1,6 +1,6 @@
 // CVODE integration of the state and Riccati ODEs against closed forms (matrix exponentials).
 #include "libwheelchair/estimation/CdEkf.h"
-#include "libwheelchair/estimation/ChiSquare.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include <gtest/gtest.h>
 
@@ -133,7 +133,7 @@ TEST(CdEkfLinear, JosephUpdateMatchesTextbookAndGates) {
   Eigen::MatrixXd R = Eigen::MatrixXd::Constant(1, 1, 0.04);
   Eigen::VectorXd y(1);
   y << 0.3;
-  const UpdateResult r = ekf.update(y, H, R, chi2Quantile(0.999, 1));
+  const UpdateResult r = ekf.update(y, H, R, wheelchair::stats::chi2Quantile(0.999, 1));
   ASSERT_TRUE(r.accepted);
   const Eigen::MatrixXd S = H * P * H.transpose() + R;
   const Eigen::MatrixXd K = P * H.transpose() * S.inverse();
@@ -143,7 +143,7 @@ TEST(CdEkfLinear, JosephUpdateMatchesTextbookAndGates) {
   // A gross innovation is gated and leaves the filter untouched.
   const Eigen::VectorXd x1 = ekf.x();
   y << 50.0;
-  const UpdateResult g = ekf.update(y, H, R, chi2Quantile(0.999, 1));
+  const UpdateResult g = ekf.update(y, H, R, wheelchair::stats::chi2Quantile(0.999, 1));
   EXPECT_FALSE(g.accepted);
   EXPECT_GT(g.nis, 1000);
   EXPECT_EQ(ekf.x(), x1);
@@ -196,15 +196,15 @@ TEST(CdEkfLinear, ClosedFormJosephMatchesLdltPath) {
 }
 
 TEST(ChiSquare, QuantilesMatchTables) {
-  EXPECT_NEAR(chi2Quantile(0.95, 1), 3.841459, 1e-5);
-  EXPECT_NEAR(chi2Quantile(0.999, 1), 10.827566, 1e-5);
-  EXPECT_NEAR(chi2Quantile(0.999, 2), 13.815511, 1e-5);
-  EXPECT_NEAR(chi2Quantile(0.025, 1), 0.000982069, 1e-8);
-  EXPECT_NEAR(chi2Quantile(0.975, 7), 16.012764, 1e-5);
-  EXPECT_NEAR(chi2Quantile(0.025, 140), 109.137, 0.01);  // Wilson-Hilferty: 109.13
-  const auto [lo, hi] = chi2MeanBand(0.95, 7, 20);
-  EXPECT_NEAR(lo, chi2Quantile(0.025, 140) / 20, 1e-12);
-  EXPECT_NEAR(hi, chi2Quantile(0.975, 140) / 20, 1e-12);
+  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.95, 1), 3.841459, 1e-5);
+  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.999, 1), 10.827566, 1e-5);
+  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.999, 2), 13.815511, 1e-5);
+  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.025, 1), 0.000982069, 1e-8);
+  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.975, 7), 16.012764, 1e-5);
+  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.025, 140), 109.137, 0.01);  // Wilson-Hilferty: 109.13
+  const auto [lo, hi] = wheelchair::stats::chi2MeanBand(0.95, 7, 20);
+  EXPECT_NEAR(lo, wheelchair::stats::chi2Quantile(0.025, 140) / 20, 1e-12);
+  EXPECT_NEAR(hi, wheelchair::stats::chi2Quantile(0.975, 140) / 20, 1e-12);
 }
 
 // The integration runs in time relative to reset(): the same intervals at t0 = 0 and at a

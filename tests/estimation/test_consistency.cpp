@@ -2,7 +2,7 @@
 // average NEES (7 canonical states) and NIS (per sensor) inside their 95 % chi-square bands.
 #include "SyntheticDrive.h"
 
-#include "libwheelchair/estimation/ChiSquare.h"
+#include "libwheelchair/stats/Distributions.h"
 #include "libwheelchair/estimation/Estimator.h"
 
 #include <gtest/gtest.h>
@@ -129,7 +129,7 @@ McResult monteCarlo(const McConfig& mc) {
   }
   McResult r;
   r.per_component = comp / ncomp;
-  r.band = chi2MeanBand(0.95, 7, mc.runs);
+  r.band = stats::chi2MeanBand(0.95, 7, mc.runs);
   double total = 0;
   int count = 0, inside = 0;
   for (std::size_t i = 0; i < nees_sum.size(); ++i) {
@@ -145,7 +145,7 @@ McResult monteCarlo(const McConfig& mc) {
     if (!nis_n[s]) continue;
     const int dof = (s == int(Sensor::Encoders) || s == int(Sensor::Pozyx)) ? 2 : 1;
     r.mean_nis[s] = nis_sum[s] / nis_n[s];
-    r.nis_band[s] = chi2MeanBand(0.95, dof, double(nis_n[s]) / mc.runs);  // per-run mean band
+    r.nis_band[s] = stats::chi2MeanBand(0.95, dof, double(nis_n[s]) / mc.runs);  // per-run mean band
     r.nis_inside95[s] = double(nis_in[s]) / nis_n[s];
   }
   return r;

@@ -62,11 +62,6 @@ TEST(Nees, ConsistentEstimatorAveragesTwo) {
   EXPECT_GT(averageNees(est, gt, opt).mean_nees, 7.0);
 }
 
-TEST(Nees, ChiSquareQuantiles) {
-  EXPECT_NEAR(chi2QuantileApprox(0.975, 100), 129.561, 0.05);
-  EXPECT_NEAR(chi2QuantileApprox(0.025, 100), 74.222, 0.05);
-  EXPECT_NEAR(chi2QuantileApprox(0.5, 10), 9.342, 0.01);
-}
 
 TEST(Outliers, NoFalseAlarmsOnPozyxLikeNoise) {
   // 10 cm noise, 10 Hz, a drive with a stop and a turn on the spot seen by a tag 0.2 m ahead.
