@@ -36,15 +36,9 @@ int runExport(const ExportOptions& o) {
     out.write(*s);
     ++n;
   }
-  if (in.error()) {
-    if (!o.salvage && n > 0)
-      throw std::runtime_error(io::describeBreak(o.input, *in.error()) +
-                               " (--salvage uses the complete records before it)");
-    if (n == 0)
-      throw std::runtime_error(io::describeBreak(o.input, *in.error()) +
-                               " (no complete data record before it to salvage)");
-    std::cerr << "wheelchair export: warning: " << io::salvageWarning(o.input, *in.error()) << "\n";
-  }
+  if (in.error())
+    std::cerr << "wheelchair export: warning: "
+              << io::salvageOrThrow(o.input, *in.error(), n, o.salvage) << "\n";
   out.setMeta(meta);
   out.commit();
   fmt::print("exported {} observations from {} into {}", n, o.input, o.output);
@@ -53,15 +47,15 @@ int runExport(const ExportOptions& o) {
   return kExitOk;
 }
 
-const RegisterCommand reg{Command{
-    "export", "Write a rawlog back as a plain-text recording directory",
-    [](CLI::App& sub) -> std::function<int()> {
-      auto o = std::make_shared<ExportOptions>();
-      sub.add_option("input", o->input, "Input rawlog")->required();
-      sub.add_option("-o,--output", o->output, "Output recording directory")->required();
-      sub.add_flag("--salvage", o->salvage, kSalvageHelp);
-      return [o] { return runExport(*o); };
-    }}};
+const RegisterCommand reg{
+    Command{"export", "Write a rawlog back as a plain-text recording directory",
+            [](CLI::App& sub) -> std::function<int()> {
+              auto o = std::make_shared<ExportOptions>();
+              sub.add_option("input", o->input, "Input rawlog")->required();
+              sub.add_option("-o,--output", o->output, "Output recording directory")->required();
+              sub.add_flag("--salvage", o->salvage, kSalvageHelp);
+              return [o] { return runExport(*o); };
+            }}};
 
 }  // namespace
 }  // namespace wheelchair::cli

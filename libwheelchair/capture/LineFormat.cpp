@@ -29,12 +29,7 @@ bool isBlank(char c) {
   return c == ' ' || c == '\t';
 }
 
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return {};
-  const auto e = s.find_last_not_of(" \t\r\n");
-  return s.substr(b, e - b + 1);
-}
+using util::trim;
 
 // Fields holding integer tick counts (no calibration, integer syntax).
 bool isTickField(StreamKind k, int idx) {

@@ -1,4 +1,5 @@
 #include "libwheelchair/config/Options.h"
+#include "libwheelchair/util/Text.h"
 
 #include <fmt/format.h>
 
@@ -15,12 +16,7 @@ namespace wheelchair::config {
 
 namespace {
 
-std::string trim(const std::string& s) {
-  const auto a = s.find_first_not_of(" \t\r\n");
-  if (a == std::string::npos) return {};
-  const auto b = s.find_last_not_of(" \t\r\n");
-  return s.substr(a, b - a + 1);
-}
+using util::trim;
 
 std::string fmtNumber(double v) {
   return fmt::format("{}", v);

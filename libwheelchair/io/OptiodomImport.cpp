@@ -1,4 +1,5 @@
 #include "libwheelchair/io/OptiodomImport.h"
+#include "libwheelchair/util/Text.h"
 
 #include "libwheelchair/io/TextFormat.h"
 
@@ -18,20 +19,13 @@ namespace {
 
 constexpr double kCycle_s = 0.05;  // the robot's cycle stamp (counter x 50 ms)
 
-std::string trim(const std::string& s) {
-  std::size_t a = 0, b = s.size();
-  if (s.compare(0, 3, "\xEF\xBB\xBF") == 0) a = 3;  // UTF-8 byte-order mark
-  while (a < b && (s[a] == ' ' || s[a] == '\t' || s[a] == '\r')) ++a;
-  while (b > a && (s[b - 1] == ' ' || s[b - 1] == '\t' || s[b - 1] == '\r')) --b;
-  return s.substr(a, b - a);
-}
-
 std::vector<std::string> splitCsv(const std::string& line) {
   std::vector<std::string> out;
-  std::size_t start = 0;
+  std::size_t start = line.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;  // UTF-8 byte-order mark
   while (true) {
     const auto c = line.find(',', start);
-    out.push_back(trim(line.substr(start, c == std::string::npos ? std::string::npos : c - start)));
+    out.push_back(
+        util::trim(line.substr(start, c == std::string::npos ? std::string::npos : c - start)));
     if (c == std::string::npos) break;
     start = c + 1;
   }
@@ -59,7 +53,8 @@ std::map<std::string, std::vector<std::string>> readMetadata(const std::string& 
   if (!in) throw FormatError(fmt::format("{}: cannot open file", path));
   std::map<std::string, std::vector<std::string>> m;
   std::string line;
-  while (std::getline(in, line)) {
+  std::size_t line_no = 0;
+  while (util::getBoundedLine(in, line, util::kMaxLineBytes, path, ++line_no)) {
     auto cells = splitCsv(line);
     if (cells.empty() || cells[0].empty()) continue;
     m[cells[0]] = std::vector<std::string>(cells.begin() + 1, cells.end());
@@ -82,8 +77,7 @@ CommandLog readCommandLog(const std::string& path, int run) {
   std::size_t line_no = 0;
   int current = 0;
   double t0 = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
+  while (util::getBoundedLine(in, line, util::kMaxLineBytes, path, ++line_no)) {
     auto c = splitCsv(line);
     if (c.empty()) continue;
     const std::string where = fmt::format("{}:{}", path, line_no);
@@ -188,8 +182,7 @@ Recording importOptiodom(const std::string& dir, int run, OptiodomImportReport* 
   std::string line;
   std::size_t line_no = 0;
   int64_t nR = 0, nL = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
+  while (util::getBoundedLine(in, line, util::kMaxLineBytes, run_path, ++line_no)) {
     auto c = splitCsv(line);
     if (c.empty()) continue;
     const std::string where = fmt::format("{}:{}", run_path, line_no);

@@ -1,8 +1,8 @@
 #include "libwheelchair/io/RawlogIO.h"
 
+#include "libwheelchair/config/Options.h"
 #include "libwheelchair/util/AtomicFile.h"
 #include "libwheelchair/util/Text.h"
-#include "libwheelchair/config/Options.h"
 
 #include <fmt/format.h>
 #include <mrpt/core/Clock.h>
@@ -33,11 +33,14 @@ namespace {
 
 // MRPT stores sonar ranges and landmark sightings as float: read them back as the decimal
 // value the float prints as (shortest representation), which is what was recorded.
-double floatAsDecimal(float x) { return std::strtod(fmt::format("{}", x).c_str(), nullptr); }
+double floatAsDecimal(float x) {
+  return std::strtod(fmt::format("{}", x).c_str(), nullptr);
+}
 
 constexpr double kUnknownZVariance_m2 = 1e6;
 constexpr const char* kHeaderFirstLine = "# libwheelchair recording";
 constexpr const char* kHeaderCrcKey = "# header crc32 = ";
+constexpr const char* kHeaderConfigMark = "# configuration used when writing this file\n";
 
 /// CRC-32 of the header text and its timestamp (so a flipped bit in either is detected).
 unsigned long headerCrc(std::string_view text, mrpt::Clock::time_point t) {
@@ -45,7 +48,6 @@ unsigned long headerCrc(std::string_view text, mrpt::Clock::time_point t) {
   auto crc = crc32(0L, reinterpret_cast<const Bytef*>(text.data()), static_cast<uInt>(text.size()));
   return crc32(crc, reinterpret_cast<const Bytef*>(stamp.data()), static_cast<uInt>(stamp.size()));
 }
-
 
 // [recording]: free-form metadata of a recording (meta.ini, the rawlog header, capture.ini),
 // so that a header text loads as a configuration (WheelchairConfig::fromText) strictly.
@@ -105,7 +107,8 @@ CObservation::Ptr toObservation(const AnySample& s, const config::WheelchairConf
           auto o = stamped<CObservationRange>(k, x.t_s);
           o->minSensorDistance = static_cast<float>(cfg.sonar.min_range_m);
           o->maxSensorDistance = static_cast<float>(cfg.sonar.max_range_m);
-          o->sensorConeApperture = static_cast<float>(2 * cfg.sonar.cone_half_angle_deg * M_PI / 180);
+          o->sensorConeApperture =
+              static_cast<float>(2 * cfg.sonar.cone_half_angle_deg * M_PI / 180);
           CObservationRange::TMeasurement m;
           m.sensorID = 0;
           m.sensorPose = mrpt::math::TPose3D(cfg.sonar.x_m, cfg.sonar.y_m, 0,
@@ -123,7 +126,8 @@ CObservation::Ptr toObservation(const AnySample& s, const config::WheelchairConf
           o->pose.cov(2, 2) = x.has_z ? var : kUnknownZVariance_m2;
           // Orientation is not measured by the tag.
           for (int i = 3; i < 6; ++i) o->pose.cov(i, i) = kUnknownZVariance_m2;
-          o->sensorPose = mrpt::poses::CPose3D(cfg.pozyx.lever_x_m, cfg.pozyx.lever_y_m, 0, 0, 0, 0);
+          o->sensorPose =
+              mrpt::poses::CPose3D(cfg.pozyx.lever_x_m, cfg.pozyx.lever_y_m, 0, 0, 0, 0);
           return o;
         } else if constexpr (std::is_same_v<T, JoystickSample>) {
           return daq(k, x.t_s, {x.v_cmd_m_s, x.omega_cmd_rad_s});
@@ -151,8 +155,8 @@ CObservation::Ptr toObservation(const AnySample& s, const config::WheelchairConf
 std::optional<AnySample> fromObservation(const CObservation& obs) {
   const double t = mrpt::Clock::toDouble(obs.timestamp);
   const std::string& label = obs.sensorLabel;
-  if (auto o = dynamic_cast<const CObservationOdometry*>(&obs); o && o->hasEncodersInfo &&
-                                                                 label == "ENCODERS") {
+  if (auto o = dynamic_cast<const CObservationOdometry*>(&obs);
+      o && o->hasEncodersInfo && label == "ENCODERS") {
     return EncoderSample{t, o->encoderRightTicks, o->encoderLeftTicks};
   }
   if (auto o = dynamic_cast<const CObservationIMU*>(&obs); o && label == "IMU" && o->has(IMU_WZ)) {
@@ -167,8 +171,8 @@ std::optional<AnySample> fromObservation(const CObservation& obs) {
     if (label == "JOYSTICK" && a.size() == 2) return JoystickSample{t, a[0], a[1]};
     return std::nullopt;
   }
-  if (auto o = dynamic_cast<const CObservationRange*>(&obs); o && label == "SONAR" &&
-                                                              !o->sensedData.empty()) {
+  if (auto o = dynamic_cast<const CObservationRange*>(&obs);
+      o && label == "SONAR" && !o->sensedData.empty()) {
     return SonarSample{t, floatAsDecimal(o->sensedData.front().sensedDistance)};
   }
   if (auto o = dynamic_cast<const CObservationRobotPose*>(&obs)) {
@@ -180,8 +184,8 @@ std::optional<AnySample> fromObservation(const CObservation& obs) {
     if (label == "GROUND_TRUTH") return GroundTruthPoseSample{t, m.x(), m.y(), m.yaw()};
     return std::nullopt;
   }
-  if (auto o = dynamic_cast<const CObservationBearingRange*>(&obs); o && label == "LANDMARKS" &&
-                                                                     !o->sensedData.empty()) {
+  if (auto o = dynamic_cast<const CObservationBearingRange*>(&obs);
+      o && label == "LANDMARKS" && !o->sensedData.empty()) {
     const auto& m = o->sensedData.front();
     return LandmarkSample{t, m.landmarkID, floatAsDecimal(m.range), floatAsDecimal(m.yaw)};
   }
@@ -286,7 +290,7 @@ void RawlogWriter::writeHeader(const std::map<std::string, std::string>& meta,
   std::ostringstream ss;
   ss << kHeaderFirstLine << "\n[recording]\n";
   for (const auto& [k, v] : meta) ss << k << " = " << v << "\n";
-  ss << "# configuration used when writing this file\n" << cfg.text();
+  ss << kHeaderConfigMark << cfg.text();
   std::string text = ss.str();
   if (!text.empty() && text.back() != '\n') text += '\n';
   // A checksum of the text before it, so a damaged header is reported as such (RawlogReader).
@@ -387,8 +391,7 @@ RawlogReader::RawlogReader(const std::string& path) : path_(path), in_(std::make
   if (!fs::exists(st)) throw std::runtime_error(fmt::format("{}: no such file", path));
   if (fs::is_directory(st))
     throw std::runtime_error(fmt::format("{}: is a directory, not a rawlog", path));
-  file_size_ = fs::is_regular_file(st) ? fs::file_size(path, ec) : 0;
-  if (fs::is_regular_file(st) && file_size_ == 0)
+  if (fs::is_regular_file(st) && fs::file_size(path, ec) == 0)
     throw std::runtime_error(fmt::format("{}: empty file (0 bytes), not a rawlog", path));
   in_->f = gzopen(path.c_str(), "rb");
   if (!in_->f)
@@ -465,7 +468,7 @@ std::map<std::string, std::string> headerMeta(const std::string& text) {
 }
 
 std::string headerConfigText(const std::string& text) {
-  const std::string mark = "# configuration used when writing this file\n";
+  const std::string mark = kHeaderConfigMark;
   const auto at = text.find(mark);
   return at == std::string::npos ? std::string() : text.substr(at + mark.size());
 }
@@ -475,7 +478,8 @@ std::string describeBreak(const std::string& path, const RawlogBreak& b) {
                      b.byte_offset, b.what);
 }
 
-void writeRawlog(const Recording& rec, const std::string& path, const config::WheelchairConfig& cfg) {
+void writeRawlog(const Recording& rec, const std::string& path,
+                 const config::WheelchairConfig& cfg) {
   RawlogWriter w(path);
   w.writeHeader(rec.meta, cfg, rec.startTime());
   forEachInTimeOrder(rec, [&](const AnySample& s) { w.write(s, cfg); });
@@ -487,18 +491,11 @@ bool isEmptyRegularFile(const std::string& path) {
   std::error_code ec;
   return fs::is_regular_file(path, ec) && fs::file_size(path, ec) == 0 && !ec;
 }
-}  // namespace
 
-Recording readRawlog(const std::string& path, RawlogReadReport* report, bool allow_truncated) {
-  // A capture cut before its first flush leaves a 0-byte file: with allow_truncated that is
-  // an empty prefix; otherwise (and always for the commands) it is refused.
-  if (allow_truncated && isEmptyRegularFile(path)) {
-    if (report) *report = RawlogReadReport{};
-    return Recording{};
-  }
-  RawlogReader in(path);
+/// Every complete record of `in` (our samples into the recording, the header's meta) and
+/// where it broke, if it did.
+Recording readRecords(RawlogReader& in, RawlogReadReport& rep) {
   Recording rec;
-  RawlogReadReport rep;
   mrpt::serialization::CSerializable::Ptr obj;
   while (in.next(obj)) {
     ++rep.records;
@@ -512,33 +509,52 @@ Recording readRawlog(const std::string& path, RawlogReadReport* report, bool all
       rec.meta = headerMeta(*text);
       continue;
     }
-    if (auto s = fromObservation(*o)) append(rec, *s);
-    else ++rep.ignored;
+    if (auto s = fromObservation(*o))
+      append(rec, *s);
+    else
+      ++rep.ignored;
   }
   rep.broken = in.error();
+  return rec;
+}
+
+}  // namespace
+
+Recording readRawlog(const std::string& path, RawlogReadReport* report, bool allow_truncated) {
+  // A capture cut before its first flush leaves a 0-byte file: with allow_truncated that is
+  // an empty prefix; otherwise (and always for the commands) it is refused.
+  if (allow_truncated && isEmptyRegularFile(path)) {
+    if (report) *report = RawlogReadReport{};
+    return Recording{};
+  }
+  RawlogReader in(path);
+  RawlogReadReport rep;
+  Recording rec = readRecords(in, rep);
   if (rep.broken && !allow_truncated) throw std::runtime_error(describeBreak(path, *rep.broken));
   if (report) *report = rep;
   return rec;
 }
 
-std::string salvageWarning(const std::string& path, const RawlogBreak& b) {
+std::string salvageOrThrow(const std::string& path, const RawlogBreak& b, std::size_t data_records,
+                           bool salvage) {
+  if (!salvage && data_records > 0)
+    throw std::runtime_error(describeBreak(path, b) +
+                             " (--salvage uses the complete records before it)");
+  if (data_records == 0)
+    throw std::runtime_error(describeBreak(path, b) +
+                             " (no complete data record before it to salvage)");
   return fmt::format("{}; salvaged the {} complete records before it", describeBreak(path, b),
                      b.record_index);
 }
 
 Recording readRawlogSalvaging(const std::string& path, bool salvage, std::string* warning,
                               RawlogReadReport* report) {
-  if (isEmptyRegularFile(path)) RawlogReader refuse(path);  // throws "empty file (0 bytes)"
+  RawlogReader in(path);  // refuses a 0-byte file
   RawlogReadReport rep;
-  Recording rec = readRawlog(path, &rep, true);
+  Recording rec = readRecords(in, rep);
   if (rep.broken) {
-    if (!salvage && rec.size() > 0)
-      throw std::runtime_error(describeBreak(path, *rep.broken) +
-                               " (--salvage uses the complete records before it)");
-    if (rec.size() == 0)
-      throw std::runtime_error(describeBreak(path, *rep.broken) +
-                               " (no complete data record before it to salvage)");
-    if (warning) *warning = salvageWarning(path, *rep.broken);
+    const std::string w = salvageOrThrow(path, *rep.broken, rec.size(), salvage);
+    if (warning) *warning = w;
   }
   if (report) *report = rep;
   return rec;

@@ -65,8 +65,8 @@ class RawlogWriter {
 
 /// Where a rawlog stopped being readable.
 struct RawlogBreak {
-  std::size_t record_index = 0;   ///< 0-based index of the first unreadable record
-  uint64_t byte_offset = 0;       ///< uncompressed offset where it started
+  std::size_t record_index = 0;  ///< 0-based index of the first unreadable record
+  uint64_t byte_offset = 0;      ///< uncompressed offset where it started
   std::string what;
 };
 
@@ -79,8 +79,6 @@ class RawlogReader {
   bool next(mrpt::serialization::CSerializable::Ptr& obj);
   const std::optional<RawlogBreak>& error() const { return error_; }
   std::size_t recordsRead() const { return index_; }
-  /// Bytes of the file (compressed) and uncompressed position (for progress bars).
-  uint64_t fileSize() const { return file_size_; }
   const std::string& path() const { return path_; }
 
  private:
@@ -90,18 +88,18 @@ class RawlogReader {
   std::string path_;
   std::unique_ptr<GzipIn> in_;
   std::size_t index_ = 0;
-  uint64_t file_size_ = 0;
   std::optional<RawlogBreak> error_;
 };
 
 /// Writes a whole recording (time-ordered merge of its streams) with a META header.
-void writeRawlog(const Recording& rec, const std::string& path, const config::WheelchairConfig& cfg);
+void writeRawlog(const Recording& rec, const std::string& path,
+                 const config::WheelchairConfig& cfg);
 
 struct RawlogReadReport {
   std::size_t records = 0;
-  std::size_t ignored = 0;             ///< records that are not ours (other labels/classes)
-  std::optional<RawlogBreak> broken;   ///< set when the file is truncated/corrupt
-  std::string header_text;             ///< META comment text (meta keys + configuration)
+  std::size_t ignored = 0;            ///< records that are not ours (other labels/classes)
+  std::optional<RawlogBreak> broken;  ///< set when the file is truncated/corrupt
+  std::string header_text;            ///< META comment text (meta keys + configuration)
 };
 
 /// Reads a whole rawlog into memory. Throws on a broken or 0-byte file unless
@@ -118,8 +116,11 @@ Recording readRawlog(const std::string& path, RawlogReadReport* report = nullptr
 /// either way. A 0-byte file is always refused.
 Recording readRawlogSalvaging(const std::string& path, bool salvage, std::string* warning,
                               RawlogReadReport* report = nullptr);
-/// The one-line warning readRawlogSalvaging gives for a salvaged file.
-std::string salvageWarning(const std::string& path, const RawlogBreak& b);
+/// The salvage rule for a file that broke at `b` after `data_records` complete data records
+/// (for readers that stream, like `export`): throws the one-line refusal, or with `salvage`
+/// returns the warning readRawlogSalvaging gives.
+std::string salvageOrThrow(const std::string& path, const RawlogBreak& b, std::size_t data_records,
+                           bool salvage);
 
 /// If `obj` is our header record (a CObservationComment written by writeHeader; MRPT does
 /// not serialize a comment's sensorLabel, so it is recognised by its first line), returns its

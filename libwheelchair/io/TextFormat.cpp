@@ -24,8 +24,7 @@ struct Layout {
 const Layout& layoutOf(StreamKind k) {
   static const std::map<StreamKind, Layout> kLayouts = {
       {StreamKind::Encoders, {{"t", "right_ticks", "left_ticks"}, {}, true}},
-      {StreamKind::Imu,
-       {{"t", "gyro_z"}, {"gyro_x", "gyro_y", "acc_x", "acc_y", "acc_z"}, true}},
+      {StreamKind::Imu, {{"t", "gyro_z"}, {"gyro_x", "gyro_y", "acc_x", "acc_y", "acc_z"}, true}},
       {StreamKind::Motors,
        {{"t", "current_right", "current_left", "vrc_right", "vrc_left"}, {}, true}},
       {StreamKind::Sonar, {{"t", "range"}, {}, false}},
@@ -64,7 +63,9 @@ std::string joinColumns(const std::vector<std::string>& c) {
 
 }  // namespace
 
-std::string formatNumber(double x) { return fmt::format("{}", x); }
+std::string formatNumber(double x) {
+  return fmt::format("{}", x);
+}
 
 std::string formatTime(double t_s) {
   const double us = std::round(t_s * 1e6) / 1e6;
@@ -127,12 +128,12 @@ bool CsvStreamReader::next(AnySample& out) {
                                     util::quoteInput(std::string_view(p, fe - p))));
     }
     if (!std::isfinite(v))
-      throw FormatError(fmt::format("{}: column '{}': value {} is not finite", where,
-                                    columns_[col], util::quoteInput(std::string_view(p, fe - p))));
+      throw FormatError(fmt::format("{}: column '{}': value {} is not finite", where, columns_[col],
+                                    util::quoteInput(std::string_view(p, fe - p))));
     if (col == 0 && v < 0)  // MRPT's clock would wrap it to ~1.8e12 s
-      throw FormatError(fmt::format(
-          "{}: column '{}': negative timestamp {} (times are seconds >= 0)", where, columns_[col],
-          util::quoteInput(std::string_view(p, fe - p))));
+      throw FormatError(
+          fmt::format("{}: column '{}': negative timestamp {} (times are seconds >= 0)", where,
+                      columns_[col], util::quoteInput(std::string_view(p, fe - p))));
     values_.push_back(v);
     ++col;
     if (field_end == end) break;
@@ -144,27 +145,37 @@ bool CsvStreamReader::next(AnySample& out) {
   auto asInt32 = [&](std::size_t i) {
     const double v = values_[i];
     if (v != std::floor(v) || v < -2147483648.0 || v > 2147483647.0)
-      throw FormatError(fmt::format("{}: column '{}': {} is not a 32-bit integer count", where,
-                                    columns_[i], v));
+      throw FormatError(
+          fmt::format("{}: column '{}': {} is not a 32-bit integer count", where, columns_[i], v));
     return static_cast<int32_t>(v);
   };
   const auto& x = values_;
   switch (kind_) {
-    case StreamKind::Encoders: out = EncoderSample{x[0], asInt32(1), asInt32(2)}; break;
+    case StreamKind::Encoders:
+      out = EncoderSample{x[0], asInt32(1), asInt32(2)};
+      break;
     case StreamKind::Imu: {
       ImuSample s{x[0], x[1], x.size() > 2, {}};
       for (std::size_t i = 2; i < x.size(); ++i) s.extra[i - 2] = x[i];
       out = s;
       break;
     }
-    case StreamKind::Motors: out = MotorSample{x[0], x[1], x[2], x[3], x[4]}; break;
+    case StreamKind::Motors:
+      out = MotorSample{x[0], x[1], x[2], x[3], x[4]};
+      break;
     case StreamKind::Sonar:
       if (x[1] < 0) throw FormatError(fmt::format("{}: negative sonar range {}", where, x[1]));
       out = SonarSample{x[0], x[1]};
       break;
-    case StreamKind::Pozyx: out = PozyxSample{x[0], x[1], x[2], x.size() > 3, x.size() > 3 ? x[3] : 0.0}; break;
-    case StreamKind::Joystick: out = JoystickSample{x[0], x[1], x[2]}; break;
-    case StreamKind::GroundTruth: out = GroundTruthPoseSample{x[0], x[1], x[2], x[3]}; break;
+    case StreamKind::Pozyx:
+      out = PozyxSample{x[0], x[1], x[2], x.size() > 3, x.size() > 3 ? x[3] : 0.0};
+      break;
+    case StreamKind::Joystick:
+      out = JoystickSample{x[0], x[1], x[2]};
+      break;
+    case StreamKind::GroundTruth:
+      out = GroundTruthPoseSample{x[0], x[1], x[2], x[3]};
+      break;
     case StreamKind::Landmarks: {
       if (x[1] != std::floor(x[1])) throw FormatError(where + ": landmark_id is not an integer");
       out = LandmarkSample{x[0], static_cast<int>(x[1]), x[2], x[3]};
@@ -202,8 +213,7 @@ struct TextRecordingReader::Source {
 };
 
 TextRecordingReader::TextRecordingReader(const std::string& dir) {
-  if (!fs::is_directory(dir))
-    throw FormatError(fmt::format("{}: not a recording directory", dir));
+  if (!fs::is_directory(dir)) throw FormatError(fmt::format("{}: not a recording directory", dir));
   for (int k = 0; k < kNumStreams; ++k) {
     const auto kind = static_cast<StreamKind>(k);
     const fs::path path = fs::path(dir) / streamFileName(kind);
@@ -251,17 +261,16 @@ bool TextRecordingReader::next(AnySample& out) {
     }
   }
   if (!best) return false;
-  if (max_gap_s_ > 0 && have_last_ && best_t - last_t_ > max_gap_s_)
+  if (max_gap_s_ > 0 && last_src_ && best_t - last_t_ > max_gap_s_)
     throw FormatError(fmt::format(
         "{}:{}: timestamp {} s jumps {:.3f} s after the previous sample ({} s, {}:{}): more than "
         "the import limit max_gap_s = {:g} s (a clock jump or a logger stall); raise [import] "
         "max_gap_s or --max-gap (0: no limit) to import it anyway",
         best->reader.path(), best->head_line, formatTime(best_t), best_t - last_t_,
-        formatTime(last_t_), last_path_, last_line_, max_gap_s_));
-  if (!have_last_ || best_t >= last_t_) {  // latest time so far (out-of-order rows kept)
-    have_last_ = true;
+        formatTime(last_t_), last_src_->reader.path(), last_line_, max_gap_s_));
+  if (!last_src_ || best_t >= last_t_) {  // latest time so far (out-of-order rows kept)
+    last_src_ = best;
     last_t_ = best_t;
-    last_path_ = best->reader.path();
     last_line_ = best->head_line;
   }
   out = best->head;
@@ -271,7 +280,8 @@ bool TextRecordingReader::next(AnySample& out) {
 
 std::vector<std::string> TextRecordingReader::warnings() const {
   std::vector<std::string> w;
-  for (const auto& f : missing_optional_) w.push_back(fmt::format("optional file {} not present", f));
+  for (const auto& f : missing_optional_)
+    w.push_back(fmt::format("optional file {} not present", f));
   for (const auto& s : sources_) {
     if (s->issues.out_of_order || s->issues.duplicates)
       w.push_back(fmt::format(
@@ -279,9 +289,10 @@ std::vector<std::string> TextRecordingReader::warnings() const {
           s->reader.path(), s->issues.out_of_order, s->issues.duplicates,
           s->issues.first_bad_line));
     if (s->last_t == -std::numeric_limits<double>::infinity() && layoutOf(s->kind).required_file)
-      w.push_back(fmt::format("{}: header only, no data rows (a required stream: what needs it "
-                              "will be not applicable)",
-                              s->reader.path()));
+      w.push_back(
+          fmt::format("{}: header only, no data rows (a required stream: what needs it "
+                      "will be not applicable)",
+                      s->reader.path()));
   }
   return w;
 }
@@ -351,9 +362,8 @@ std::ostream& TextRecordingWriter::fileFor(StreamKind k, const AnySample& first)
   std::ostream& f = file->stream();
   const Layout& lay = layoutOf(k);
   std::vector<std::string> cols = lay.required;
-  const bool with_optional =
-      (k == StreamKind::Imu && std::get<ImuSample>(first).has_extra) ||
-      (k == StreamKind::Pozyx && std::get<PozyxSample>(first).has_z);
+  const bool with_optional = (k == StreamKind::Imu && std::get<ImuSample>(first).has_extra) ||
+                             (k == StreamKind::Pozyx && std::get<PozyxSample>(first).has_z);
   if (with_optional) cols.insert(cols.end(), lay.optional.begin(), lay.optional.end());
   f << joinColumns(cols) << '\n';
   return f;
@@ -418,7 +428,8 @@ void TextRecordingWriter::commit() {
   checkExportTarget(dir_);
   if (fs::exists(dir_)) fs::remove_all(dir_, ec);
   fs::rename(tmp_dir_, dir_, ec);
-  if (ec) throw std::runtime_error(fmt::format("{}: cannot rename into place: {}", dir_, ec.message()));
+  if (ec)
+    throw std::runtime_error(fmt::format("{}: cannot rename into place: {}", dir_, ec.message()));
   committed_ = true;
 }
 

@@ -82,9 +82,10 @@ class TextRecordingReader {
   std::map<std::string, std::string> meta_;
   std::vector<std::string> missing_optional_;
   double max_gap_s_ = 0;
-  bool have_last_ = false;
-  double last_t_ = 0;  ///< latest time returned so far (s)
-  std::string last_path_;
+  // The latest sample returned so far (out-of-order rows do not move it): its source (stable:
+  // sources_ owns them), time and line, for the gap check's message.
+  const Source* last_src_ = nullptr;
+  double last_t_ = 0;  ///< s
   std::size_t last_line_ = 0;
 };
 

@@ -28,6 +28,13 @@ std::string quoteInput(std::string_view s, std::size_t max_chars) {
   return out;
 }
 
+std::string trim(std::string_view s) {
+  const auto a = s.find_first_not_of(" \t\r\n");
+  if (a == std::string_view::npos) return {};
+  const auto b = s.find_last_not_of(" \t\r\n");
+  return std::string(s.substr(a, b - a + 1));
+}
+
 std::string oneLineMessage(const std::string& what) {
   auto trim = [](std::string_view v) {
     while (!v.empty() && (v.front() == ' ' || v.front() == '\t')) v.remove_prefix(1);

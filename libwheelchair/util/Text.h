@@ -23,6 +23,9 @@ namespace wheelchair::util {
 /// Longest line the text readers accept (bytes, without the newline).
 constexpr std::size_t kMaxLineBytes = 1 << 20;
 
+/// `s` without leading and trailing blanks (space, tab, CR, LF).
+std::string trim(std::string_view s);
+
 /// `s` with control bytes escaped and cut to `max_chars` characters (+ "...").
 std::string quoteInput(std::string_view s, std::size_t max_chars = 80);
 
