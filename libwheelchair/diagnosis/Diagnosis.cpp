@@ -17,6 +17,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <optional>
 #include <stdexcept>
 
 namespace wheelchair::diagnosis {
@@ -112,6 +113,23 @@ std::vector<std::pair<double, double>> activeSegments(std::vector<std::pair<doub
 /// window's residual (gyro white noise + tick quantisation); the side is decided when LR
 /// exceeds chi2Quantile(1 - alpha_b, 1). Otherwise the returned text says what is missing and
 /// about how much more driving with turns it needs (the LR grows about linearly with it).
+/// Sums over the kinematic windows: predicted residual variance (configured sensor noise),
+/// turning, distance and duration.
+struct RowTotals {
+  double var_sum = 0, turn_rad = 0, dist_m = 0, duration_s = 0;
+};
+RowTotals rowTotals(const KinRows& k) {
+  RowTotals s;
+  for (int i = 0; i < k.X.rows(); ++i) {
+    const double T = k.t1[i] - k.t0[i];
+    s.var_sum += k.noise_var_per_s * T + k.noise_var_const;
+    s.turn_rad += std::abs(k.omega[i]) * T;
+    s.dist_m += std::abs(k.v[i]) * T;
+    s.duration_s += T;
+  }
+  return s;
+}
+
 std::string encoderSideUndecided(const KinRows& k, const std::vector<Candidate>& cands,
                                  const std::vector<int>& accepted, int chosen, int other,
                                  double alpha_b, int lags) {
@@ -119,14 +137,7 @@ std::string encoderSideUndecided(const KinRows& k, const std::vector<Candidate>&
   std::replace(swapped.begin(), swapped.end(), chosen, other);
   const LinearFit a = fitLinear(acceptedDesign(k.X, cands, accepted), k.y, k.groups, lags);
   const LinearFit b = fitLinear(acceptedDesign(k.X, cands, swapped), k.y, k.groups, lags);
-  double var_sum = 0, turn_rad = 0, dist_m = 0, duration_s = 0;
-  for (int i = 0; i < k.X.rows(); ++i) {
-    const double T = k.t1[i] - k.t0[i];
-    var_sum += k.noise_var_per_s * T + k.noise_var_const;
-    turn_rad += std::abs(k.omega[i]) * T;
-    dist_m += std::abs(k.v[i]) * T;
-    duration_s += T;
-  }
+  const auto [var_sum, turn_rad, dist_m, duration_s] = rowTotals(k);
   const double var = k.X.rows() > 0 ? var_sum / k.X.rows() : 0.0;
   const double lr = a.ok && b.ok && var > 0 ? (b.rss - a.rss) / var : 0.0;
   const double needed = stats::chi2Quantile(1 - alpha_b, 1);
@@ -159,13 +170,7 @@ std::string encoderScaleUndetectable(const KinRows& k, const std::vector<Candida
   for (int a : accepted)
     if (cands[a].effect == "encoder_scale") return "";
   if (k.X.rows() == 0 || k.X.cols() < 4) return "";
-  double var_sum = 0, turn_rad = 0, dist_m = 0;
-  for (int i = 0; i < k.X.rows(); ++i) {
-    const double T = k.t1[i] - k.t0[i];
-    var_sum += k.noise_var_per_s * T + k.noise_var_const;
-    turn_rad += std::abs(k.omega[i]) * T;
-    dist_m += std::abs(k.v[i]) * T;
-  }
+  const auto [var_sum, turn_rad, dist_m, duration_s] = rowTotals(k);
   const double x2 = std::min(k.X.col(2).squaredNorm(), k.X.col(3).squaredNorm());
   const double var = var_sum / k.X.rows();
   const double eps = x2 > 0 ? std::sqrt(stats::chi2Quantile(1 - alpha_b, 1) * var / x2)
@@ -712,6 +717,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
     auto cands = dynamicCandidates(mb, opt.enable_delay);
     double alpha_b = selectionRule(opt, cands.size()).level();
     DynRows df = dynamicRows(fitS, corr, cfg, opt), dv = dynamicRows(valS, corr, cfg, opt);
+    // Stage 1 found nothing to correct: dv are the fully nominal model's rows too.
+    const bool sensors_nominal = corr == Corrections{};
     int lags2 = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
     if (df.y.size() > 50) {
       SelectionData sd{df.y,      dv.y,      df.X,  dv.X,
@@ -768,7 +775,9 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
         return o;
       };
       // The fully nominal model (no sensor corrections either), as the report's figures show it.
-      const DynRows dn = dynamicRows(valS, Corrections{}, cfg, opt);
+      std::optional<DynRows> dn_rows;
+      if (!sensors_nominal) dn_rows = dynamicRows(valS, Corrections{}, cfg, opt);
+      const DynRows& dn = sensors_nominal ? dv : *dn_rows;
       const int nRn = static_cast<int>(dn.y.size() / 2);
       for (int sd2 = 0; sd2 < 2; ++sd2) {
         std::string ch = sd2 == 0 ? "current_right" : "current_left";
@@ -998,12 +1007,21 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   return rep;
 }
 
+namespace {
+
+/// Whether a finding becomes a [model_extensions] effect (not a sensor fault, an unmodeled
+/// term, a command-response finding or the odometric geometry, which is written as [vehicle]).
+bool isModelExtension(const Finding& f) {
+  return !(f.effect == "unmodeled" || f.effect == kWheelGeometryEffect || f.is_fault ||
+           f.command_response);
+}
+
+}  // namespace
+
 std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep) {
   std::vector<simulation::EffectSpec> out;
   for (auto& f : rep.findings) {
-    if (f.effect == "unmodeled" || f.effect == kWheelGeometryEffect || f.is_fault ||
-        f.command_response)
-      continue;
+    if (!isModelExtension(f)) continue;
     simulation::EffectSpec e;
     e.id = f.effect;
     for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it) {
@@ -1029,9 +1047,7 @@ config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
   out.set("model_extensions", "count", std::to_string(effects.size()));
   int k = 0;
   for (auto& f : rep.findings) {
-    if (f.effect == "unmodeled" || f.effect == kWheelGeometryEffect || f.is_fault ||
-        f.command_response)
-      continue;
+    if (!isModelExtension(f)) continue;
     ++k;
     out.set("model_extensions", fmt::format("effect_{}", k),
             simulation::formatEffect(effects[k - 1]));

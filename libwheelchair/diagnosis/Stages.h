@@ -54,6 +54,12 @@ struct Corrections {
   double enc_scale[2] = {1, 1};  ///< reported / true distance, right, left
   double gyro_scale = 1, gyro_bias = 0;
   double delay_imu = 0, delay_enc = 0, delay_motors = 0;  ///< stamps lag truth by this (s)
+
+  bool operator==(const Corrections& o) const {
+    return enc_scale[0] == o.enc_scale[0] && enc_scale[1] == o.enc_scale[1] &&
+           gyro_scale == o.gyro_scale && gyro_bias == o.gyro_bias && delay_imu == o.delay_imu &&
+           delay_enc == o.delay_enc && delay_motors == o.delay_motors;
+  }
 };
 
 /// Stage 1 rows: one per window of encoder samples, y = gyro integral - odometric heading
