@@ -36,10 +36,6 @@ struct DiagnoseOptions {
   bool no_progress = false;
 };
 
-void writeAtomic(const std::string& path, const std::string& text) {
-  util::writeFileAtomically(path, [&](std::ostream& f) { f << text; });
-}
-
 int runDiagnose(const DiagnoseOptions& o) {
   Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   std::vector<io::Recording> fit, val;
@@ -108,7 +104,7 @@ int runDiagnose(const DiagnoseOptions& o) {
   j["config"] = !o.config_path.empty()     ? o.config_path
                 : !recorded_config.empty() ? "recorded in " + o.inputs.front()
                                            : "<nominal>";
-  writeAtomic(o.json_path, j.dump(2) + "\n");
+  util::writeFileAtomically(o.json_path, j.dump(2) + "\n");
   outputs.add(o.json_path);
   progress.stop();
   std::string text;

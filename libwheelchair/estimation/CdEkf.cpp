@@ -67,10 +67,17 @@ struct CdEkfAccess {
 
 namespace {
 
+/// CVODE's name of a return flag ("CV_TOO_MUCH_WORK"; the number if it has none).
+std::string flagName(int flag) {
+  char* name = CVodeGetReturnFlagName(flag);
+  const std::string s = name ? name : std::to_string(flag);
+  std::free(name);
+  return s;
+}
+
 void check(int flag, const char* what) {
   if (flag < 0)
-    throw std::runtime_error(std::string("CdEkf: CVODE ") + what + " failed, flag " +
-                             std::to_string(flag));
+    throw std::runtime_error(fmt::format("CdEkf: CVODE {} failed ({})", what, flagName(flag)));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -494,13 +501,10 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   const int flag = CVode(mem, tau1, cv_->y, &tret, CV_NORMAL);
   if (flag < 0) {
     // Name the interval (absolute times) and CVODE's reason; the caller adds the record.
-    char* name = CVodeGetReturnFlagName(flag);
-    const std::string reason = name ? name : std::to_string(flag);
-    std::free(name);
     cv_->live = false;
     throw std::runtime_error(fmt::format(
-        "CVODE failed ({}) integrating from t = {:.6f} s to {:.6f} s (reached {:.6f} s)", reason,
-        t_, t1_s, t_ref_ + tret));
+        "CVODE failed ({}) integrating from t = {:.6f} s to {:.6f} s (reached {:.6f} s)",
+        flagName(flag), t_, t1_s, t_ref_ + tret));
   }
   long nst = 0, nfe = 0, netf = 0, nni = 0;
   CVodeGetNumSteps(mem, &nst);

@@ -2,8 +2,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "libwheelchair/stats/Distributions.h"
 #include "libwheelchair/model/Kinematics.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include <fmt/format.h>
 #include "libwheelchair/config/WheelchairConfig.h"
@@ -358,9 +358,11 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   const bool unmodeled = o.hasUnmodeled();
   // Velocity states: start at the model's response (integrated from the first command).
   {
+    // Steps counted in time relative to the first command (independent of the clock offset).
     double yv = 0, yw = 0;
-    for (double t = sig.startTime(); t < res.t_start_s; t += o.dt_s) {
-      const Eigen::Vector2d u = mdl.target(sig, t + o.dt_s / 2);
+    const double t0 = sig.startTime(), span_s = res.t_start_s - t0;
+    for (long i = 0; static_cast<double>(i) * o.dt_s < span_s; ++i) {
+      const Eigen::Vector2d u = mdl.target(sig, t0 + (static_cast<double>(i) + 0.5) * o.dt_s);
       yv = model::lagStep(yv, u(0), o.dt_s, o.response.v.time_constant_s).y_next;
       yw = model::lagStep(yw, u(1), o.dt_s, o.response.omega.time_constant_s).y_next;
     }

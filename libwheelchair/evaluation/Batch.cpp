@@ -51,10 +51,6 @@ std::string num(double v) {
   return fmt::format("{:.9g}", v);
 }
 
-void writeAtomically(const std::string& path, const std::string& text) {
-  util::writeFileAtomically(path, [&](std::ostream& out) { out << text; });
-}
-
 estimation::EkfOptions ekfOptions(const config::WheelchairConfig& cfg,
                                   estimation::FilterKind kind) {
   estimation::EkfOptions opt;
@@ -500,9 +496,9 @@ std::string batchCsv(const BatchResult& r) {
 
 void writeBatchCsv(const std::string& path, const BatchResult& r,
                    const config::WheelchairConfig& cfg) {
-  writeAtomically(path, batchCsv(r));
+  util::writeFileAtomically(path, batchCsv(r));
   try {
-    writeAtomically(
+    util::writeFileAtomically(
         path + ".config.ini",
         "# Configuration used for " + path + " (wheelchair evaluate)\n# origin: " + cfg.origin() +
             "\n# alignment: " + alignmentText(r.alignment, r.align_first_s) + "\n" + cfg.text());
@@ -547,7 +543,7 @@ std::string batchJson(const BatchResult& r, const config::WheelchairConfig& cfg)
 
 void writeBatchJson(const std::string& path, const BatchResult& r,
                     const config::WheelchairConfig& cfg) {
-  writeAtomically(path, batchJson(r, cfg));
+  util::writeFileAtomically(path, batchJson(r, cfg));
 }
 
 std::string batchMarkdown(const BatchResult& r, const config::WheelchairConfig& cfg,
@@ -612,7 +608,7 @@ std::string batchTable(const BatchResult& r) {
 
 void writeBatchMarkdown(const std::string& path, const BatchResult& r,
                         const config::WheelchairConfig& cfg) {
-  writeAtomically(path, "# Trajectory metrics\n\n" + batchMarkdown(r, cfg, true));
+  util::writeFileAtomically(path, "# Trajectory metrics\n\n" + batchMarkdown(r, cfg, true));
 }
 
 }  // namespace wheelchair::evaluation

@@ -19,9 +19,6 @@ namespace {
 constexpr double kRad2Deg = 180.0 / M_PI;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-void writeAtomically(const std::string& path, const std::string& text) {
-  util::writeFileAtomically(path, [&](std::ostream& f) { f << text; });
-}
 }  // namespace
 
 const char* toString(HeadingDriftMethod m) {
@@ -212,7 +209,7 @@ void writeMetricsCsv(const std::string& path,
                      Alignment alignment) {
   std::string text = metricsCsvHeader() + "\n";
   for (const auto& [name, m] : rows) text += metricsCsvRow(name, m, alignment) + "\n";
-  writeAtomically(path, text);
+  util::writeFileAtomically(path, text);
 }
 
 void writeEvoFiles(const std::string& prefix, const Trajectory& est,

@@ -155,4 +155,10 @@ void writeFileAtomically(const std::string& path, const std::function<void(std::
   f.commit();
 }
 
+void writeFileAtomically(const std::string& path, std::string_view text) {
+  AtomicFile f(path);
+  f.stream().write(text.data(), static_cast<std::streamsize>(text.size()));
+  f.commit();
+}
+
 }  // namespace wheelchair::util

@@ -32,6 +32,7 @@
 #include <memory>
 #include <ostream>
 #include <string>
+#include <string_view>
 
 namespace wheelchair::util {
 
@@ -73,5 +74,7 @@ class AtomicFile {
 
 /// Writes `path` atomically with `fill` (see AtomicFile).
 void writeFileAtomically(const std::string& path, const std::function<void(std::ostream&)>& fill);
+/// Writes `text` to `path` atomically.
+void writeFileAtomically(const std::string& path, std::string_view text);
 
 }  // namespace wheelchair::util

@@ -43,10 +43,6 @@ Color lighter(Color c, double a) {  // c over white with opacity a
   return Color{f(c.r), f(c.g), f(c.b)};
 }
 
-void writeText(const std::string& path, const std::string& text) {
-  util::writeFileAtomically(path, [&](std::ostream& f) { f << text; });
-}
-
 /// A JSON value for a Markdown cell.
 std::string cell(const json& v) {
   if (v.is_null()) return "–";
@@ -829,8 +825,8 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
   util::OutputDir dir(o.out_dir);  // a failed run leaves no half directory
   DiagnosisFigureResult res;
   auto out = [&](const std::string& f) { return dir.file(f); };
-  writeText(out("diagnosis.json"), report.dump(2) + "\n");
-  if (!o.summary_text.empty()) writeText(out("summary.txt"), o.summary_text);
+  util::writeFileAtomically(out("diagnosis.json"), report.dump(2) + "\n");
+  if (!o.summary_text.empty()) util::writeFileAtomically(out("summary.txt"), o.summary_text);
 
   const bool heldout = validate_paths.empty();
   const auto& vpaths = heldout ? fit_paths : validate_paths;
@@ -955,7 +951,7 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
       "found (what `--write-config` writes):\n\n```ini\n" +
       corrected_cfg.text() + "\n```\n";
   res.index_path = out("index.md");
-  writeText(res.index_path, md);
+  util::writeFileAtomically(res.index_path, md);
   dir.commit();
   return res;
 }

@@ -238,9 +238,8 @@ TEST_F(UserFacingCli, DiagnosePrintedRmsHasUnitsAndMatchesTheFigures) {
   for (const auto& l : lines) {
     if (l.find("RMS") == std::string::npos && l.find("rms") == std::string::npos) continue;
     ++rms_lines;
-    EXPECT_TRUE(l.find(" A") != std::string::npos || l.find(" rad/s") != std::string::npos ||
-                l.find(" m/s") != std::string::npos)
-        << "no unit: " << l;
+    // A number followed by its unit (not merely a word starting with "A").
+    EXPECT_TRUE(std::regex_search(l, std::regex(R"([0-9] (A|rad/s|m/s)\b)"))) << "no unit: " << l;
   }
   EXPECT_EQ(rms_lines, 3) << r.out;
   const std::string md = readFile(tmp("rep/index.md"));
