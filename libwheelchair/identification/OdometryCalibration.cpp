@@ -1,6 +1,9 @@
 #include "libwheelchair/identification/OdometryCalibration.h"
 
+#include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/sensors/Encoders.h"
+#include "libwheelchair/sensors/Filtering.h"
+#include "libwheelchair/stats/LevenbergMarquardt.h"
 
 #include <Eigen/Dense>
 
@@ -11,14 +14,6 @@
 namespace wheelchair::identification {
 
 namespace {
-
-double interp(const std::vector<double>& t, const std::vector<double>& x, double q) {
-  if (q <= t.front()) return x.front();
-  if (q >= t.back()) return x.back();
-  const std::size_t k = std::upper_bound(t.begin(), t.end(), q) - t.begin();
-  const double a = (q - t[k - 1]) / (t[k] - t[k - 1]);
-  return x[k - 1] + a * (x[k] - x[k - 1]);
-}
 
 /// Errors of dead reckoning against the truth, per sample after the first: x, y (m) and
 /// heading x heading_weight_m (m).
@@ -73,8 +68,8 @@ OdometryRun odometryRun(const io::Recording& rec, const std::string& name) {
   std::vector<double> tg, xg, yg, pg;
   for (const auto& p : gt) {
     if (!tg.empty() && !(p.t_s > tg.back())) continue;
-    double phi = p.phi_rad;
-    if (!pg.empty()) phi -= 2 * M_PI * std::round((phi - pg.back()) / (2 * M_PI));
+    // Heading unwrapped: each sample within pi of the previous one.
+    const double phi = pg.empty() ? p.phi_rad : pg.back() + model::wrapAngle(p.phi_rad - pg.back());
     tg.push_back(p.t_s), xg.push_back(p.x_m), yg.push_back(p.y_m), pg.push_back(phi);
   }
   if (tg.size() < 2 || rec.encoders.size() < 2) return run;
@@ -86,10 +81,10 @@ OdometryRun odometryRun(const io::Recording& rec, const std::string& name) {
     run.t_s.push_back(t);
     run.ticks_right.push_back(static_cast<double>(un.right[i]));
     run.ticks_left.push_back(static_cast<double>(un.left[i]));
-    run.x_m.push_back(interp(tg, xg, t));
-    run.y_m.push_back(interp(tg, yg, t));
-    run.phi_rad.push_back(interp(tg, pg, t));
   }
+  run.x_m = sensors::resampleLinear(tg, xg, run.t_s);
+  run.y_m = sensors::resampleLinear(tg, yg, run.t_s);
+  run.phi_rad = sensors::resampleLinear(tg, pg, run.t_s);
   return run;
 }
 
@@ -124,9 +119,11 @@ std::vector<Pose2> deadReckon(const OdometryRun& r, const OdometryGeometry& g) {
     const double dR = g.m_per_tick_right * (r.ticks_right[i] - r.ticks_right[i - 1]);
     const double dL = g.m_per_tick_left * (r.ticks_left[i] - r.ticks_left[i - 1]);
     const double ds = 0.5 * (dR + dL), dphi = (dR - dL) / g.track_m;
-    q.x_m += ds * std::cos(q.phi_rad + 0.5 * dphi);
-    q.y_m += ds * std::sin(q.phi_rad + 0.5 * dphi);
-    q.phi_rad += dphi;
+    // The arc of one interval (model::integratePoseArc with dt = 1: ds and dphi per interval);
+    // the heading is kept continuous (the ground truth's is unwrapped).
+    const Eigen::Vector3d next =
+        model::integratePoseArc(Eigen::Vector3d(q.x_m, q.y_m, q.phi_rad), ds, dphi, 1.0);
+    q = Pose2{next(0), next(1), q.phi_rad + dphi};
     p.push_back(tracked(q));
   }
   return p;
@@ -245,11 +242,11 @@ OdometryGeometry leastSquaresCalibration(const std::vector<OdometryRun>& runs, d
 OdometryRun shiftTruth(const OdometryRun& r, double d) {
   OdometryRun o = r;
   if (r.size() < 2) return o;
-  for (std::size_t i = 0; i < r.size(); ++i) {
-    o.x_m[i] = interp(r.t_s, r.x_m, r.t_s[i] - d);
-    o.y_m[i] = interp(r.t_s, r.y_m, r.t_s[i] - d);
-    o.phi_rad[i] = interp(r.t_s, r.phi_rad, r.t_s[i] - d);
-  }
+  std::vector<double> t_shifted(r.t_s);
+  for (double& t : t_shifted) t -= d;
+  o.x_m = sensors::resampleLinear(r.t_s, r.x_m, t_shifted);
+  o.y_m = sensors::resampleLinear(r.t_s, r.y_m, t_shifted);
+  o.phi_rad = sensors::resampleLinear(r.t_s, r.phi_rad, t_shifted);
   return o;
 }
 
@@ -262,11 +259,13 @@ double estimateTimeOffset(const OdometryRun& r, const OdometryGeometry& g, doubl
                 g.m_per_tick_left * (r.ticks_left[i] - r.ticks_left[i - 1])) /
                g.track_m;
   double best = 0, best_cost = 1e300;
+  std::vector<double> t_shifted(r.size());
   for (double d = -max_s; d <= max_s + 1e-12; d += step_s) {
-    double sww = 0, swy = 0, syy = 0, prev = interp(r.t_s, r.phi_rad, r.t_s[0] - d);
+    for (std::size_t i = 0; i < r.size(); ++i) t_shifted[i] = r.t_s[i] - d;
+    const std::vector<double> phi = sensors::resampleLinear(r.t_s, r.phi_rad, t_shifted);
+    double sww = 0, swy = 0, syy = 0;
     for (std::size_t i = 1; i < r.size(); ++i) {
-      const double cur = interp(r.t_s, r.phi_rad, r.t_s[i] - d), y = cur - prev;
-      prev = cur;
+      const double y = phi[i] - phi[i - 1];
       sww += w[i - 1] * w[i - 1], swy += w[i - 1] * y, syy += y * y;
     }
     const double cost = sww > 0 ? syy - swy * swy / sww : syy;
@@ -293,44 +292,31 @@ OdometryGeometry trajectoryCalibration(const std::vector<OdometryRun>& runs,
   if (fit.free[2]) dirs.push_back(unitv({2}));
   if (fit.uniform_scale) dirs.push_back(unitv({0, 1, 2}));
   if (fit.lever_arm) dirs.push_back(unitv({3})), dirs.push_back(unitv({4}));
-  Vec5 delta = Vec5::Zero();
-  Eigen::VectorXd e = poseResiduals(runs, g0, fit.heading_weight_m);
-  double cost = e.squaredNorm(), lambda = 1e-3;
   const int p = static_cast<int>(dirs.size());
-  for (int it = 0; it < fit.max_iterations && p > 0 && e.size() > p; ++it) {
-    Eigen::MatrixXd J(e.size(), p);
-    const double h = 1e-6;
-    for (int j = 0; j < p; ++j)
-      J.col(j) =
-          (poseResiduals(runs, applyDelta(g0, delta + h * dirs[j]), fit.heading_weight_m) - e) / h;
-    const Eigen::MatrixXd JtJ = J.transpose() * J;
-    const Eigen::VectorXd Jte = J.transpose() * e;
-    bool improved = false;
-    for (int tries = 0; tries < 10 && !improved; ++tries) {
-      Eigen::MatrixXd M = JtJ;
-      M.diagonal() += lambda * JtJ.diagonal().cwiseMax(1e-12);
-      const Eigen::VectorXd step = M.ldlt().solve(-Jte);
-      Vec5 d2 = delta;
-      for (int j = 0; j < p; ++j) d2 += step(j) * dirs[j];
-      if ((d2.head<3>().array() <= -0.5).any() || d2.tail<2>().norm() > 0.5 * g0.track_m) {
-        // stay physical: at most halve a parameter; a lever arm within the robot
-        lambda *= 10;
-        continue;
-      }
-      const Eigen::VectorXd e2 = poseResiduals(runs, applyDelta(g0, d2), fit.heading_weight_m);
-      if (e2.squaredNorm() < cost) {
-        const double rel = (cost - e2.squaredNorm()) / std::max(1e-300, cost);
-        delta = d2, e = e2, cost = e2.squaredNorm(), lambda = std::max(1e-9, lambda / 10);
-        improved = true;
-        if (rel < 1e-10) it = fit.max_iterations;  // converged
-      } else {
-        lambda *= 10;
-      }
-    }
-    if (!improved) break;
+  auto deltaOf = [&](const Eigen::VectorXd& x) {  // delta = sum_j x_j dirs_j
+    Vec5 d = Vec5::Zero();
+    for (int j = 0; j < p; ++j) d += x(j) * dirs[j];
+    return d;
+  };
+  auto residuals = [&](const Eigen::VectorXd& x, Eigen::VectorXd& e, Eigen::MatrixXd*) {
+    e = poseResiduals(runs, applyDelta(g0, deltaOf(x)), fit.heading_weight_m);
+  };
+  // Stay physical: at most halve a parameter; a lever arm within the robot.
+  auto physical = [&](const Eigen::VectorXd& x) {
+    const Vec5 d = deltaOf(x);
+    return !(d.head<3>().array() <= -0.5).any() && d.tail<2>().norm() <= 0.5 * g0.track_m;
+  };
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(p), e;
+  residuals(x, e, nullptr);
+  if (p > 0 && e.size() > p) {
+    stats::LmOptions lm;
+    lm.max_iterations = fit.max_iterations;
+    lm.min_relative_decrease = 1e-10;
+    const stats::LmResult sol = stats::levenbergMarquardt(residuals, x, lm, physical);
+    x = sol.x, e = sol.r;
   }
-  if (rms_m) *rms_m = e.size() ? std::sqrt(cost / (e.size() / 3)) : 0.0;
-  return applyDelta(g0, delta);
+  if (rms_m) *rms_m = e.size() ? std::sqrt(e.squaredNorm() / (e.size() / 3)) : 0.0;
+  return applyDelta(g0, deltaOf(x));
 }
 
 }  // namespace wheelchair::identification

@@ -4,9 +4,10 @@
 //
 // Model (body frame x forward, y left; index 0 / right, 1 / left; vehicle.md): per encoder
 // interval the wheels roll d_R = k_R dN_R and d_L = k_L dN_L (m; k = m per tick = 2 pi r /
-// ticks per wheel turn), the body moves ds = (d_R + d_L) / 2 along the mid-interval heading
-// and turns dphi = (d_R - d_L) / b (rad; b = track, m). Dead reckoning starts at the
-// ground-truth pose of the first sample ("start aligned").
+// ticks per wheel turn), the body turns dphi = (d_R - d_L) / b (rad; b = track, m) and
+// travels ds = (d_R + d_L) / 2 along the arc: the chord ds sinc(dphi/2) along the mid-interval
+// heading (model::integratePoseArc; the heading is kept unwrapped). Dead reckoning starts at
+// the ground-truth pose of the first sample ("start aligned").
 //
 // Calibrations (all return absolute k_R, k_L, b):
 //   umbmark            Borenstein & Feng 1996: from the mean return-position errors
@@ -20,9 +21,10 @@
 //                      change dphi_gt = c_R dN_R - c_L dN_L gives c = k / b; then, with k = b c,
 //                      the displacement dx_gt = b sum (c_R n_R + c_L n_L)/2 cos(phi_gt) (dy_gt
 //                      likewise with sin) is linear in b alone.
-//   trajectory         Levenberg-Marquardt on the dead-reckoned position error itself over
-//                      whole runs (the quantity the held-out metric measures), for any subset
-//                      of the relative corrections (k_R, k_L, b) = nominal * (1 + delta).
+//   trajectory         Levenberg-Marquardt (stats::levenbergMarquardt) on the dead-reckoned
+//                      position error itself over whole runs (the quantity the held-out metric
+//                      measures), for any subset of the relative corrections (k_R, k_L, b) =
+//                      nominal * (1 + delta).
 //
 // Example:
 //   auto run = odometryRun(io::importOptiodom("square/230620202042", 1));

@@ -1,6 +1,7 @@
 #include "libwheelchair/sensors/VoltageCircuit.h"
 
 #include "libwheelchair/sensors/Filtering.h"
+#include "libwheelchair/stats/LevenbergMarquardt.h"
 
 #include <Eigen/Dense>
 
@@ -197,7 +198,7 @@ ZenerFit fitZenerSoftKnee(const std::vector<double>& v_open, const std::vector<d
   }
   Eigen::Vector2d q(alpha + beta * p.zener_knee_V, std::log(1.0 / beta));  // ln I_k, ln V_s
 
-  auto residuals = [&](const Eigen::Vector2d& qq, Eigen::VectorXd& r, Eigen::MatrixXd* J) {
+  auto residuals = [&](const Eigen::VectorXd& qq, Eigen::VectorXd& r, Eigen::MatrixXd* J) {
     p.zener_current_at_knee_A = std::exp(qq(0));
     p.zener_slope_V = std::exp(qq(1));
     r.resize(n);
@@ -216,40 +217,19 @@ ZenerFit fitZenerSoftKnee(const std::vector<double>& v_open, const std::vector<d
     }
   };
 
+  stats::LmOptions lm;
+  lm.max_iterations = 200;
+  lm.max_tries = 30;
+  lm.lambda_down = 0.3;
+  lm.lambda_min = 1e-12;
+  lm.min_diagonal = 1e-300;
+  lm.min_step_norm = 1e-12;
+  const stats::LmResult sol = stats::levenbergMarquardt(residuals, q, lm);
   ZenerFit fit;
-  Eigen::VectorXd r;
-  Eigen::MatrixXd J;
-  residuals(q, r, &J);
-  double cost = r.squaredNorm();
-  double lambda = 1e-3;
-  for (int it = 0; it < 200; ++it) {
-    fit.iterations = it + 1;
-    const Eigen::Matrix2d A = J.transpose() * J;
-    const Eigen::Vector2d gvec = J.transpose() * r;
-    bool improved = false;
-    Eigen::Vector2d step = Eigen::Vector2d::Zero();
-    for (int k = 0; k < 30 && !improved; ++k) {
-      Eigen::Matrix2d Ad = A;
-      Ad.diagonal() += lambda * A.diagonal().cwiseMax(1e-300);
-      step = -Ad.ldlt().solve(gvec);
-      Eigen::VectorXd rn;
-      residuals(q + step, rn, nullptr);
-      const double cn = rn.squaredNorm();
-      if (std::isfinite(cn) && cn < cost) {
-        q += step;
-        cost = cn;
-        lambda = std::max(lambda * 0.3, 1e-12);
-        improved = true;
-      } else {
-        lambda *= 10;
-      }
-    }
-    residuals(q, r, &J);
-    if (!improved || step.norm() < 1e-12) {
-      fit.converged = true;
-      break;
-    }
-  }
+  fit.iterations = sol.iterations;
+  fit.converged = sol.converged;
+  const Eigen::VectorXd& r = sol.r;
+  q = sol.x;
   fit.current_at_knee_A = std::exp(q(0));
   fit.slope_V = std::exp(q(1));
   fit.rms_residual_V = std::sqrt(r.squaredNorm() / double(n));
