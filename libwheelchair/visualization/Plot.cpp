@@ -377,22 +377,30 @@ std::vector<std::pair<double, double>> covarianceEllipse(double cx, double cy, d
 
 // ------------------------------------------------------------------------------------- Plot
 
-Raster Plot::render(int width, int height) const {
-  Raster r(width, height, 3);
-  const double title_h = title.empty() ? 14 : 44;
-  std::vector<std::pair<std::string, int>> entries;  // label, kind
-  double legend_w = 0;
-  for (const auto& b : bands)
-    if (!b.label.empty()) legend_w = std::max(legend_w, Raster::textWidth(b.label, 0.8));
-  for (const auto& s : shapes)
-    if (!s.label.empty()) legend_w = std::max(legend_w, Raster::textWidth(s.label, 0.8));
-  for (const auto& s : series)
-    if (!s.label.empty()) legend_w = std::max(legend_w, Raster::textWidth(s.label, 0.8));
-  legend_w += 62;
-  const bool outside = legend == LegendPosition::Outside;
-  double x0 = 92, y0 = title_h, x1 = width - (outside ? legend_w + 30 : 24), y1 = height - 66;
+namespace {
 
-  // Data ranges.
+// The data area of a plot (output pixels) and the axis limits it shows (data units).
+struct Frame {
+  double x0, y0, x1, y1;
+  double xmin, xmax, ymin, ymax;
+  double X(double v) const { return x0 + (v - xmin) / (xmax - xmin) * (x1 - x0); }
+  double Y(double v) const { return y1 - (v - ymin) / (ymax - ymin) * (y1 - y0); }
+};
+
+// Width of the legend box: the longest label plus the line sample.
+double legendWidth(const Plot& p) {
+  double w = 0;
+  for (const auto& b : p.bands)
+    if (!b.label.empty()) w = std::max(w, Raster::textWidth(b.label, 0.8));
+  for (const auto& s : p.shapes)
+    if (!s.label.empty()) w = std::max(w, Raster::textWidth(s.label, 0.8));
+  for (const auto& s : p.series)
+    if (!s.label.empty()) w = std::max(w, Raster::textWidth(s.label, 0.8));
+  return w + 62;
+}
+
+// Axis limits: the finite data with a margin, unless given; equal units on both axes if asked.
+void axisLimits(const Plot& p, Frame& f) {
   double xmin = std::numeric_limits<double>::infinity(), xmax = -xmin, ymin = xmin, ymax = -xmin;
   auto addX = [&](double v) {
     if (std::isfinite(v)) xmin = std::min(xmin, v), xmax = std::max(xmax, v);
@@ -400,149 +408,168 @@ Raster Plot::render(int width, int height) const {
   auto addY = [&](double v) {
     if (std::isfinite(v)) ymin = std::min(ymin, v), ymax = std::max(ymax, v);
   };
-  for (const auto& s : series)
+  for (const auto& s : p.series)
     for (std::size_t i = 0; i < std::min(s.x.size(), s.y.size()); ++i)
       if (std::isfinite(s.x[i]) && std::isfinite(s.y[i])) addX(s.x[i]), addY(s.y[i]);
-  for (const auto& b : bands)
+  for (const auto& b : p.bands)
     for (std::size_t i = 0; i < b.x.size(); ++i) addX(b.x[i]), addY(b.lo[i]), addY(b.hi[i]);
-  for (const auto& s : shapes)
+  for (const auto& s : p.shapes)
     for (const auto& [x, y] : s.pts) addX(x), addY(y);
-  for (const auto& a : annotations) addX(a.x), addY(a.y);
+  for (const auto& a : p.annotations) addX(a.x), addY(a.y);
   if (!std::isfinite(xmin)) xmin = 0, xmax = 1;
   if (!std::isfinite(ymin)) ymin = 0, ymax = 1;
   if (xmax - xmin < 1e-9) xmin -= 0.5, xmax += 0.5;
   if (ymax - ymin < 1e-9) ymin -= 0.5, ymax += 0.5;
   const double px = 0.04 * (xmax - xmin), py = 0.06 * (ymax - ymin);
   xmin -= px, xmax += px, ymin -= py, ymax += py;
-  if (x_range) xmin = x_range->first, xmax = x_range->second;
-  if (y_range) ymin = y_range->first, ymax = y_range->second;
-  if (equal_aspect) {
-    const double ux = (xmax - xmin) / (x1 - x0), uy = (ymax - ymin) / (y1 - y0);
+  if (p.x_range) xmin = p.x_range->first, xmax = p.x_range->second;
+  if (p.y_range) ymin = p.y_range->first, ymax = p.y_range->second;
+  if (p.equal_aspect) {
+    const double ux = (xmax - xmin) / (f.x1 - f.x0), uy = (ymax - ymin) / (f.y1 - f.y0);
     const double u = std::max(ux, uy);
     const double cx = (xmin + xmax) / 2, cy = (ymin + ymax) / 2;
-    xmin = cx - u * (x1 - x0) / 2, xmax = cx + u * (x1 - x0) / 2;
-    ymin = cy - u * (y1 - y0) / 2, ymax = cy + u * (y1 - y0) / 2;
+    xmin = cx - u * (f.x1 - f.x0) / 2, xmax = cx + u * (f.x1 - f.x0) / 2;
+    ymin = cy - u * (f.y1 - f.y0) / 2, ymax = cy + u * (f.y1 - f.y0) / 2;
   }
-  area[0] = x0, area[1] = y0, area[2] = x1, area[3] = y1;
-  auto X = [&](double v) { return x0 + (v - xmin) / (xmax - xmin) * (x1 - x0); };
-  auto Y = [&](double v) { return y1 - (v - ymin) / (ymax - ymin) * (y1 - y0); };
+  f.xmin = xmin, f.xmax = xmax, f.ymin = ymin, f.ymax = ymax;
+}
 
-  // Spans, grid.
-  r.setClip(x0, y0, x1, y1);
-  for (const auto& s : spans) {
-    r.fillRect(X(s.x0), y0, X(s.x1), y1, s.color, 0.6);
+// Shaded spans, the grid at the ticks and the zero lines (clipped to the data area).
+void drawBackground(Raster& r, const Plot& p, const Frame& f, const std::vector<double>& xt,
+                    const std::vector<double>& yt) {
+  for (const auto& s : p.spans) {
+    r.fillRect(f.X(s.x0), f.y0, f.X(s.x1), f.y1, s.color, 0.6);
     if (!s.caption.empty())
-      r.text((X(s.x0) + X(s.x1)) / 2, y0 + 4, s.caption, colors::gray, 0.75, 0, -1);
+      r.text((f.X(s.x0) + f.X(s.x1)) / 2, f.y0 + 4, s.caption, colors::gray, 0.75, 0, -1);
   }
-  const auto xt = niceTicks(xmin, xmax, std::max(3, static_cast<int>((x1 - x0) / 110)));
-  const auto yt = niceTicks(ymin, ymax, std::max(3, static_cast<int>((y1 - y0) / 70)));
-  for (double v : xt) r.line(X(v), y0, X(v), y1, Color{215, 215, 215}, 1.0);
-  for (double v : yt) r.line(x0, Y(v), x1, Y(v), Color{215, 215, 215}, 1.0);
-  if (xmin < 0 && xmax > 0) r.line(X(0), y0, X(0), y1, Color{170, 170, 170}, 1.2);
-  if (ymin < 0 && ymax > 0) r.line(x0, Y(0), x1, Y(0), Color{170, 170, 170}, 1.2);
+  for (double v : xt) r.line(f.X(v), f.y0, f.X(v), f.y1, Color{215, 215, 215}, 1.0);
+  for (double v : yt) r.line(f.x0, f.Y(v), f.x1, f.Y(v), Color{215, 215, 215}, 1.0);
+  if (f.xmin < 0 && f.xmax > 0) r.line(f.X(0), f.y0, f.X(0), f.y1, Color{170, 170, 170}, 1.2);
+  if (f.ymin < 0 && f.ymax > 0) r.line(f.x0, f.Y(0), f.x1, f.Y(0), Color{170, 170, 170}, 1.2);
+}
 
-  // Data.
-  for (const auto& b : bands) {
-    Pts poly;
-    for (std::size_t i = 0; i < b.x.size(); ++i) poly.emplace_back(X(b.x[i]), Y(b.hi[i]));
-    for (std::size_t i = b.x.size(); i-- > 0;) poly.emplace_back(X(b.x[i]), Y(b.lo[i]));
-    // Fill per quad (the envelope may self-intersect where lo and hi cross).
+// Bands, shapes, series (with markers) and annotations, in that order.
+void drawData(Raster& r, const Plot& p, const Frame& f) {
+  for (const auto& b : p.bands)
+    // Filled per quad (the envelope may self-intersect where lo and hi cross).
     for (std::size_t i = 1; i < b.x.size(); ++i)
-      r.fillPolygon({{X(b.x[i - 1]), Y(b.hi[i - 1])},
-                     {X(b.x[i]), Y(b.hi[i])},
-                     {X(b.x[i]), Y(b.lo[i])},
-                     {X(b.x[i - 1]), Y(b.lo[i - 1])}},
+      r.fillPolygon({{f.X(b.x[i - 1]), f.Y(b.hi[i - 1])},
+                     {f.X(b.x[i]), f.Y(b.hi[i])},
+                     {f.X(b.x[i]), f.Y(b.lo[i])},
+                     {f.X(b.x[i - 1]), f.Y(b.lo[i - 1])}},
                     b.color, 1.0);
-    (void)poly;
+  for (const auto& s : p.shapes) {
+    Pts pts;
+    for (const auto& [x, y] : s.pts) pts.emplace_back(f.X(x), f.Y(y));
+    if (s.fill_alpha > 0) r.fillPolygon(pts, s.color, s.fill_alpha);
+    r.polyline(pts, s.color, s.width_px, s.line);
   }
-  for (const auto& s : shapes) {
-    Pts p;
-    for (const auto& [x, y] : s.pts) p.emplace_back(X(x), Y(y));
-    if (s.fill_alpha > 0) r.fillPolygon(p, s.color, s.fill_alpha);
-    r.polyline(p, s.color, s.width_px, s.line);
-  }
-  for (const auto& s : series) {
-    Pts p;
+  for (const auto& s : p.series) {
+    Pts pts;
     const std::size_t n = std::min(s.x.size(), s.y.size());
-    p.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) p.emplace_back(X(s.x[i]), Y(s.y[i]));
-    r.polyline(p, s.color, s.width_px, s.line);
+    pts.reserve(n);
+    for (std::size_t i = 0; i < n; ++i) pts.emplace_back(f.X(s.x[i]), f.Y(s.y[i]));
+    r.polyline(pts, s.color, s.width_px, s.line);
     if (s.marker != Marker::None)
-      for (const auto& [x, y] : p)
+      for (const auto& [x, y] : pts)
         if (std::isfinite(x) && std::isfinite(y))
           r.marker(x, y, s.marker, s.marker_size_px, s.color);
   }
-  for (const auto& a : annotations) r.text(X(a.x) + 6, Y(a.y) - 4, a.text, a.color, a.size, -1, 1);
-  r.clearClip();
+  for (const auto& a : p.annotations)
+    r.text(f.X(a.x) + 6, f.Y(a.y) - 4, a.text, a.color, a.size, -1, 1);
+}
 
-  // Axes, ticks, labels.
-  r.rect(x0, y0, x1, y1, colors::black, 1.4);
+// Frame, ticks with their labels, axis labels and the title.
+void drawAxes(Raster& r, const Plot& p, const Frame& f, const std::vector<double>& xt,
+              const std::vector<double>& yt, int height) {
+  r.rect(f.x0, f.y0, f.x1, f.y1, colors::black, 1.4);
   const double xs = xt.size() > 1 ? xt[1] - xt[0] : 1, ys = yt.size() > 1 ? yt[1] - yt[0] : 1;
   for (double v : xt) {
-    r.line(X(v), y1, X(v), y1 + 6, colors::black, 1.2);
-    r.text(X(v), y1 + 9, tickLabel(v, xs), colors::black, 0.8, 0, -1);
+    r.line(f.X(v), f.y1, f.X(v), f.y1 + 6, colors::black, 1.2);
+    r.text(f.X(v), f.y1 + 9, tickLabel(v, xs), colors::black, 0.8, 0, -1);
   }
   for (double v : yt) {
-    r.line(x0 - 6, Y(v), x0, Y(v), colors::black, 1.2);
-    r.text(x0 - 9, Y(v), tickLabel(v, ys), colors::black, 0.8, 1, 0);
+    r.line(f.x0 - 6, f.Y(v), f.x0, f.Y(v), colors::black, 1.2);
+    r.text(f.x0 - 9, f.Y(v), tickLabel(v, ys), colors::black, 0.8, 1, 0);
   }
-  if (!xlabel.empty()) r.text((x0 + x1) / 2, height - 8, xlabel, colors::black, 0.9, 0, 1);
-  if (!ylabel.empty()) r.text(8, (y0 + y1) / 2, ylabel, colors::black, 0.9, 0, -1, true);
-  if (!title.empty()) r.text((x0 + x1) / 2, 12, title, colors::black, 1.0, 0, -1);
+  if (!p.xlabel.empty()) r.text((f.x0 + f.x1) / 2, height - 8, p.xlabel, colors::black, 0.9, 0, 1);
+  if (!p.ylabel.empty()) r.text(8, (f.y0 + f.y1) / 2, p.ylabel, colors::black, 0.9, 0, -1, true);
+  if (!p.title.empty()) r.text((f.x0 + f.x1) / 2, 12, p.title, colors::black, 1.0, 0, -1);
+}
 
-  // Legend.
+// The legend box: series, then shapes, then bands, each with a sample of its line or fill.
+void drawLegend(Raster& r, const Plot& p, const Frame& f, double legend_w) {
   struct Entry {
     std::string label;
     int kind;  // 0 series, 1 band, 2 shape
     std::size_t idx;
   };
   std::vector<Entry> es;
-  for (std::size_t i = 0; i < series.size(); ++i)
-    if (!series[i].label.empty()) es.push_back({series[i].label, 0, i});
-  for (std::size_t i = 0; i < shapes.size(); ++i)
-    if (!shapes[i].label.empty()) es.push_back({shapes[i].label, 2, i});
-  for (std::size_t i = 0; i < bands.size(); ++i)
-    if (!bands[i].label.empty()) es.push_back({bands[i].label, 1, i});
-  if (!es.empty()) {
-    const double lh = 22, lw = legend_w, lhgt = es.size() * lh + 12;
-    double lx, ly;
-    switch (legend) {
-      case LegendPosition::TopLeft:
-        lx = x0 + 10, ly = y0 + 10;
-        break;
-      case LegendPosition::BottomLeft:
-        lx = x0 + 10, ly = y1 - 10 - lhgt;
-        break;
-      case LegendPosition::BottomRight:
-        lx = x1 - 10 - lw, ly = y1 - 10 - lhgt;
-        break;
-      case LegendPosition::Outside:
-        lx = x1 + 16, ly = y0;
-        break;
-      default:
-        lx = x1 - 10 - lw, ly = y0 + 10;
-        break;
-    }
-    r.fillRect(lx, ly, lx + lw, ly + lhgt, colors::white, 0.92);
-    r.rect(lx, ly, lx + lw, ly + lhgt, Color{150, 150, 150}, 1.0);
-    for (std::size_t k = 0; k < es.size(); ++k) {
-      const double cy = ly + 6 + lh * (k + 0.5), sx0 = lx + 8, sx1 = lx + 44;
-      const Entry& e = es[k];
-      if (e.kind == 0) {
-        const Series& s = series[e.idx];
-        r.polyline({{sx0, cy}, {sx1, cy}}, s.color, s.width_px, s.line);
-        if (s.marker != Marker::None)
-          r.marker((sx0 + sx1) / 2, cy, s.marker, s.marker_size_px, s.color);
-      } else if (e.kind == 1) {
-        r.fillRect(sx0, cy - 6, sx1, cy + 6, bands[e.idx].color, 1.0);
-      } else {
-        const Shape& s = shapes[e.idx];
-        if (s.fill_alpha > 0) r.fillRect(sx0, cy - 6, sx1, cy + 6, s.color, s.fill_alpha);
-        r.polyline({{sx0, cy}, {sx1, cy}}, s.color, s.width_px, s.line);
-      }
-      r.text(sx1 + 8, cy, e.label, colors::black, 0.8, -1, 0);
-    }
+  for (std::size_t i = 0; i < p.series.size(); ++i)
+    if (!p.series[i].label.empty()) es.push_back({p.series[i].label, 0, i});
+  for (std::size_t i = 0; i < p.shapes.size(); ++i)
+    if (!p.shapes[i].label.empty()) es.push_back({p.shapes[i].label, 2, i});
+  for (std::size_t i = 0; i < p.bands.size(); ++i)
+    if (!p.bands[i].label.empty()) es.push_back({p.bands[i].label, 1, i});
+  if (es.empty()) return;
+  const double lh = 22, lw = legend_w, lhgt = es.size() * lh + 12;
+  double lx, ly;
+  switch (p.legend) {
+    case LegendPosition::TopLeft:
+      lx = f.x0 + 10, ly = f.y0 + 10;
+      break;
+    case LegendPosition::BottomLeft:
+      lx = f.x0 + 10, ly = f.y1 - 10 - lhgt;
+      break;
+    case LegendPosition::BottomRight:
+      lx = f.x1 - 10 - lw, ly = f.y1 - 10 - lhgt;
+      break;
+    case LegendPosition::Outside:
+      lx = f.x1 + 16, ly = f.y0;
+      break;
+    default:
+      lx = f.x1 - 10 - lw, ly = f.y0 + 10;
+      break;
   }
+  r.fillRect(lx, ly, lx + lw, ly + lhgt, colors::white, 0.92);
+  r.rect(lx, ly, lx + lw, ly + lhgt, Color{150, 150, 150}, 1.0);
+  for (std::size_t k = 0; k < es.size(); ++k) {
+    const double cy = ly + 6 + lh * (k + 0.5), sx0 = lx + 8, sx1 = lx + 44;
+    const Entry& e = es[k];
+    if (e.kind == 0) {
+      const Series& s = p.series[e.idx];
+      r.polyline({{sx0, cy}, {sx1, cy}}, s.color, s.width_px, s.line);
+      if (s.marker != Marker::None)
+        r.marker((sx0 + sx1) / 2, cy, s.marker, s.marker_size_px, s.color);
+    } else if (e.kind == 1) {
+      r.fillRect(sx0, cy - 6, sx1, cy + 6, p.bands[e.idx].color, 1.0);
+    } else {
+      const Shape& s = p.shapes[e.idx];
+      if (s.fill_alpha > 0) r.fillRect(sx0, cy - 6, sx1, cy + 6, s.color, s.fill_alpha);
+      r.polyline({{sx0, cy}, {sx1, cy}}, s.color, s.width_px, s.line);
+    }
+    r.text(sx1 + 8, cy, e.label, colors::black, 0.8, -1, 0);
+  }
+}
+
+}  // namespace
+
+Raster Plot::render(int width, int height) const {
+  Raster r(width, height, 3);
+  const double title_h = title.empty() ? 14 : 44;
+  const double legend_w = legendWidth(*this);
+  const bool outside = legend == LegendPosition::Outside;
+  Frame f{92, title_h, width - (outside ? legend_w + 30 : 24), height - 66.0, 0, 0, 0, 0};
+  axisLimits(*this, f);
+  area[0] = f.x0, area[1] = f.y0, area[2] = f.x1, area[3] = f.y1;
+  const auto xt = niceTicks(f.xmin, f.xmax, std::max(3, static_cast<int>((f.x1 - f.x0) / 110)));
+  const auto yt = niceTicks(f.ymin, f.ymax, std::max(3, static_cast<int>((f.y1 - f.y0) / 70)));
+  r.setClip(f.x0, f.y0, f.x1, f.y1);
+  drawBackground(r, *this, f, xt, yt);
+  drawData(r, *this, f);
+  r.clearClip();
+  drawAxes(r, *this, f, xt, yt, height);
+  drawLegend(r, *this, f, legend_w);
   return r;
 }
 

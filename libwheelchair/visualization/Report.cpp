@@ -70,6 +70,47 @@ Series trajSeries(const evaluation::Trajectory& t, const std::string& variant) {
   return s;
 }
 
+// A plot over the time since the start of the drive, the motion phases shaded.
+Plot timePlot(const DriveData& d, const std::string& title, const std::string& ylabel) {
+  Plot p;
+  p.title = title;
+  p.xlabel = "time since start (s)";
+  p.ylabel = ylabel;
+  p.spans = motionPhases(d, d.t0_s);
+  p.legend = LegendPosition::BottomLeft;
+  return p;
+}
+
+// `s` with the samples appended: x = t_s - t0 (s), y = value(sample).
+template <class Samples, class Value>
+Series overTime(Series s, const Samples& samples, double t0, Value value) {
+  for (const auto& x : samples) s.x.push_back(x.t_s - t0), s.y.push_back(value(x));
+  return s;
+}
+
+// The simulated truth's `values` over time (every second sample), in the truth's colour.
+Series truthOverTime(const DriveData& d, const std::string& label,
+                     const std::vector<double>& values, LineStyle line) {
+  Series s{label, {}, {}, variantColor("truth"), line, 1.6};
+  for (std::size_t i = 0; i < d.truth->t_s.size(); i += 2)
+    s.x.push_back(d.truth->t_s[i] - d.t0_s), s.y.push_back(values[i]);
+  return s;
+}
+
+// Points drawn as markers only (no points: a legend entry only).
+Series markers(const std::string& label, Color c, Marker m, double size_px, std::vector<double> x,
+               std::vector<double> y) {
+  Series s;
+  s.label = label;
+  s.color = c;
+  s.line = LineStyle::None;
+  s.marker = m;
+  s.marker_size_px = size_px;
+  s.x = std::move(x);
+  s.y = std::move(y);
+  return s;
+}
+
 Pts rectPts(double x0, double y0, double x1, double y1) {
   return {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}, {x0, y0}};
 }
@@ -113,106 +154,62 @@ void figureTrajectories(const DriveData& d, const std::string& png, int w, int h
     if (it == d.trajectories.end() || it->second.empty()) continue;
     p.series.push_back(trajSeries(it->second, v));
   }
-  // Start (common) and end markers.
-  Series start;
-  start.label = "start";
-  start.color = Color{230, 0, 0};
-  start.line = LineStyle::None;
-  start.marker = Marker::Square;
-  start.marker_size_px = 11;
-  start.x = {0.0};
-  start.y = {0.0};
-  Series endLegend;
-  endLegend.label = "end of each trajectory";
-  endLegend.color = colors::white;
-  endLegend.line = LineStyle::None;
-  endLegend.marker = Marker::Circle;
-  endLegend.marker_size_px = 9;
+  // End markers, then the (common) start and the legend entry of the end markers.
   for (const std::string v : {"encoders", "encoders_gyro", "baseline", "ekf"}) {
     auto it = d.trajectories.find(v);
     if (it == d.trajectories.end() || it->second.empty()) continue;
-    Series e;
-    e.color = variantColor(v);
-    e.line = LineStyle::None;
-    e.marker = Marker::Circle;
-    e.marker_size_px = 9;
-    e.x = {it->second.back().x_m};
-    e.y = {it->second.back().y_m};
-    p.series.push_back(e);
+    p.series.push_back(markers("", variantColor(v), Marker::Circle, 9, {it->second.back().x_m},
+                               {it->second.back().y_m}));
   }
-  p.series.push_back(start);
-  p.series.push_back(endLegend);
+  p.series.push_back(markers("start", Color{230, 0, 0}, Marker::Square, 11, {0.0}, {0.0}));
+  p.series.push_back(markers("end of each trajectory", colors::white, Marker::Circle, 9, {}, {}));
   if (!d.gt_frame_note.empty()) p.xlabel += "      (ground truth " + d.gt_frame_note + ")";
   p.save(png, w + 260, h + 60);
 }
 
 void figureVelocity(const DriveData& d, const std::string& png, int w, int h) {
   const double t0 = d.t0_s;
-  Plot p;
-  p.title = "Fig. 6a - linear velocity: encoders vs EKF";
-  p.xlabel = "time since start (s)";
-  p.ylabel = "v (m/s)";
-  p.spans = motionPhases(d, t0);
-  p.legend = LegendPosition::BottomLeft;
-  if (d.truth && !d.truth->v_m_s.empty()) {
-    Series s{"true v (simulation)", {}, {}, variantColor("truth"), LineStyle::Dashed, 1.6};
-    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 2)
-      s.x.push_back(d.truth->t_s[i] - t0), s.y.push_back(d.truth->v_m_s[i]);
-    p.series.push_back(s);
-  }
+  Plot p = timePlot(d, "Fig. 6a - linear velocity: encoders vs EKF", "v (m/s)");
   // The measurement is drawn wide underneath and the estimate thin on top, so both stay
   // visible where they agree (which is most of a good drive).
-  Series enc{"v from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 3.4};
-  for (const auto& s : d.est.encoders) enc.x.push_back(s.t_s - t0), enc.y.push_back(s.v_m_s);
-  p.series.insert(p.series.begin(), enc);
-  Series ekf{"v estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Solid, 1.3};
-  for (const auto& e : d.est.ekf.estimates) ekf.x.push_back(e.t_s - t0), ekf.y.push_back(e.x(0));
-  p.series.insert(p.series.begin() + 1, ekf);
+  p.series.push_back(overTime(
+      Series{"v from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 3.4},
+      d.est.encoders, t0, [](const auto& s) { return s.v_m_s; }));
+  p.series.push_back(
+      overTime(Series{"v estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Solid, 1.3},
+               d.est.ekf.estimates, t0, [](const auto& e) { return e.x(0); }));
+  if (d.truth && !d.truth->v_m_s.empty())
+    p.series.push_back(truthOverTime(d, "true v (simulation)", d.truth->v_m_s, LineStyle::Dashed));
   p.save(png, w, h);
 }
 
 void figureAngularVelocity(const DriveData& d, const std::string& png, int w, int h) {
   const double t0 = d.t0_s;
-  Plot p;
-  p.title = "Fig. 6b - angular velocity: gyro vs encoders";
-  p.xlabel = "time since start (s)";
-  p.ylabel = "omega (rad/s)";
-  p.spans = motionPhases(d, t0);
-  p.legend = LegendPosition::BottomLeft;
-  Series gyro{"omega from the gyro", {}, {}, variantColor("encoders_gyro"), LineStyle::Solid, 1.4};
-  for (const auto& s : d.rec.imu) gyro.x.push_back(s.t_s - t0), gyro.y.push_back(s.gyro_z_rad_s);
-  p.series.push_back(gyro);
-  Series enc{"omega from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 1.8};
-  for (const auto& s : d.est.encoders) enc.x.push_back(s.t_s - t0), enc.y.push_back(s.omega_rad_s);
-  p.series.push_back(enc);
-  Series ekf{"omega estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Dashed, 1.6};
-  for (const auto& e : d.est.ekf.estimates) ekf.x.push_back(e.t_s - t0), ekf.y.push_back(e.x(1));
-  p.series.push_back(ekf);
-  if (d.truth && !d.truth->omega_rad_s.empty()) {
-    Series s{"true omega (simulation)", {}, {}, variantColor("truth"), LineStyle::Dotted, 1.6};
-    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 2)
-      s.x.push_back(d.truth->t_s[i] - t0), s.y.push_back(d.truth->omega_rad_s[i]);
-    p.series.push_back(s);
-  }
+  Plot p = timePlot(d, "Fig. 6b - angular velocity: gyro vs encoders", "omega (rad/s)");
+  p.series.push_back(overTime(
+      Series{"omega from the gyro", {}, {}, variantColor("encoders_gyro"), LineStyle::Solid, 1.4},
+      d.rec.imu, t0, [](const auto& s) { return s.gyro_z_rad_s; }));
+  p.series.push_back(overTime(
+      Series{"omega from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 1.8},
+      d.est.encoders, t0, [](const auto& s) { return s.omega_rad_s; }));
+  p.series.push_back(overTime(
+      Series{"omega estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Dashed, 1.6},
+      d.est.ekf.estimates, t0, [](const auto& e) { return e.x(1); }));
+  if (d.truth && !d.truth->omega_rad_s.empty())
+    p.series.push_back(
+        truthOverTime(d, "true omega (simulation)", d.truth->omega_rad_s, LineStyle::Dotted));
   p.save(png, w, h);
 }
 
 void figureCurrents(const DriveData& d, const std::string& png, int w, int h) {
   const double t0 = d.t0_s;
-  Plot p;
-  p.title = "Fig. 6c - motor currents";
-  p.xlabel = "time since start (s)";
-  p.ylabel = "current (A)";
-  p.spans = motionPhases(d, t0);
-  p.legend = LegendPosition::BottomLeft;
-  Series r{"right motor (i_1)", {}, {}, colors::red, LineStyle::Solid, 1.5};
-  Series l{"left motor (i_2)", {}, {}, colors::blue, LineStyle::Solid, 1.5};
-  for (const auto& s : d.rec.motors) {
-    r.x.push_back(s.t_s - t0), r.y.push_back(s.current_right_A);
-    l.x.push_back(s.t_s - t0), l.y.push_back(s.current_left_A);
-  }
-  p.series.push_back(r);
-  p.series.push_back(l);
+  Plot p = timePlot(d, "Fig. 6c - motor currents", "current (A)");
+  p.series.push_back(
+      overTime(Series{"right motor (i_1)", {}, {}, colors::red, LineStyle::Solid, 1.5},
+               d.rec.motors, t0, [](const auto& s) { return s.current_right_A; }));
+  p.series.push_back(
+      overTime(Series{"left motor (i_2)", {}, {}, colors::blue, LineStyle::Solid, 1.5},
+               d.rec.motors, t0, [](const auto& s) { return s.current_left_A; }));
   if (d.rec.motors.empty())
     p.annotations.push_back({0, 0, "no motor currents in this recording", colors::red, 0.9});
   p.save(png, w, h);

@@ -100,6 +100,111 @@ std::string variantLabel(const std::string& v) {
   return v;
 }
 
+namespace {
+
+using Legend = std::vector<std::pair<std::string, Color>>;
+
+// The drives on the ground: the simulated truth, each estimate as a ribbon (widest first), the
+// ground-truth points and the true obstacles; their legend entries.
+void insertDrives(COpenGLScene& scene, const DriveData& d, Legend& legend) {
+  double z = 0.01;
+  if (d.truth && !d.truth->t_s.empty()) {
+    std::vector<std::pair<double, double>> p;
+    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 5)
+      p.emplace_back(d.truth->x_m[i], d.truth->y_m[i]);
+    scene.insert(ribbon(p, variantColor("truth"), 0.03, z));
+    legend.emplace_back(variantLabel("truth"), variantColor("truth"));
+  }
+  for (const std::string v : {"encoders", "encoders_gyro", "baseline", "ekf"}) {
+    auto it = d.trajectories.find(v);
+    if (it == d.trajectories.end()) continue;
+    std::vector<std::pair<double, double>> p;
+    const std::size_t step = std::max<std::size_t>(1, it->second.size() / 1500);
+    for (std::size_t i = 0; i < it->second.size(); i += step)
+      p.emplace_back(it->second[i].x_m, it->second[i].y_m);
+    p.emplace_back(it->second.back().x_m, it->second.back().y_m);
+    z += 0.005;
+    // Nested widths (widest first): where the trajectories coincide each still shows as a
+    // coloured edge around the next one instead of being hidden under it.
+    const double width_m = v == "encoders"        ? 0.16
+                           : v == "encoders_gyro" ? 0.12
+                           : v == "baseline"      ? 0.08
+                                                  : 0.04;
+    scene.insert(ribbon(p, variantColor(v), width_m, z));
+    legend.emplace_back(variantLabel(v), variantColor(v));
+  }
+  if (!d.gt_start.empty()) {
+    auto pc = CPointCloud::Create();
+    for (const auto& s : d.gt_start) pc->insertPoint(s.x_m, s.y_m, 0.03f);
+    const Color c = variantColor("gt");
+    pc->setColor_u8(c.r, c.g, c.b);
+    pc->setPointSize(4.0f);
+    scene.insert(pc);
+    legend.emplace_back(d.gt.source == evaluation::GroundTruthSource::Pozyx ? "Pozyx (ground truth)"
+                                                                            : "ground truth",
+                        c);
+  }
+  if (d.truth)
+    for (const auto& o : d.truth->obstacles) {
+      const float rr = static_cast<float>(std::max(0.08, o.radius_m));
+      auto cyl = CCylinder::Create(rr, rr, 0.5f, 16);
+      cyl->setColor_u8(220, 30, 30);
+      cyl->setLocation(o.x_m, o.y_m, 0);
+      scene.insert(cyl);
+    }
+}
+
+// The chair in its body frame: footprint box and outline, wheels, heading arrow.
+void insertChairBody(CSetOfObjects& chair, const DriveData& d) {
+  auto body = CBox::Create(mrpt::math::TPoint3D(-kRear, -kHalfWidth, 0.02),
+                           mrpt::math::TPoint3D(kFront, kHalfWidth, 0.10));
+  body->setColor_u8(255, 190, 60, 150);
+  chair.insert(body);
+  chair.insert(polyline({{-kRear, -kHalfWidth},
+                         {kFront, -kHalfWidth},
+                         {kFront, kHalfWidth},
+                         {-kRear, kHalfWidth},
+                         {-kRear, -kHalfWidth}},
+                        Color{90, 60, 0}, 2.0f, 0.11));
+  const double r = d.cfg.vehicle.geom.wheel_radius_m, hw = d.cfg.vehicle.geom.track_width_m / 2;
+  for (double side : {-1.0, 1.0}) {
+    auto w = CBox::Create(mrpt::math::TPoint3D(-r, side * hw - 0.03, 0.0),
+                          mrpt::math::TPoint3D(r, side * hw + 0.03, 2 * r));
+    w->setColor_u8(40, 40, 40);
+    chair.insert(w);
+  }
+  chair.insert(polyline({{0, 0}, {kFront + 0.25, 0}}, Color{90, 60, 0}, 2.0f, 0.12));
+}
+
+// The sonar cone of unit radius at the sonar's mounting pose (scaled to a reading later):
+// filled orange (a reading) or a grey outline (no echo).
+CSetOfObjects::Ptr sonarFan(const config::SonarParams& so, bool filled) {
+  const double half_cone = so.cone_half_angle_deg * M_PI / 180.0;
+  auto set = CSetOfObjects::Create();
+  std::vector<std::pair<double, double>> arc{{0, 0}};
+  const int n = 16;
+  auto tris = CSetOfTriangles::Create();
+  for (int i = 0; i <= n; ++i) {
+    const double a = -half_cone + 2 * half_cone * i / n;
+    arc.emplace_back(std::cos(a), std::sin(a));
+    if (i > 0 && filled)
+      tris->insertTriangle(
+          TTriangle(mrpt::math::TPoint3Df(0, 0, 0.05f),
+                    mrpt::math::TPoint3Df(arc[i].first, arc[i].second, 0.05f),
+                    mrpt::math::TPoint3Df(arc[i + 1].first, arc[i + 1].second, 0.05f)));
+  }
+  arc.emplace_back(0, 0);
+  if (filled) {
+    tris->setColor_u8(mrpt::img::TColor(255, 140, 0, 110));
+    set->insert(tris);
+  }
+  set->insert(polyline(arc, filled ? Color{230, 110, 0} : Color{150, 150, 150}, 2.0f, 0.06));
+  set->setPose(mrpt::poses::CPose3D(so.x_m, so.y_m, 0.0, so.yaw_deg * M_PI / 180.0, 0, 0));
+  return set;
+}
+
+}  // namespace
+
 DriveScene::DriveScene(const DriveData& d) : d_(d) {
   scene_ = COpenGLScene::Create();
   auto vp = scene_->getViewport("main");
@@ -113,103 +218,13 @@ DriveScene::DriveScene(const DriveData& d) : d_(d) {
                                    std::floor(cy - half), std::ceil(cy + half), 0, 1, 1.0f);
   grid->setColor_u8(175, 175, 175);
   scene_->insert(grid);
+  insertDrives(*scene_, d, legend_);
 
-  // Trajectories.
-  double z = 0.01;
-  if (d.truth && !d.truth->t_s.empty()) {
-    std::vector<std::pair<double, double>> p;
-    for (std::size_t i = 0; i < d.truth->t_s.size(); i += 5)
-      p.emplace_back(d.truth->x_m[i], d.truth->y_m[i]);
-    scene_->insert(ribbon(p, variantColor("truth"), 0.03, z));
-    legend_.emplace_back(variantLabel("truth"), variantColor("truth"));
-  }
-  for (const std::string v : {"encoders", "encoders_gyro", "baseline", "ekf"}) {
-    auto it = d.trajectories.find(v);
-    if (it == d.trajectories.end()) continue;
-    std::vector<std::pair<double, double>> p;
-    const std::size_t step = std::max<std::size_t>(1, it->second.size() / 1500);
-    for (std::size_t i = 0; i < it->second.size(); i += step)
-      p.emplace_back(it->second[i].x_m, it->second[i].y_m);
-    p.emplace_back(it->second.back().x_m, it->second.back().y_m);
-    z += 0.005;
-    // Nested widths (widest first): where the trajectories coincide each still shows as a
-    // coloured edge around the next one instead of being hidden under it.
-    const double width_m = v == "encoders" ? 0.16 : v == "encoders_gyro" ? 0.12 : v == "baseline" ? 0.08 : 0.04;
-    scene_->insert(ribbon(p, variantColor(v), width_m, z));
-    legend_.emplace_back(variantLabel(v), variantColor(v));
-  }
-  if (!d.gt_start.empty()) {
-    auto pc = CPointCloud::Create();
-    for (const auto& s : d.gt_start) pc->insertPoint(s.x_m, s.y_m, 0.03f);
-    const Color c = variantColor("gt");
-    pc->setColor_u8(c.r, c.g, c.b);
-    pc->setPointSize(4.0f);
-    scene_->insert(pc);
-    legend_.emplace_back(d.gt.source == evaluation::GroundTruthSource::Pozyx
-                             ? "Pozyx (ground truth)"
-                             : "ground truth",
-                         c);
-  }
-  // True obstacles.
-  if (d.truth)
-    for (const auto& o : d.truth->obstacles) {
-      const float rr = static_cast<float>(std::max(0.08, o.radius_m));
-      auto cyl = CCylinder::Create(rr, rr, 0.5f, 16);
-      cyl->setColor_u8(220, 30, 30);
-      cyl->setLocation(o.x_m, o.y_m, 0);
-      scene_->insert(cyl);
-    }
-
-  // The chair (body frame children).
+  // The chair (body frame children) with the sonar cone.
   chair_ = CSetOfObjects::Create();
-  auto body = CBox::Create(mrpt::math::TPoint3D(-kRear, -kHalfWidth, 0.02),
-                           mrpt::math::TPoint3D(kFront, kHalfWidth, 0.10));
-  body->setColor_u8(255, 190, 60, 150);
-  chair_->insert(body);
-  chair_->insert(polyline({{-kRear, -kHalfWidth},
-                           {kFront, -kHalfWidth},
-                           {kFront, kHalfWidth},
-                           {-kRear, kHalfWidth},
-                           {-kRear, -kHalfWidth}},
-                          Color{90, 60, 0}, 2.0f, 0.11));
-  const double r = d.cfg.vehicle.geom.wheel_radius_m, hw = d.cfg.vehicle.geom.track_width_m / 2;
-  for (double side : {-1.0, 1.0}) {
-    auto w = CBox::Create(mrpt::math::TPoint3D(-r, side * hw - 0.03, 0.0),
-                          mrpt::math::TPoint3D(r, side * hw + 0.03, 2 * r));
-    w->setColor_u8(40, 40, 40);
-    chair_->insert(w);
-  }
-  // Heading arrow.
-  chair_->insert(polyline({{0, 0}, {kFront + 0.25, 0}}, Color{90, 60, 0}, 2.0f, 0.12));
-
-  // Sonar cone (unit radius, scaled to the reading).
-  const double half_cone = d.cfg.sonar.cone_half_angle_deg * M_PI / 180.0;
-  auto makeFan = [&](bool filled) {
-    auto set = CSetOfObjects::Create();
-    std::vector<std::pair<double, double>> arc{{0, 0}};
-    const int n = 16;
-    auto tris = CSetOfTriangles::Create();
-    for (int i = 0; i <= n; ++i) {
-      const double a = -half_cone + 2 * half_cone * i / n;
-      arc.emplace_back(std::cos(a), std::sin(a));
-      if (i > 0 && filled)
-        tris->insertTriangle(
-            TTriangle(mrpt::math::TPoint3Df(0, 0, 0.05f),
-                      mrpt::math::TPoint3Df(arc[i].first, arc[i].second, 0.05f),
-                      mrpt::math::TPoint3Df(arc[i + 1].first, arc[i + 1].second, 0.05f)));
-    }
-    arc.emplace_back(0, 0);
-    if (filled) {
-      tris->setColor_u8(mrpt::img::TColor(255, 140, 0, 110));
-      set->insert(tris);
-    }
-    set->insert(polyline(arc, filled ? Color{230, 110, 0} : Color{150, 150, 150}, 2.0f, 0.06));
-    set->setPose(mrpt::poses::CPose3D(d.cfg.sonar.x_m, d.cfg.sonar.y_m, 0.0,
-                                      d.cfg.sonar.yaw_deg * M_PI / 180.0, 0, 0));
-    return set;
-  };
-  cone_ = makeFan(true);
-  cone_empty_ = makeFan(false);
+  insertChairBody(*chair_, d);
+  cone_ = sonarFan(d.cfg.sonar, true);
+  cone_empty_ = sonarFan(d.cfg.sonar, false);
   cone_empty_->setScale(static_cast<float>(d.cfg.sonar.max_range_m));
   chair_->insert(cone_);
   chair_->insert(cone_empty_);
