@@ -36,36 +36,38 @@ struct DiagnoseOptions {
   bool no_progress = false;
 };
 
-int runDiagnose(const DiagnoseOptions& o) {
-  Progress progress(!o.no_progress && isatty(STDERR_FILENO));
+// The fit and validation recordings, and the configuration text the first input records.
+struct Inputs {
   std::vector<io::Recording> fit, val;
-  std::string recorded_config;  // the configuration the first input was written with
+  std::string recorded_config;
+};
+
+Inputs readInputs(const DiagnoseOptions& o, Progress& progress) {
+  Inputs in;
   auto read = [&](const std::string& p, io::RawlogReadReport* rr) {
     return readRawlogFor("diagnose", p, o.salvage, rr);
   };
   const double n_files = double(o.inputs.size() + o.validate.size());
   for (const auto& p : o.inputs) {
-    progress.update(double(fit.size()) / n_files, "reading");
+    progress.update(double(in.fit.size()) / n_files, "reading");
     io::RawlogReadReport rr;
-    fit.push_back(read(p, &rr));
-    if (fit.size() == 1) recorded_config = io::headerConfigText(rr.header_text);
+    in.fit.push_back(read(p, &rr));
+    if (in.fit.size() == 1) in.recorded_config = io::headerConfigText(rr.header_text);
   }
   for (const auto& p : o.validate) {
-    progress.update(double(fit.size() + val.size()) / n_files, "reading");
-    val.push_back(read(p, nullptr));
+    progress.update(double(in.fit.size() + in.val.size()) / n_files, "reading");
+    in.val.push_back(read(p, nullptr));
   }
-  progress.tick("diagnosing");
-  // Without --config: the configuration recorded in the first input (e.g. the geometry an
-  // importer took from the dataset's metadata), else the nominal vehicle.
-  const auto cfg = !o.config_path.empty() ? config::WheelchairConfig::load(o.config_path)
-                   : !recorded_config.empty()
-                       ? config::WheelchairConfig::fromText(recorded_config, o.inputs.front())
-                       : config::WheelchairConfig();
-  diagnosis::DiagnosisOptions opt;
-  opt.loadFromConfig(cfg.ini());
-  // Command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor currents: e.g. MRCLAM
-  // imports): the command-response analyser; encoders, if any, still go through the
-  // wheelchair stages.
+  return in;
+}
+
+// The wheelchair stages and, for command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor
+// currents: e.g. MRCLAM imports), the command-response analyser; encoders, if any, still go
+// through the wheelchair stages.
+diagnosis::DiagnosisReport analyse(const Inputs& in, const config::WheelchairConfig& cfg,
+                                   const diagnosis::DiagnosisOptions& opt) {
+  const auto& fit = in.fit;
+  const auto& val = in.val;
   bool command_driven = !fit.empty(), any_motors = false, any_encoders = false;
   for (const auto& r : fit) {
     command_driven &= diagnosis::hasCommandResponseData(r);
@@ -92,21 +94,11 @@ int runDiagnose(const DiagnoseOptions& o) {
     rep.info["command_response_validation"] = how;
     if (!any_encoders) rep.info["validation"] = how;
   }
-  util::RemoveUnlessKept outputs;  // a failed later write removes the earlier outputs
-  if (!o.write_config.empty()) {
-    diagnosis::correctedConfig(cfg, rep).save(o.write_config);
-    outputs.add(o.write_config);
-    rep.config_written = o.write_config;
-  }
-  auto j = rep.toJson();
-  j["inputs"] = o.inputs;
-  j["validate"] = o.validate;
-  j["config"] = !o.config_path.empty()     ? o.config_path
-                : !recorded_config.empty() ? "recorded in " + o.inputs.front()
-                                           : "<nominal>";
-  util::writeFileAtomically(o.json_path, j.dump(2) + "\n");
-  outputs.add(o.json_path);
-  progress.stop();
+  return rep;
+}
+
+// The findings, one line each, with what was not tested and why.
+std::string findingsText(const diagnosis::DiagnosisReport& rep) {
   std::string text;
   const bool insufficient = rep.info.contains("insufficient_data");
   text += fmt::format("mismatch: {}\n", rep.mismatch   ? "yes"
@@ -142,6 +134,15 @@ int runDiagnose(const DiagnoseOptions& o) {
   if (rep.info.contains("skipped"))
     for (auto it = rep.info["skipped"].begin(); it != rep.info["skipped"].end(); ++it)
       if (it->is_string()) text += "  not tested: " + it->get<std::string>() + "\n";
+  return text;
+}
+
+// Before -> after on the validation data: open-loop drift, residual RMS per channel (in the
+// units and of the model of the report figures), dead-reckoning terminal errors. (`rep` is
+// read through nlohmann::json's operator[], which adds the keys it does not find.)
+std::string validationText(diagnosis::DiagnosisReport& rep,
+                           const diagnosis::DiagnosisOptions& opt) {
+  std::string text;
   if (rep.fit_before.contains("drift_10s_m")) {
     auto d = [](const nlohmann::json& j, const char* k) {
       return j.contains(k) && j[k].is_number() ? j[k].get<double>() : std::nan("");
@@ -155,7 +156,6 @@ int runDiagnose(const DiagnoseOptions& o) {
         d(rep.fit_before, "drift_60s_m"), d(rep.fit_after, "drift_60s_m"),
         d(rep.fit_before, "heading_drift_60s_deg"), d(rep.fit_after, "heading_drift_60s_deg"));
   }
-  // Residual RMS on the validation data, in the units (and of the model) of the report figures.
   auto rms = [&](const char* ch, const char* which) {
     const auto& c = rep.channels[ch];
     return c.contains(which) && c[which].contains("rms") ? c[which]["rms"].get<double>()
@@ -195,6 +195,38 @@ int runDiagnose(const DiagnoseOptions& o) {
       text += " (sensor corrections of the gyro stage)\n";
     }
   }
+  return text;
+}
+
+int runDiagnose(const DiagnoseOptions& o) {
+  Progress progress(!o.no_progress && isatty(STDERR_FILENO));
+  const Inputs in = readInputs(o, progress);
+  progress.tick("diagnosing");
+  // Without --config: the configuration recorded in the first input (e.g. the geometry an
+  // importer took from the dataset's metadata), else the nominal vehicle.
+  const auto cfg = !o.config_path.empty() ? config::WheelchairConfig::load(o.config_path)
+                   : !in.recorded_config.empty()
+                       ? config::WheelchairConfig::fromText(in.recorded_config, o.inputs.front())
+                       : config::WheelchairConfig();
+  diagnosis::DiagnosisOptions opt;
+  opt.loadFromConfig(cfg.ini());
+  diagnosis::DiagnosisReport rep = analyse(in, cfg, opt);
+  util::RemoveUnlessKept outputs;  // a failed later write removes the earlier outputs
+  if (!o.write_config.empty()) {
+    diagnosis::correctedConfig(cfg, rep).save(o.write_config);
+    outputs.add(o.write_config);
+    rep.config_written = o.write_config;
+  }
+  auto j = rep.toJson();
+  j["inputs"] = o.inputs;
+  j["validate"] = o.validate;
+  j["config"] = !o.config_path.empty()        ? o.config_path
+                : !in.recorded_config.empty() ? "recorded in " + o.inputs.front()
+                                              : "<nominal>";
+  util::writeFileAtomically(o.json_path, j.dump(2) + "\n");
+  outputs.add(o.json_path);
+  progress.stop();
+  std::string text = findingsText(rep) + validationText(rep, opt);
   if (!rep.config_written.empty()) text += fmt::format("wrote {}\n", rep.config_written);
   text += fmt::format("wrote {}\n", o.json_path);
   std::cout << text;
