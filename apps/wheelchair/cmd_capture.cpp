@@ -1,6 +1,7 @@
 // wheelchair capture --config CAPTURE.ini -o FILE.rawlog [--duration S] : records every
 // source of a capture configuration into a rawlog, continuously (docs/capture.md).
 #include "Command.h"
+#include "StopSignal.h"
 
 #include "libwheelchair/capture/CaptureSession.h"
 
@@ -13,22 +14,12 @@
 namespace wheelchair::cli {
 namespace {
 
-std::atomic<bool> g_stop{false};
-
-extern "C" void onStopSignal(int) {
-  g_stop = true;
-}
-
 struct CaptureCliOptions {
   capture::CaptureOptions o;
 };
 
 int runCapture(CaptureCliOptions& c) {
-  struct sigaction sa {};
-  sa.sa_handler = onStopSignal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
+  std::atomic<bool>& stop = stopOnSigintSigterm();
   std::signal(SIGPIPE, SIG_IGN);
   // A file-size limit (ulimit -f) must be a write error (EFBIG), not a crash.
   std::signal(SIGXFSZ, SIG_IGN);
@@ -40,7 +31,7 @@ int runCapture(CaptureCliOptions& c) {
     std::cerr << "wheelchair capture: error: " << e.what() << "\n";
     return kExitBadInput;
   }
-  const int rc = s->run(&g_stop);
+  const int rc = s->run(&stop);
   if (rc != 0) {
     std::cerr << "wheelchair capture: error: " << s->error() << "\n";
     return kExitBadInput;

@@ -9,6 +9,7 @@
 // [mrclam_response] sections (`--config config/mrclam.ini`). The metrics table goes to stdout
 // (`--csv -`: the CSV instead); a variant needing a sensor the recording lacks is listed as
 // n/a (not a failure). Exit 1 when any recording (or variant) failed.
+#include "AlignmentOption.h"
 #include "Command.h"
 
 #include "libwheelchair/util/OutputDir.h"
@@ -35,12 +36,7 @@ struct EvaluateOptions {
 
 int runEvaluate(const EvaluateOptions& o) {
   evaluation::BatchOptions bo;
-  try {
-    evaluation::parseAlignment(o.alignment, bo.metrics);
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "wheelchair evaluate: " << e.what() << "\n";
-    return kExitUsage;
-  }
+  if (!parseAlignmentFor("evaluate", o.alignment, bo.metrics)) return kExitUsage;
   const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
                                          : config::WheelchairConfig::load(o.config_path);
   bo.jobs = o.jobs;

@@ -2,24 +2,18 @@
 // into pseudo-terminals, one per capture source, in the line formats the capture expects, so
 // that `wheelchair capture` runs without hardware (docs/capture.md, "Replay").
 #include "Command.h"
+#include "StopSignal.h"
 
 #include "libwheelchair/capture/SerialReplayer.h"
 
 #include <fmt/core.h>
 
 #include <atomic>
-#include <csignal>
 #include <iostream>
 #include <thread>
 
 namespace wheelchair::cli {
 namespace {
-
-std::atomic<bool> g_stop{false};
-
-extern "C" void onReplayStop(int) {
-  g_stop = true;
-}
 
 struct ReplayCliOptions {
   capture::ReplayOptions o;
@@ -28,11 +22,7 @@ struct ReplayCliOptions {
 };
 
 int runReplay(ReplayCliOptions& c) {
-  struct sigaction sa {};
-  sa.sa_handler = onReplayStop;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
+  std::atomic<bool>& stop = stopOnSigintSigterm();
   try {
     for (const auto& u : c.unplug) c.o.outages.push_back(capture::parseOutage(u));
   } catch (const std::exception& e) {
@@ -44,9 +34,9 @@ int runReplay(ReplayCliOptions& c) {
   std::cerr << "wheelchair replay-serial: ptys ready";
   if (!c.o.derived_config.empty()) std::cerr << "; capture configuration " << c.o.derived_config;
   std::cerr << "\n";
-  const auto rep = r.run(&g_stop);
+  const auto rep = r.run(&stop);
   // Keep the devices "plugged in" a moment so the capture reads the last lines.
-  for (double t = 0; t < c.hold_s && !g_stop; t += 0.05)
+  for (double t = 0; t < c.hold_s && !stop; t += 0.05)
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   r.close();
   fmt::print("replayed {:.2f} s (speed {})\n", rep.wall_s, c.o.speed);

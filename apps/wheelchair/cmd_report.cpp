@@ -2,6 +2,7 @@
 //                   [--truth T.json] [--no-3d]
 // Headless PNG figures like the paper's Fig. 5-8 plus index.md with the metrics table and the
 // configuration used (libwheelchair/visualization/Report.h, docs/visualization.md).
+#include "AlignmentOption.h"
 #include "Command.h"
 
 #include "libwheelchair/io/RawlogIO.h"
@@ -27,12 +28,7 @@ struct ReportCliOptions {
 
 int runReport(const ReportCliOptions& o) {
   visualization::ReportOptions ro;
-  try {
-    evaluation::parseAlignment(o.alignment, ro.metrics);
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "wheelchair report: " << e.what() << "\n";
-    return kExitUsage;
-  }
+  if (!parseAlignmentFor("report", o.alignment, ro.metrics)) return kExitUsage;
   const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
                                          : config::WheelchairConfig::load(o.config_path);
   ro.out_dir = o.out_dir;
