@@ -120,9 +120,7 @@ Summary summarise(const std::vector<double>& v) {
   return s;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+struct Args {
   int runs = 40;
   bool against_truth = true;
   bool check = false;
@@ -131,6 +129,10 @@ int main(int argc, char** argv) {
   std::string effects_text =
       "encoder_scale:side=left,scale=0.95;motor_asymmetry:side=right,friction_ratio=1.3;"
       "sonar_dropout:probability=0.15,burst_length=3";
+};
+
+// The command line into `args`; 0, or the exit code (2: usage) after a message on stderr.
+int parseArgs(int argc, char** argv, Args& args) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -138,96 +140,110 @@ int main(int argc, char** argv) {
       return argv[++i];
     };
     if (a == "--runs")
-      runs = std::stoi(next());
+      args.runs = std::stoi(next());
     else if (a == "--seed")
-      seed = std::stoull(next());
+      args.seed = std::stoull(next());
     else if (a == "--config")
-      cfg_path = next();
+      args.cfg_path = next();
     else if (a == "--effects")
-      effects_text = next();
+      args.effects_text = next();
     else if (a == "--check")
-      check = true;
+      args.check = true;
     else if (a == "--reference") {
       const std::string r = next();
       if (r != "truth" && r != "pozyx") throw std::runtime_error("--reference: truth | pozyx");
-      against_truth = r == "truth";
+      args.against_truth = r == "truth";
     } else if (a == "--engine") {
-      engine = next();
-      if (engine != "model" && engine != "mujoco") {
+      args.engine = next();
+      if (args.engine != "model" && args.engine != "mujoco") {
         std::cerr << "fig5_campaign: --engine must be model or mujoco\n";
         return 2;
       }
     } else if (a == "--json")
-      json_path = next();
+      args.json_path = next();
     else {
       std::cerr << "usage: fig5_campaign [--runs N] [--seed S] [--config F] [--effects a;b] "
                    "[--reference truth|pozyx] [--engine model|mujoco] [--check] [--json OUT]\n";
       return 2;
     }
   }
-  const auto cfg = config::WheelchairConfig::load(
-      cfg_path.empty() ? std::string(WHEELCHAIR_SOURCE_DIR) + "/config/wheelchair.ini" : cfg_path);
-  std::vector<simulation::EffectSpec> effects;
-  std::stringstream ss(effects_text);
-  for (std::string t; std::getline(ss, t, ';');)
-    if (!t.empty()) effects.push_back(simulation::parseEngineEffect(t, engine));
+  return 0;
+}
 
-  // Two workers (the reference machine's cores); each run is independent and seeded.
+// Every drive of the campaign, on two workers (the reference machine's cores); each run is
+// independent and seeded.
+std::vector<RunMetrics> runCampaign(const Args& args, const config::WheelchairConfig& cfg,
+                                    const std::vector<simulation::EffectSpec>& effects) {
+  const int runs = args.runs;
   const unsigned workers = std::max(1u, std::min(2u, std::thread::hardware_concurrency()));
   std::vector<RunMetrics> results(runs);
   std::vector<std::thread> pool;
   for (unsigned w = 0; w < workers; ++w)
     pool.emplace_back([&, w] {
       for (int k = static_cast<int>(w); k < runs; k += static_cast<int>(workers))
-        results[k] = runOne(cfg, seed + static_cast<uint64_t>(k), effects, against_truth, engine);
+        results[k] = runOne(cfg, args.seed + static_cast<uint64_t>(k), effects, args.against_truth,
+                            args.engine);
     });
   for (auto& t : pool) t.join();
+  return results;
+}
 
-  const auto& names = evaluation::variantNames();
+// Per-variant errors and the paired EKF-minus-variant differences over the successful runs.
+struct Tally {
   std::map<std::string, std::vector<double>> ate, term, d_ate, d_term;
   std::map<std::string, int> wins_ate, wins_term;
   std::vector<double> speed_error;
   int failed = 0;
+};
+
+Tally tally(const std::vector<RunMetrics>& results) {
+  Tally t;
   for (const auto& r : results) {
     if (!r.error.empty()) {
-      ++failed;
+      ++t.failed;
       std::cerr << "seed " << r.seed << ": " << r.error << "\n";
       continue;
     }
-    speed_error.push_back(r.ekf_speed_error_rel);
-    for (const auto& v : names) {
-      ate[v].push_back(r.ate_m.at(v));
-      term[v].push_back(r.terminal_m.at(v));
+    t.speed_error.push_back(r.ekf_speed_error_rel);
+    for (const auto& v : evaluation::variantNames()) {
+      t.ate[v].push_back(r.ate_m.at(v));
+      t.term[v].push_back(r.terminal_m.at(v));
       if (v == "ekf") continue;
-      d_ate[v].push_back(r.ate_m.at("ekf") - r.ate_m.at(v));
-      d_term[v].push_back(r.terminal_m.at("ekf") - r.terminal_m.at(v));
-      wins_ate[v] += r.ate_m.at("ekf") < r.ate_m.at(v);
-      wins_term[v] += r.terminal_m.at("ekf") < r.terminal_m.at(v);
+      t.d_ate[v].push_back(r.ate_m.at("ekf") - r.ate_m.at(v));
+      t.d_term[v].push_back(r.terminal_m.at("ekf") - r.terminal_m.at(v));
+      t.wins_ate[v] += r.ate_m.at("ekf") < r.ate_m.at(v);
+      t.wins_term[v] += r.terminal_m.at("ekf") < r.terminal_m.at(v);
     }
   }
-  const int ok = runs - failed;
+  return t;
+}
+
+// Prints the campaign's tables and returns them as JSON.
+nlohmann::json report(const Args& args, Tally& t) {
+  const auto& names = evaluation::variantNames();
+  const int ok = args.runs - t.failed;
   nlohmann::json j;
-  j["runs"] = runs;
-  j["failed"] = failed;
-  j["seed"] = seed;
-  j["effects"] = effects_text;
-  j["reference"] = against_truth ? "truth" : "pozyx";
-  j["engine"] = engine;
+  j["runs"] = args.runs;
+  j["failed"] = t.failed;
+  j["seed"] = args.seed;
+  j["effects"] = args.effects_text;
+  j["reference"] = args.against_truth ? "truth" : "pozyx";
+  j["engine"] = args.engine;
   fmt::print(
       "Fig. 5 campaign: three_task, {} drives (seeds {}..{}), engine {}, effects {}; reference: "
       "{}\n",
-      ok, seed, seed + runs - 1, engine, effects_text,
-      against_truth ? "simulator truth at 10 Hz" : "Pozyx (as `wheelchair evaluate`)");
+      ok, args.seed, args.seed + args.runs - 1, args.engine, args.effects_text,
+      args.against_truth ? "simulator truth at 10 Hz" : "Pozyx (as `wheelchair evaluate`)");
   fmt::print("{:<14} {:>16} {:>18}\n", "variant", "ATE rmse (m)", "terminal (m)");
   for (const auto& v : names) {
-    const auto a = summarise(ate[v]), t = summarise(term[v]);
-    fmt::print("{:<14} {:>7.3f} +- {:<6.3f} {:>8.3f} +- {:<6.3f}\n", v, a.mean, a.se, t.mean, t.se);
+    const auto a = summarise(t.ate[v]), e = summarise(t.term[v]);
+    fmt::print("{:<14} {:>7.3f} +- {:<6.3f} {:>8.3f} +- {:<6.3f}\n", v, a.mean, a.se, e.mean, e.se);
     j["variants"][v] = {{"ate_mean_m", a.mean},
                         {"ate_se_m", a.se},
-                        {"terminal_mean_m", t.mean},
-                        {"terminal_se_m", t.se}};
+                        {"terminal_mean_m", e.mean},
+                        {"terminal_se_m", e.se}};
   }
-  const auto sp = summarise(speed_error);
+  const auto sp = summarise(t.speed_error);
   fmt::print(
       "EKF speed error while moving (|v| > 0.3 m/s): {:+.2f} % +- {:.2f} % of the true "
       "speed\n",
@@ -236,30 +252,53 @@ int main(int argc, char** argv) {
   fmt::print("EKF minus variant (paired; negative = EKF better; t = mean / se; wins of {}):\n", ok);
   for (const auto& v : names) {
     if (v == "ekf") continue;
-    const auto a = summarise(d_ate[v]), t = summarise(d_term[v]);
+    const auto a = summarise(t.d_ate[v]), e = summarise(t.d_term[v]);
     fmt::print(
         "  {:<14} ATE {:+.4f} m (t = {:+.1f}, EKF better in {}), terminal {:+.4f} m "
         "(t = {:+.1f}, EKF better in {})\n",
-        v, a.mean, a.se > 0 ? a.mean / a.se : 0.0, wins_ate[v], t.mean,
-        t.se > 0 ? t.mean / t.se : 0.0, wins_term[v]);
-    j["ekf_minus"][v] = {{"ate_mean_m", a.mean},        {"ate_se_m", a.se},
-                         {"ate_ekf_wins", wins_ate[v]}, {"terminal_mean_m", t.mean},
-                         {"terminal_se_m", t.se},       {"terminal_ekf_wins", wins_term[v]}};
+        v, a.mean, a.se > 0 ? a.mean / a.se : 0.0, t.wins_ate[v], e.mean,
+        e.se > 0 ? e.mean / e.se : 0.0, t.wins_term[v]);
+    j["ekf_minus"][v] = {{"ate_mean_m", a.mean},          {"ate_se_m", a.se},
+                         {"ate_ekf_wins", t.wins_ate[v]}, {"terminal_mean_m", e.mean},
+                         {"terminal_se_m", e.se},         {"terminal_ekf_wins", t.wins_term[v]}};
   }
-  if (!json_path.empty()) std::ofstream(json_path) << j.dump(1) << "\n";
-  if (failed) return 1;
-  if (check) {
-    bool ok_all = true;
-    for (const auto& v : names) {
-      if (v == "ekf") continue;
-      const auto a = summarise(d_ate[v]);
-      const bool better = a.mean < 0 && (a.se == 0 || a.mean / a.se < -2);
-      if (!better) {
-        fmt::print("check FAILED: the EKF's ATE is not significantly below {}'s\n", v);
-        ok_all = false;
-      }
+  return j;
+}
+
+// --check: true when the EKF's ATE is below every other variant's with a paired t < -2.
+bool checkPasses(Tally& t) {
+  bool ok_all = true;
+  for (const auto& v : evaluation::variantNames()) {
+    if (v == "ekf") continue;
+    const auto a = summarise(t.d_ate[v]);
+    const bool better = a.mean < 0 && (a.se == 0 || a.mean / a.se < -2);
+    if (!better) {
+      fmt::print("check FAILED: the EKF's ATE is not significantly below {}'s\n", v);
+      ok_all = false;
     }
-    if (!ok_all) return 1;
+  }
+  return ok_all;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  if (const int rc = parseArgs(argc, argv, args)) return rc;
+  const auto cfg = config::WheelchairConfig::load(
+      args.cfg_path.empty() ? std::string(WHEELCHAIR_SOURCE_DIR) + "/config/wheelchair.ini"
+                            : args.cfg_path);
+  std::vector<simulation::EffectSpec> effects;
+  std::stringstream ss(args.effects_text);
+  for (std::string t; std::getline(ss, t, ';');)
+    if (!t.empty()) effects.push_back(simulation::parseEngineEffect(t, args.engine));
+
+  Tally t = tally(runCampaign(args, cfg, effects));
+  const nlohmann::json j = report(args, t);
+  if (!args.json_path.empty()) std::ofstream(args.json_path) << j.dump(1) << "\n";
+  if (t.failed) return 1;
+  if (args.check) {
+    if (!checkPasses(t)) return 1;
     fmt::print("check passed: EKF ATE below every other variant's (paired t < -2)\n");
   }
   return 0;
