@@ -59,7 +59,7 @@ double chi2Quantile(double p, double k) {
       lo = mid;
     else
       hi = mid;
-    if (hi - lo <= 1e-13 * std::max(1.0, hi)) break;
+    if (hi - lo <= 1e-13 * hi) break;  // relative: small quantiles too (chi2(0.5) at 0.01: 1.3e-8)
   }
   return 0.5 * (lo + hi);
 }

@@ -1,10 +1,12 @@
-// Helpers shared by the tests: temporary directories, running the CLI, reading files.
+// Helpers shared by the tests: temporary directories, running the CLI, reading and writing
+// files, the message of a thrown exception.
 #pragma once
 
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -63,6 +65,16 @@ inline std::string readFile(const std::string& path) {
 inline void writeFile(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   out << text;
+}
+
+/// The message of the exception `f` throws, "" when it throws none.
+inline std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
 }
 
 inline std::string sourcePath(const std::string& rel) {

@@ -16,14 +16,7 @@ using namespace wheelchair;
 
 namespace {
 
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "";
-}
+using wheelchair::test::errorOf;
 
 struct Demo {
   double rate_hz = 100, gate = 0.5;

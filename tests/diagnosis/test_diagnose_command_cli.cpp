@@ -7,6 +7,8 @@
 // CI): fit on robots 1-3, validate on 4-5 -> the held-out heading drift improves.
 #include "libwheelchair/estimation/CommandDrivenEkf.h"
 
+#include "../common/TestUtil.h"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -21,13 +23,6 @@ namespace fs = std::filesystem;
 
 int sh(const std::string& cmd) {
   return std::system((cmd + " > /dev/null 2>&1").c_str());
-}
-
-fs::path tmpDir(const std::string& name) {
-  fs::path d =
-      fs::temp_directory_path() / ("wc_diag_cmd_" + name + "_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
 }
 
 nlohmann::json readJson(const fs::path& p) {
@@ -65,7 +60,8 @@ void expectSchema(const nlohmann::json& j) {
 TEST(DiagnoseCommandCli, BundledMrclamSliceSchema) {
   const std::string cli = WHEELCHAIR_CLI;
   const std::string data = std::string(WHEELCHAIR_SOURCE_DIR) + "/datasets/mrclam";
-  const fs::path d = tmpDir("slice");
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   for (int r : {3, 4})
     ASSERT_EQ(sh(cli + " import --format mrclam " + data + " --robot " + std::to_string(r) +
                  " -o " + (d / ("r" + std::to_string(r) + ".rawlog")).string()),
@@ -94,14 +90,14 @@ TEST(DiagnoseCommandCli, BundledMrclamSliceSchema) {
                " --json " + json2.string()),
             0);
   expectSchema(readJson(json2));
-  fs::remove_all(d);
 }
 
 TEST(DiagnoseCommandCli, FullDatasetHeldOutDriftImproves) {
   const std::string full = "/work/shared/datasets/mrclam/MRCLAM_Dataset6";
   if (!fs::is_directory(full)) GTEST_SKIP() << "full MRCLAM data not at " << full;
   const std::string cli = WHEELCHAIR_CLI;
-  const fs::path d = tmpDir("full");
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   for (int r = 1; r <= 5; ++r)
     ASSERT_EQ(sh(cli + " import --format mrclam " + full + " --robot " + std::to_string(r) +
                  " -o " + (d / ("r" + std::to_string(r) + ".rawlog")).string()),
@@ -118,5 +114,4 @@ TEST(DiagnoseCommandCli, FullDatasetHeldOutDriftImproves) {
             j["fit_before"]["heading_drift_10s_deg"].get<double>());
   EXPECT_LT(j["fit_after"]["heading_drift_60s_deg"].get<double>(),
             j["fit_before"]["heading_drift_60s_deg"].get<double>());
-  fs::remove_all(d);
 }

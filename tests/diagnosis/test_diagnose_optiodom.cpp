@@ -9,6 +9,8 @@
 #include "libwheelchair/identification/OdometryCalibration.h"
 #include "libwheelchair/io/RawlogIO.h"
 
+#include "../common/TestUtil.h"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -33,8 +35,8 @@ std::string run(const std::string& cmd, const fs::path& log) {
 }
 
 TEST(DiagnoseOptiodom, NamesWheelGeometryAndCorrectedConfigPredictsHeldOutRunBetter) {
-  const fs::path d = fs::temp_directory_path() / ("wc_diag_optiodom_" + std::to_string(::getpid()));
-  fs::create_directories(d);
+  const test::TempDir tmp;
+  const fs::path& d = tmp.path();
   const std::string cli = WHEELCHAIR_CLI;
   for (const auto& [n, name] : {std::pair{1, "cw"}, std::pair{4, "ccw"}})
     run(cli + " import --format optiodom " + kExcerpt + " --run " + std::to_string(n) + " -o " +
@@ -97,7 +99,6 @@ TEST(DiagnoseOptiodom, NamesWheelGeometryAndCorrectedConfigPredictsHeldOutRunBet
   const auto j2 = nlohmann::json::parse(jf2);
   for (const auto& x : j2["findings"]) EXPECT_NE(x["effect"], "wheel_geometry") << out2;
   EXPECT_NE(out2.find("does not lower the held-out odometry error"), std::string::npos) << out2;
-  fs::remove_all(d);
 }
 
 }  // namespace

@@ -1,6 +1,8 @@
 // `wheelchair diagnose` on simulated recordings with concealed effects (docs/discovery.md):
 // clean drives give no finding; each stage-1 and stage-2 effect is named with its parameters;
 // the paper's case (unequal motors + faulty encoder on the three-task drive) is corrected.
+#include "DiagnoseTestUtil.h"
+
 #include "libwheelchair/diagnosis/Campaign.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/estimation/ModelExtensions.h"
@@ -15,21 +17,13 @@ using namespace wheelchair;
 
 namespace {
 
+// diagnose() of one recording, nominal vehicle, default options.
+const auto run = diagnosis::testutil::diagnoseOne;
+
+// With the true pose recorded as ground truth.
 simulation::SimulationResult sim(const std::string& scenario, uint64_t seed, double dur,
                                  const std::vector<std::string>& effects) {
-  config::WheelchairConfig cfg;
-  simulation::SimulationOptions so;
-  so.loadFromConfig(cfg.ini());
-  so.record_ground_truth = true;
-  std::vector<simulation::EffectSpec> e;
-  for (auto& s : effects) e.push_back(simulation::parseValidEffect(s));
-  return simulation::simulate(cfg, scenario, seed, dur, e, so);
-}
-
-diagnosis::DiagnosisReport run(const io::Recording& rec) {
-  config::WheelchairConfig cfg;
-  diagnosis::DiagnosisOptions opt;
-  return diagnosis::diagnose({rec}, {}, cfg, opt);
+  return diagnosis::testutil::simulateWith(scenario, seed, dur, effects, true);
 }
 
 std::string names(const diagnosis::DiagnosisReport& r) {

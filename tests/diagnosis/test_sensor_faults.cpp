@@ -1,6 +1,8 @@
 // Sensor-fault detectors of `wheelchair diagnose` (libwheelchair/diagnosis/SensorFaults.h):
 // clean simulated drives report no fault (and no finding at all); each simulated fault is
 // named alone, as a fault (is_fault), with its parameters; a fault adds no physics finding.
+#include "DiagnoseTestUtil.h"
+
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/simulation/Simulator.h"
 
@@ -10,20 +12,12 @@ using namespace wheelchair;
 
 namespace {
 
+// diagnose() of one recording, nominal vehicle, default options.
+const auto run = diagnosis::testutil::diagnoseOne;
+
 io::Recording sim(const std::string& scenario, uint64_t seed, double dur,
                   const std::vector<std::string>& effects) {
-  config::WheelchairConfig cfg;
-  simulation::SimulationOptions so;
-  so.loadFromConfig(cfg.ini());
-  std::vector<simulation::EffectSpec> e;
-  for (auto& s : effects) e.push_back(simulation::parseValidEffect(s));
-  return simulation::simulate(cfg, scenario, seed, dur, e, so).recording;
-}
-
-diagnosis::DiagnosisReport run(const io::Recording& rec) {
-  config::WheelchairConfig cfg;
-  diagnosis::DiagnosisOptions opt;
-  return diagnosis::diagnose({rec}, {}, cfg, opt);
+  return diagnosis::testutil::simulateWith(scenario, seed, dur, effects).recording;
 }
 
 std::string names(const diagnosis::DiagnosisReport& r) {

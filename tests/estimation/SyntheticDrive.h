@@ -85,6 +85,23 @@ inline std::function<Eigen::Vector2d(double)> curvyCurrents(double phase, double
   };
 }
 
+/// The nominal vehicle, built once for all tests.
+inline const config::WheelchairConfig& nominal() {
+  static const config::WheelchairConfig cfg;
+  return cfg;
+}
+
+/// A curvy drive of duration_s (curvyCurrents(0.3, 1.6, 0.4)) past an obstacle at (2.5, 0.2) m
+/// that the sonar sees only inside its cone.
+inline SynthOptions curvyDrive(double duration_s) {
+  SynthOptions so;
+  so.duration_s = duration_s;
+  so.currents = curvyCurrents(0.3, 1.6, 0.4);
+  so.obstacle_world = Eigen::Vector2d(2.5, 0.2);
+  so.sonar_cone = true;
+  return so;
+}
+
 inline SynthRun synthesize(const config::WheelchairConfig& cfg, const SynthOptions& o,
                            uint64_t seed) {
   const model::OdeCoefficients a =

@@ -195,18 +195,6 @@ TEST(CdEkfLinear, ClosedFormJosephMatchesLdltPath) {
   EXPECT_FALSE(rl.accepted);
 }
 
-TEST(ChiSquare, QuantilesMatchTables) {
-  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.95, 1), 3.841459, 1e-5);
-  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.999, 1), 10.827566, 1e-5);
-  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.999, 2), 13.815511, 1e-5);
-  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.025, 1), 0.000982069, 1e-8);
-  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.975, 7), 16.012764, 1e-5);
-  EXPECT_NEAR(wheelchair::stats::chi2Quantile(0.025, 140), 109.137, 0.01);  // Wilson-Hilferty: 109.13
-  const auto [lo, hi] = wheelchair::stats::chi2MeanBand(0.95, 7, 20);
-  EXPECT_NEAR(lo, wheelchair::stats::chi2Quantile(0.025, 140) / 20, 1e-12);
-  EXPECT_NEAR(hi, wheelchair::stats::chi2Quantile(0.975, 140) / 20, 1e-12);
-}
-
 // The integration runs in time relative to reset(): the same intervals at t0 = 0 and at a
 // UNIX-like t0 = 2^30 s (~1.07e9; stamps k * 2^-10 s, exactly representable at both offsets)
 // give the same state and covariance to the bit, and the closed form to CVODE's tolerance.

@@ -20,17 +20,8 @@ using namespace wheelchair::estimation::test;
 
 namespace {
 
-const config::WheelchairConfig& nominal() {
-  static const config::WheelchairConfig cfg;
-  return cfg;
-}
-
 SynthRun drive() {
-  SynthOptions so;
-  so.duration_s = 15.0;
-  so.currents = curvyCurrents(0.3, 1.6, 0.4);
-  so.obstacle_world = Eigen::Vector2d(2.5, 0.2);
-  so.sonar_cone = true;
+  SynthOptions so = curvyDrive(15.0);
   so.pozyx = true;
   return synthesize(nominal(), so, 11);
 }

@@ -20,26 +20,8 @@ using namespace wheelchair;
 using namespace wheelchair::estimation;
 using namespace wheelchair::estimation::test;
 
-namespace {
-
-const config::WheelchairConfig& nominal() {
-  static const config::WheelchairConfig cfg;
-  return cfg;
-}
-
-SynthOptions drive(double duration_s) {
-  SynthOptions so;
-  so.duration_s = duration_s;
-  so.currents = curvyCurrents(0.3, 1.6, 0.4);
-  so.obstacle_world = Eigen::Vector2d(2.5, 0.2);
-  so.sonar_cone = true;
-  return so;
-}
-
-}  // namespace
-
 TEST(WheelchairEkf, CovarianceStaysSymmetricPositiveDefiniteOverALongDrive) {
-  SynthOptions so = drive(120.0);
+  SynthOptions so = curvyDrive(120.0);
   so.currents = curvyCurrents(1.1, 2.0, 0.6);
   so.pozyx = true;
   const SynthRun sr = synthesize(nominal(), so, 7);
@@ -71,7 +53,7 @@ TEST(WheelchairEkf, CovarianceStaysSymmetricPositiveDefiniteOverALongDrive) {
 }
 
 TEST(WheelchairEkf, SonarZerosAreDropoutsAndTheObstacleRecovers) {
-  SynthOptions so = drive(8.0);
+  SynthOptions so = curvyDrive(8.0);
   so.currents = curvyCurrents(0.0, 1.2, 0.0);  // straight towards the obstacle
   so.obstacle_world = Eigen::Vector2d(3.5, 0.1);
   // Fig. 8: the sonar fails 3 times between 2 s and 4 s and 3 times between 5 and 6 s.
@@ -105,7 +87,7 @@ TEST(WheelchairEkf, SonarZerosAreDropoutsAndTheObstacleRecovers) {
 }
 
 TEST(WheelchairEkf, ShuffledArrivalOrderGivesTheSameEstimate) {
-  const SynthRun sr = synthesize(nominal(), drive(6.0), 11);
+  const SynthRun sr = synthesize(nominal(), curvyDrive(6.0), 11);
   io::Recording shuffled = sr.rec;
   std::mt19937 g(99);
   std::shuffle(shuffled.encoders.begin(), shuffled.encoders.end(), g);
@@ -130,7 +112,7 @@ TEST(WheelchairEkf, ShuffledArrivalOrderGivesTheSameEstimate) {
 }
 
 TEST(WheelchairEkf, GatingRejectsAndCountsGrossOutliers) {
-  const SynthRun sr = synthesize(nominal(), drive(6.0), 5);
+  const SynthRun sr = synthesize(nominal(), curvyDrive(6.0), 5);
   io::Recording bad = sr.rec;
   const double t_gyro = bad.imu[300].t_s;
   bad.imu[300].gyro_z_rad_s += 3.0;  // 600 sigma
@@ -173,7 +155,7 @@ TEST(WheelchairEkf, GatingRejectsAndCountsGrossOutliers) {
 TEST(WheelchairEkf, ExactEncoderModelBeatsTheNaiveOne) {
   // Strong accelerations make the interval mean differ from the speed at its end. Gyro off:
   // omega comes from the encoders too.
-  SynthOptions so = drive(10.0);
+  SynthOptions so = curvyDrive(10.0);
   so.q_v = 0.5;
   so.q_omega = 0.5;
   so.start_pause_s = 0.0;
@@ -216,7 +198,7 @@ TEST(Baseline, RunsAndIsWorseThanThePhysicsEkfWithAFaultyEncoder) {
   // The paper's fault (IV.A): a mis-scaled left encoder. (The project simulator is not linked
   // into test_estimation - tests link their own module only - so the synthetic generator is
   // used, with the fault on the left ticks.)
-  SynthOptions so = drive(40.0);
+  SynthOptions so = curvyDrive(40.0);
   so.currents = curvyCurrents(0.8, 2.0, 0.5);
   so.left_encoder_scale = 0.9;
   const SynthRun sr = synthesize(nominal(), so, 21);

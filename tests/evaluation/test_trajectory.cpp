@@ -6,6 +6,7 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "../common/TestUtil.h"
 #include "EvalTestUtil.h"
 #include "libwheelchair/evaluation/Association.h"
 #include "libwheelchair/evaluation/Metrics.h"
@@ -37,14 +38,7 @@ std::string writeFile(const std::string& name, const std::string& text) {
   return p;
 }
 
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "";
-}
+using wheelchair::test::errorOf;
 
 }  // namespace
 

@@ -3,6 +3,8 @@
 // /work/shared/datasets/mrclam/MRCLAM_Dataset6 when present (else skipped).
 #include "libwheelchair/io/MrclamImport.h"
 
+#include "../common/TestUtil.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -46,8 +48,8 @@ TEST(MrclamImport, BundledSliceCountsSpansAndQuirks) {
 }
 
 TEST(MrclamImport, ConflictingDuplicatesAreKeptAndCounted) {
-  const fs::path d = fs::temp_directory_path() / "wc_mrclam_dup";
-  fs::create_directories(d);
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   fs::copy_file(kSlice + "/Barcodes.dat", d / "Barcodes.dat", fs::copy_options::overwrite_existing);
   fs::copy_file(kSlice + "/Landmark_Groundtruth.dat", d / "Landmark_Groundtruth.dat",
                 fs::copy_options::overwrite_existing);
@@ -67,7 +69,6 @@ TEST(MrclamImport, ConflictingDuplicatesAreKeptAndCounted) {
   EXPECT_EQ(r.unknown_barcodes, 1u);
   ASSERT_EQ(rec.landmarks.size(), 1u);
   EXPECT_EQ(rec.landmarks[0].landmark_id, 6);
-  fs::remove_all(d);
 }
 
 TEST(MrclamImport, FullDataset6) {

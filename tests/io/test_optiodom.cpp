@@ -5,6 +5,8 @@
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/TextFormat.h"
 
+#include "../common/TestUtil.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -61,32 +63,30 @@ TEST(OptiodomImport, ExcerptTicksTruthCommandsAndGeometry) {
 }
 
 TEST(OptiodomImport, CliWritesRawlogWithTheRecordingsGeometry) {
-  const fs::path out = fs::temp_directory_path() / "wc_optiodom_cli.rawlog";
-  const std::string cmd = std::string(WHEELCHAIR_CLI) + " import --format optiodom " + kExcerpt +
-                          " --run 4 -o " + out.string() + " > /dev/null";
-  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  const test::TempDir tmp;
+  const std::string out = tmp / "cli.rawlog";
+  const auto r = test::cli("import --format optiodom " + kExcerpt + " --run 4 -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
   RawlogReadReport rep;
-  const Recording rec = readRawlog(out.string(), &rep);
+  const Recording rec = readRawlog(out, &rep);
   EXPECT_EQ(rec.encoders.size(), 1814u);
   EXPECT_EQ(rec.ground_truth.size(), 1814u);
   EXPECT_FALSE(rec.joystick.empty());
   EXPECT_EQ(rec.meta.at("direction"), "ccw");
   EXPECT_NE(rep.header_text.find("track_width_m = 0.2"), std::string::npos);
   EXPECT_NE(rep.header_text.find("wheel_radius_right_m = 0.042"), std::string::npos);
-  // a run the excerpt does not ship: exit 1 naming the file, no output written
-  const fs::path bad = fs::temp_directory_path() / "wc_optiodom_bad.rawlog";
-  fs::remove(bad);
-  const std::string cmd2 = std::string(WHEELCHAIR_CLI) + " import --format optiodom " + kExcerpt +
-                           " --run 2 -o " + bad.string() + " 2> " + bad.string() + ".err";
-  EXPECT_EQ(WEXITSTATUS(std::system(cmd2.c_str())), 1);
+  // a run the excerpt does not ship: exit 1 naming the file on stderr, no output written
+  const std::string bad = tmp / "bad.rawlog";
+  const auto r2 = test::run("{ " + std::string(WHEELCHAIR_CLI) + " import --format optiodom " +
+                            kExcerpt + " --run 2 -o " + bad + " > /dev/null; }");  // stderr only
+  EXPECT_EQ(r2.exit_code, 1) << r2.out;
   EXPECT_FALSE(fs::exists(bad));
-  std::ifstream err(bad.string() + ".err");
-  std::string msg((std::istreambuf_iterator<char>(err)), {});
-  EXPECT_NE(msg.find("230620202042_run-02.csv"), std::string::npos) << msg;
+  EXPECT_NE(r2.out.find("230620202042_run-02.csv"), std::string::npos) << r2.out;
 }
 
 TEST(OptiodomImport, BadRowsNameFileAndLine) {
-  const fs::path d = fs::temp_directory_path() / "wc_optiodom_bad" / "230620202042";
+  const test::TempDir tmp;
+  const fs::path d = tmp.path() / "230620202042";
   fs::create_directories(d);
   for (const char* f : {"230620202042_metadata.csv", "230620202042.csv"})
     fs::copy_file(kExcerpt + "/" + f, d / f, fs::copy_options::overwrite_existing);

@@ -2,6 +2,8 @@
 // targets that are not regular files.
 #include "libwheelchair/util/AtomicFile.h"
 
+#include "../common/TestUtil.h"
+
 #include <gtest/gtest.h>
 
 #include <sys/resource.h>
@@ -18,24 +20,9 @@ using wheelchair::util::AtomicFile;
 
 namespace {
 
-fs::path freshDir(const std::string& name) {
-  const fs::path d =
-      fs::temp_directory_path() / ("wc_atomic_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
 std::size_t entries(const fs::path& d) {
   return static_cast<std::size_t>(
       std::distance(fs::directory_iterator(d), fs::directory_iterator()));
-}
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
 }
 
 /// Limits the size of files this process may write (a full disk at `bytes`, as far as write(2)
@@ -55,7 +42,8 @@ struct FileSizeLimit {
 }  // namespace
 
 TEST(AtomicFile, CommitsCompleteContentAndLeavesNoTemporary) {
-  const fs::path d = freshDir("ok");
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   const std::string target = (d / "out.txt").string();
   {
     AtomicFile f(target);
@@ -64,28 +52,30 @@ TEST(AtomicFile, CommitsCompleteContentAndLeavesNoTemporary) {
     f.commit();
   }
   EXPECT_EQ(entries(d), 1u);
-  const std::string s = slurp(target);
+  const std::string s = wheelchair::test::readFile(target);
   EXPECT_EQ(s.substr(0, 4), "0\n1\n");
   EXPECT_EQ(s.substr(s.size() - 6), "99999\n");
 }
 
 TEST(AtomicFile, ReplacesAnExistingRegularFileOnlyOnCommit) {
-  const fs::path d = freshDir("replace");
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   const std::string target = (d / "out.txt").string();
   { std::ofstream(target) << "old\n"; }
   {
     AtomicFile f(target);
     f.stream() << "new\n";
-    EXPECT_EQ(slurp(target), "old\n");  // untouched until commit
-  }                                     // not committed: the old file stays, the temporary goes
-  EXPECT_EQ(slurp(target), "old\n");
+    EXPECT_EQ(wheelchair::test::readFile(target), "old\n");  // untouched until commit
+  }  // not committed: the old file stays, the temporary goes
+  EXPECT_EQ(wheelchair::test::readFile(target), "old\n");
   EXPECT_EQ(entries(d), 1u);
   wheelchair::util::writeFileAtomically(target, [](std::ostream& os) { os << "new\n"; });
-  EXPECT_EQ(slurp(target), "new\n");
+  EXPECT_EQ(wheelchair::test::readFile(target), "new\n");
 }
 
 TEST(AtomicFile, FullDiskThrowsOneLineAndLeavesNothing) {
-  const fs::path d = freshDir("full");
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   const std::string target = (d / "big.txt").string();
   std::string what;
   {
@@ -107,7 +97,8 @@ TEST(AtomicFile, FullDiskThrowsOneLineAndLeavesNothing) {
 
 TEST(AtomicFile, FailureOnlyAtTheFinalFlushIsStillAFailure) {
   // Small enough to sit in the stream's buffer until commit(): the write fails only there.
-  const fs::path d = freshDir("flush");
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   const std::string target = (d / "small.txt").string();
   FileSizeLimit limit(10);
   AtomicFile f(target);
@@ -119,7 +110,8 @@ TEST(AtomicFile, FailureOnlyAtTheFinalFlushIsStillAFailure) {
 }
 
 TEST(AtomicFile, CheckStopsALongWriterEarly) {
-  const fs::path d = freshDir("early");
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   const std::string target = (d / "long.txt").string();
   FileSizeLimit limit(100000);
   AtomicFile f(target);
@@ -139,7 +131,8 @@ TEST(AtomicFile, CheckStopsALongWriterEarly) {
 }
 
 TEST(AtomicFile, RefusesTargetsThatAreNotRegularFiles) {
-  const fs::path d = freshDir("kinds");
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   const fs::path real = d / "real.txt";
   { std::ofstream(real) << "keep\n"; }
   const fs::path link = d / "link.txt";
@@ -156,17 +149,18 @@ TEST(AtomicFile, RefusesTargetsThatAreNotRegularFiles) {
     }
   }
   EXPECT_TRUE(fs::is_symlink(link));
-  EXPECT_EQ(slurp(real), "keep\n");
+  EXPECT_EQ(wheelchair::test::readFile(real), "keep\n");
   EXPECT_EQ(entries(d), 3u);
 }
 
 TEST(AtomicFile, ByNameWritersCommitWhatTheyWrote) {
-  const fs::path d = freshDir("byname");
+  const wheelchair::test::TempDir tmp;
+  const fs::path& d = tmp.path();
   const std::string target = (d / "lib.bin").string();
   AtomicFile f(target);
   { std::ofstream(f.tempPath(), std::ios::binary) << "written by a library"; }
   f.commit();
-  EXPECT_EQ(slurp(target), "written by a library");
+  EXPECT_EQ(wheelchair::test::readFile(target), "written by a library");
   EXPECT_EQ(entries(d), 1u);
 }
 
