@@ -381,17 +381,63 @@ ReportResult writeReport(const std::string& rawlog, const config::WheelchairConf
   return writeReport(d, o);
 }
 
-ReportResult writeReport(const DriveData& d, const ReportOptions& o) {
+namespace {
+
+// A figure of the report: its file name (in the report directory) and caption.
+struct ReportFigure {
+  std::string file, caption;
+};
+
+// index.md: what the recording holds, the metrics, the EKF's sensor statistics, the figures with
+// their captions, the notes and the configuration used.
+std::string indexMarkdown(const DriveData& d, const std::vector<ReportFigure>& figs,
+                          const std::vector<std::string>& notes) {
   namespace fs = std::filesystem;
+  std::string md = "# Report: " + fs::path(d.path).filename().string() + "\n\n";
+  md += "* recording: `" + d.path + "`\n";
+  md += fmt::format("* duration of the estimates: {:.2f} s (recording clock {:.3f} .. {:.3f} s)\n",
+                    d.t1_s - d.t0_s, d.t0_s, d.t1_s);
+  md += fmt::format(
+      "* samples: encoders {}, imu {}, motors {}, sonar {}, pozyx {}, ground truth {}\n",
+      d.rec.encoders.size(), d.rec.imu.size(), d.rec.motors.size(), d.rec.sonar.size(),
+      d.rec.pozyx.size(), d.rec.ground_truth.size());
+  md += "* ground truth: " + std::string(evaluation::toString(d.gt.source)) +
+        (d.gt_frame_note.empty() ? "" : " (figures: " + d.gt_frame_note + ")") + "\n";
+  if (d.truth)
+    md += "* simulated: scenario `" + d.truth->scenario +
+          "`, effects: " + (d.truth->effects.empty() ? "none" : d.truth->effects) + "\n";
+  md += "* configuration: `" + d.cfg.origin() + "` (full text below)\n\n";
+  md += "## Metrics\n\n" + evaluation::batchMarkdown(d.metrics, d.cfg, false) + "\n";
+  const auto& ekf = d.est.ekf;
+  if (!ekf.estimates.empty()) {
+    md +=
+        "## EKF sensor statistics\n\n| sensor | used | rejected | dropouts | mean NIS "
+        "|\n|---|---:|---:|---:|---:|\n";
+    for (int s = 0; s < estimation::kNumSensors; ++s) {
+      const auto& st = ekf.sensors[s];
+      md += fmt::format("| {} | {} | {} | {} | {} |\n",
+                        estimation::sensorName(static_cast<estimation::Sensor>(s)), st.used,
+                        st.rejected, st.dropouts, st.nis_count ? fmtNum(st.meanNis(), 2) : "–");
+    }
+    for (const auto& w : ekf.warnings) md += "\n* warning: " + w;
+    md += "\n";
+  }
+  md += "\n## Figures\n\n";
+  for (const auto& f : figs) md += "![" + f.file + "](" + f.file + ")\n\n" + f.caption + "\n\n";
+  for (const auto& n : notes) md += "* note: " + n + "\n";
+  md += "\n## Configuration used\n\n```ini\n" + d.cfg.text() + "\n```\n";
+  return md;
+}
+
+}  // namespace
+
+ReportResult writeReport(const DriveData& d, const ReportOptions& o) {
   if (o.out_dir.empty()) throw std::invalid_argument("report: no output directory");
   util::OutputDir dir(o.out_dir);  // a failed report leaves no half directory
   ReportResult r;
   const double t_at = std::isfinite(o.at_s) ? o.at_s : defaultObstacleTime(d);
   auto path = [&](const std::string& f) { return dir.file(f); };
-  struct Fig {
-    std::string file, caption;
-  };
-  std::vector<Fig> figs;
+  std::vector<ReportFigure> figs;
   auto add = [&](const std::string& file, const std::string& caption) {
     r.figures.push_back(path(file));
     figs.push_back({file, caption});
@@ -434,42 +480,9 @@ ReportResult writeReport(const DriveData& d, const ReportOptions& o) {
       r.notes.push_back("3-D snapshot skipped: " + why);
   }
 
-  // index.md
-  std::string md = "# Report: " + fs::path(d.path).filename().string() + "\n\n";
-  md += "* recording: `" + d.path + "`\n";
-  md += fmt::format("* duration of the estimates: {:.2f} s (recording clock {:.3f} .. {:.3f} s)\n",
-                    d.t1_s - d.t0_s, d.t0_s, d.t1_s);
-  md += fmt::format(
-      "* samples: encoders {}, imu {}, motors {}, sonar {}, pozyx {}, ground truth {}\n",
-      d.rec.encoders.size(), d.rec.imu.size(), d.rec.motors.size(), d.rec.sonar.size(),
-      d.rec.pozyx.size(), d.rec.ground_truth.size());
-  md += "* ground truth: " + std::string(evaluation::toString(d.gt.source)) +
-        (d.gt_frame_note.empty() ? "" : " (figures: " + d.gt_frame_note + ")") + "\n";
-  if (d.truth)
-    md += "* simulated: scenario `" + d.truth->scenario +
-          "`, effects: " + (d.truth->effects.empty() ? "none" : d.truth->effects) + "\n";
-  md += "* configuration: `" + d.cfg.origin() + "` (full text below)\n\n";
-  md += "## Metrics\n\n" + evaluation::batchMarkdown(d.metrics, d.cfg, false) + "\n";
-  const auto& ekf = d.est.ekf;
-  if (!ekf.estimates.empty()) {
-    md +=
-        "## EKF sensor statistics\n\n| sensor | used | rejected | dropouts | mean NIS "
-        "|\n|---|---:|---:|---:|---:|\n";
-    for (int s = 0; s < estimation::kNumSensors; ++s) {
-      const auto& st = ekf.sensors[s];
-      md += fmt::format("| {} | {} | {} | {} | {} |\n",
-                        estimation::sensorName(static_cast<estimation::Sensor>(s)), st.used,
-                        st.rejected, st.dropouts, st.nis_count ? fmtNum(st.meanNis(), 2) : "–");
-    }
-    for (const auto& w : ekf.warnings) md += "\n* warning: " + w;
-    md += "\n";
-  }
-  md += "\n## Figures\n\n";
-  for (const auto& f : figs) md += "![" + f.file + "](" + f.file + ")\n\n" + f.caption + "\n\n";
-  for (const auto& n : r.notes) md += "* note: " + n + "\n";
-  md += "\n## Configuration used\n\n```ini\n" + d.cfg.text() + "\n```\n";
   r.index_path = path("index.md");
-  util::writeFileAtomically(r.index_path, [&](std::ostream& out) { out << md; });
+  util::writeFileAtomically(r.index_path,
+                            [&](std::ostream& out) { out << indexMarkdown(d, figs, r.notes); });
   dir.commit();
   return r;
 }
