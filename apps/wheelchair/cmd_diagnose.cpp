@@ -10,6 +10,7 @@
 #include "Progress.h"
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/CommandResponse.h"
+#include "libwheelchair/diagnosis/HeldOut.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/util/AtomicFile.h"
@@ -92,6 +93,7 @@ int runDiagnose(const DiagnoseOptions& o) {
     rep.info["command_response_validation"] = how;
     if (!any_encoders) rep.info["validation"] = how;
   }
+  diagnosis::enforceHeldOutRule(rep);  // every analyser: held-out prediction never worse
   util::RemoveUnlessKept outputs;  // a failed later write removes the earlier outputs
   if (!o.write_config.empty()) {
     diagnosis::correctedConfig(cfg, rep).save(o.write_config);

@@ -1,4 +1,5 @@
 #include "libwheelchair/diagnosis/Diagnosis.h"
+#include "libwheelchair/diagnosis/HeldOut.h"
 
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/diagnosis/SensorFaults.h"
@@ -1002,6 +1003,7 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
                                    {"delay_imu_s", corr.delay_imu},
                                    {"delay_encoders_s", corr.delay_enc},
                                    {"delay_motors_s", corr.delay_motors}};
+  enforceHeldOutRule(rep);  // issue 16: no finding whose held-out prediction gets worse
   rep.info["runtime_s"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - tstart).count();
   return rep;
