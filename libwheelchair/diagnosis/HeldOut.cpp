@@ -51,6 +51,20 @@ int enforceHeldOutRule(DiagnosisReport& rep) {
       if (std::isfinite(vb) && std::isfinite(va) && va > vb + 1e-9 * std::max(1.0, std::abs(vb)))
         worse.push_back(k);
     }
+    // The stage's own check says the held-out data cannot test this term (predicted held-out
+    // likelihood-ratio gain below its threshold, e.g. a gyro scale when the held-out part has
+    // no turning): its held-out residual change is noise, neither better nor worse. Kept, and
+    // said so.
+    const bool untestable = f.evidence.contains("validation_tested") &&
+                            f.evidence["validation_tested"].is_boolean() &&
+                            !f.evidence["validation_tested"].get<bool>();
+    if (untestable) {
+      f.evidence["heldout"] = "not testable on the held-out data (it predicts no difference there)";
+      worse.erase(
+          std::remove_if(worse.begin(), worse.end(),
+                         [](const std::string& k) { return k.rfind("validation_rms", 0) == 0; }),
+          worse.end());
+    }
     if (worse.empty()) {
       kept.push_back(std::move(f));
       continue;

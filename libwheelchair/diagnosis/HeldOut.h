@@ -16,6 +16,10 @@
 //    listed in rep.info["rejected_heldout"] with the numbers ({effect, analyser, reason,
 //    fit_before, fit_after, worse: [key...]}). `mismatch` is recomputed from what remains
 //    only when no finding remains and nothing else set it (info "insufficient_data" keeps it).
+//    Exception: a finding whose stage says the held-out data cannot test it (evidence
+//    "validation_tested": false -- predicted held-out LR gain below threshold) has a held-out
+//    residual change that is noise; its validation_rms_* keys are not judged and evidence
+//    "heldout" says "not testable" (trajectory keys still are).
 //
 // Example:
 //   double p = blockBootstrapProbNotPositive({0.1, -0.02, 0.05, ...}, 20);   // p < 0.05: helps

@@ -59,6 +59,15 @@ TEST(HeldOutRule, RemovesOnlyFindingsThatPredictWorse) {
   EXPECT_EQ(rej[0]["worse"][0], "validation_rms_A");
   EXPECT_EQ(rej[1]["worse"][0], "drift_10s_m");
   EXPECT_DOUBLE_EQ(rej[1]["fit_after"]["drift_10s_m"].get<double>(), 0.047);
+  // A term the held-out data cannot test (its stage says so) is not judged on the residual.
+  DiagnosisReport untestable;
+  Finding scale = worse_rms;
+  scale.effect = "gyro_scale";
+  scale.evidence = {{"validation_tested", false}};
+  untestable.addFinding(scale);
+  EXPECT_EQ(enforceHeldOutRule(untestable), 0);
+  EXPECT_EQ(untestable.findings.size(), 1u);
+  EXPECT_TRUE(untestable.findings[0].evidence.contains("heldout"));
   // Nothing left: no mismatch claimed by the removed findings alone.
   DiagnosisReport only_bad;
   only_bad.addFinding(worse_rms);
