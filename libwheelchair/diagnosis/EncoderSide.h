@@ -6,15 +6,20 @@
 // (collinear columns; Diagnosis.cpp, encoderSideUndecided). The two explanations differ in the
 // DISTANCE each wheel rolled, which ground-truth poses (OptiTrack, Vicon, a simulator's truth)
 // measure: dead reckoning of the encoders alone with k_R (right corrected) and with k_L (left
-// corrected) is compared with the truth over the fit recordings.
+// corrected) is compared with the truth over the fit recordings. With BOTH encoder scales
+// accepted (no gyro scale) the alternatives are also "gyro scale + right" and "gyro scale +
+// left" (the gyro sees only g / k_R and g / k_L).
 //
 //   gyro LR   (RSS_other - RSS_chosen) / sigma^2 of the two stage-1 fits, sigma^2 the
 //             configured noise of one window (as encoderSideUndecided); >= chi2Quantile(1 -
 //             alpha_b, 1): the gyro decides, nothing is done here.
-//   truth     mean dead-reckoned position error E_R, E_L (m) over the fit recordings with
-//             encoders + GROUND_TRUTH (start aligned, each side's scale applied to its metres
-//             per tick); decided when min / max <= kTruthRatio (0.8) -- a 20 % better
-//             prediction of where the wheels went.
+//   truth     mean dead-reckoned position error (m) of each explanation the gyro cannot rule
+//             out, over the fit recordings with encoders + GROUND_TRUTH (start aligned, each
+//             side's scale applied to its metres per tick); decided when the best is at most
+//             kTruthRatio (0.8) x every other -- a 20 % better prediction of where the wheels
+//             went -- or when every explanation within that margin puts the larger encoder
+//             error on the same side (evidence `near_tie`: only a small remainder, the other
+//             encoder or the gyro scale, stays ambiguous; the best by the truth is taken).
 // When the truth picks the other side, `sel` is changed to it (the accepted candidate is
 // swapped and the joint fit refitted), so the stage-1 finding, the corrections applied before
 // the dynamics stage and the kinematic-calibration start all use the side the truth chose.

@@ -49,10 +49,11 @@ TEST(EncoderSide, GroundTruthDecidesWhichEncoderWhenTheGyroCannot) {
   EXPECT_EQ(effects, (std::set<std::string>{"encoder_scale", "gyro_scale"}));
   const auto& e = j["info"]["encoder_side_from_ground_truth"];
   EXPECT_TRUE(e["decided"].get<bool>());
-  EXPECT_EQ(e["side"], "right");
-  EXPECT_LT(e["gyro_likelihood_ratio"].get<double>(), e["gyro_needed"].get<double>());
-  EXPECT_LT(e["mean_position_error_m"]["right"].get<double>(),
-            0.8 * e["mean_position_error_m"]["left"].get<double>());
+  EXPECT_EQ(e["explanation"], "gyro_scale+right");
+  EXPECT_LT(e["gyro_likelihood_ratio"]["gyro_scale+left"].get<double>(),
+            e["gyro_needed"].get<double>());
+  EXPECT_LT(e["mean_position_error_m"]["gyro_scale+right"].get<double>(),
+            0.8 * e["mean_position_error_m"]["gyro_scale+left"].get<double>());
   fs::remove_all(d);
 }
 
