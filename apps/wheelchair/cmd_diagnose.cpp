@@ -10,8 +10,8 @@
 #include "Progress.h"
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/CommandResponse.h"
-#include "libwheelchair/diagnosis/HeldOut.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
+#include "libwheelchair/diagnosis/HeldOut.h"
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/util/AtomicFile.h"
 #include "libwheelchair/util/OutputDir.h"
@@ -94,7 +94,7 @@ int runDiagnose(const DiagnoseOptions& o) {
     if (!any_encoders) rep.info["validation"] = how;
   }
   diagnosis::enforceHeldOutRule(rep);  // every analyser: held-out prediction never worse
-  util::RemoveUnlessKept outputs;  // a failed later write removes the earlier outputs
+  util::RemoveUnlessKept outputs;      // a failed later write removes the earlier outputs
   if (!o.write_config.empty()) {
     diagnosis::correctedConfig(cfg, rep).save(o.write_config);
     outputs.add(o.write_config);
@@ -141,6 +141,14 @@ int runDiagnose(const DiagnoseOptions& o) {
                                   "better than the configured geometry")) +
               "\n";
   }
+  // Held-out rule (issue 16): what was found in the fit data but not reported.
+  for (const char* key : {"rejected_heldout", "command_response_rejected"})
+    if (rep.info.contains(key))
+      for (const auto& r : rep.info[key])
+        text += fmt::format(
+            "  not reported ({}): {}{} -- its held-out prediction is not better\n",
+            r.value("rejected_by", std::string("held-out rule")), r.value("effect", std::string()),
+            r.contains("channel") ? " (" + r["channel"].get<std::string>() + ")" : std::string());
   if (rep.info.contains("skipped"))
     for (auto it = rep.info["skipped"].begin(); it != rep.info["skipped"].end(); ++it)
       if (it->is_string()) text += "  not tested: " + it->get<std::string>() + "\n";

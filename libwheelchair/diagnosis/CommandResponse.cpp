@@ -1033,8 +1033,15 @@ void gateOnValidation(const Ctx& c, const FullModel& selected, std::vector<Term>
 }
 
 // Parameters, uncertainty (curvature of the fit RSS; library: HAC) and segments of the kept
-// terms of the final model (refitted on all fit data).
-void describeTerms(const Ctx& c, const Model& fin, std::vector<Term>& terms) {
+// terms of the final model (refitted on all fit data); a rejected term's parameters are those
+// of the model with every proposed term (`selected`, refitted on all fit data), so that the
+// JSON says what was rejected.
+void describeTerms(const Ctx& c, const Model& fin, const FullModel& selected,
+                   std::vector<Term>& terms) {
+  std::vector<Term> all = terms;
+  for (auto& t : all) t.kept = true;
+  Model proposed = modelOf(selected, all);
+  refitLinear(c.F, proposed, c.o);
   ChannelFit cur[2];
   for (int ch = 0; ch < 2; ++ch) {
     ChannelModel m = fin.M.ch[ch];
@@ -1044,9 +1051,9 @@ void describeTerms(const Ctx& c, const Model& fin, std::vector<Term>& terms) {
   for (std::size_t i = 0; i < terms.size(); ++i) {
     Term& t = terms[i];
     CommandResponseFinding& fd = t.fd;
-    const FullModel& M = fin.M;
+    const FullModel& M = t.kept ? fin.M : proposed.M;
     if (t.library) {
-      fd.parameters["coefficient"] = t.kept ? fin.U.coef[t.ch][t.j] : 0.0;
+      fd.parameters["coefficient"] = (t.kept ? fin.U : proposed.U).coef[t.ch][t.j];
       if (!t.kept) continue;
       std::vector<int> cols;
       for (const auto& [ch, j] : fin.lib)
@@ -1067,7 +1074,7 @@ void describeTerms(const Ctx& c, const Model& fin, std::vector<Term>& terms) {
       fd.parameters["delay_s"] = M.ch[cd.ch].delay;
       fd.parameters["time_constant_s"] = M.ch[cd.ch].tau;
     } else if (cd.effect == "command_gain") {
-      fd.parameters["scale"] = t.kept ? M.ch[cd.ch].gain[cd.kind] : 1.0;
+      fd.parameters["scale"] = M.ch[cd.ch].gain[cd.kind];
     } else if (cd.effect == "deadband") {
       fd.parameters[cd.ch == 0 ? "threshold_m_s" : "threshold_rad_s"] = M.ch[cd.ch].db;
     } else {
@@ -1158,7 +1165,7 @@ CommandResponseResult diagnoseCommandResponse(const std::vector<io::Recording>& 
 
   Model fin = modelOf(M, terms);
   refitLinear(c.F, fin, o);
-  describeTerms(c, fin, terms);
+  describeTerms(c, fin, M, terms);
   for (auto& t : terms) {
     t.fd.validated = t.kept;
     res.findings.push_back(t.fd);
