@@ -28,10 +28,18 @@ double blockBootstrapProbNotPositive(const std::vector<double>& d, int block, in
 }
 
 const std::vector<std::string>& heldOutKeys() {
-  static const std::vector<std::string> keys = {
-      "validation_rms_rad",    "validation_rms_A", "validation_rms_m_s", "validation_rms_rad_s",
-      "validation_rms",        "drift_10s_m",      "drift_60s_m",        "heading_drift_10s_deg",
-      "heading_drift_60s_deg", "mean_position_m",  "end_position_m"};
+  static const std::vector<std::string> keys = {"validation_rms_rad",
+                                                "validation_rms_A",
+                                                "validation_rms_m_s",
+                                                "validation_rms_rad_s",
+                                                "validation_rms",
+                                                "drift_10s_m",
+                                                "drift_60s_m",
+                                                "heading_drift_10s_deg",
+                                                "heading_drift_60s_deg",
+                                                "odometry_mean_position_error_m",
+                                                "odometry_end_position_error_m",
+                                                "odometry_end_heading_error_deg"};
   return keys;
 }
 

@@ -11,8 +11,9 @@
 //    the series; `resamples` draws with a fixed seed (deterministic).
 //  - enforceHeldOutRule(rep): the safety net over a finished report. Every finding whose
 //    fit_after is WORSE than its fit_before in any held-out key (validation_rms_*, drift_10s_m,
-//    drift_60s_m, heading_drift_10s_deg, heading_drift_60s_deg, mean_position_m,
-//    end_position_m; keys present in both, larger is worse) is removed from `findings` and
+//    drift_60s_m, heading_drift_10s_deg, heading_drift_60s_deg,
+//    odometry_{mean,end}_position_error_m, odometry_end_heading_error_deg; keys present in
+//    both, larger is worse) is removed from `findings` and
 //    listed in rep.info["rejected_heldout"] with the numbers ({effect, analyser, reason,
 //    fit_before, fit_after, worse: [key...]}). `mismatch` is recomputed from what remains
 //    only when no finding remains and nothing else set it (info "insufficient_data" keeps it).
