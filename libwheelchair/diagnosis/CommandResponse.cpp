@@ -977,7 +977,10 @@ void pruneByCrossValidation(const Ctx& c, const FullModel& selected, std::vector
       terms[i].fd.heldout["cross_validation"]["folds"] = c.folds.size();
       const double d0 = median(p.e10_without), d1 = median(p.e10_with);
       const double h0 = median(p.h10_without), h1 = median(p.h10_with);
-      const double worse = std::max((d1 - d0) / std::max(d0, 1e-9), (h1 - h0) / std::max(h0, 1e-9));
+      auto rel = [](double w, double wo) {  // no 10-s window in the folds: not judged
+        return std::isfinite(w) && std::isfinite(wo) ? (w - wo) / std::max(wo, 1e-9) : -1.0;
+      };
+      const double worse = std::max(rel(d1, d0), rel(h1, h0));
       double bad = 0;
       if (worse > 1e-9)
         bad = 1 + worse;  // trajectory worse: first to go
@@ -1018,7 +1021,12 @@ void gateOnValidation(const Ctx& c, const FullModel& selected, std::vector<Term>
       fd.drift_without = pw.drift.summary();
       fd.heldout["validation"] = pairedJson(p, blockBootstrapProbNotPositive(p.gain, c.o.hac_lags));
       const DriftMetrics &a = fd.drift_with, &b = fd.drift_without;
-      auto rel = [](double w, double wo) { return (w - wo) / std::max(std::abs(wo), 1e-9); };
+      // relative worsening; a drift with no window (NaN: recordings shorter than 60 s) is not
+      // judged
+      auto rel = [](double w, double wo) {
+        return std::isfinite(w) && std::isfinite(wo) ? (w - wo) / std::max(std::abs(wo), 1e-9)
+                                                     : -1.0;
+      };
       const double worse =
           std::max({rel(a.drift_10s_m, b.drift_10s_m), rel(a.drift_60s_m, b.drift_60s_m),
                     rel(a.heading_drift_10s_deg, b.heading_drift_10s_deg),
