@@ -549,9 +549,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
     const KinRows& kf2 = *pkf2;
     const KinRows& kv2 = *pkv2;
     // which encoder: ground truth decides when the gyro cannot (EncoderSide.h)
-    const EncoderSideDecision side_truth =
-        resolveEncoderSideByGroundTruth(
-            fit_recs, val_recs.empty() ? opt.fit_fraction : 1.0, cfg, kf2, cands, sel, lags1, alpha_b);
+    const EncoderSideDecision side_truth = resolveEncoderSideByGroundTruth(
+        fit_recs, val_recs.empty() ? opt.fit_fraction : 1.0, cfg, kf2, cands, sel, lags1, alpha_b);
     if (!side_truth.evidence.empty())
       rep.info["encoder_side_from_ground_truth"] = side_truth.evidence;
     // coefficients
@@ -642,8 +641,8 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
         const int other = c.name == "encoder_scale/right" ? 3 : 2;  // kinematicCandidates order
         if (const std::string why =
                 side_truth.decided ? std::string()
-                                   : encoderSideUndecided(kf2, cands, sel.accepted,
-                                                          sel.accepted[a], other, alpha_b, lags1);
+                                   : encoderSideUndecided(kf2, cands, sel.accepted, sel.accepted[a],
+                                                          other, alpha_b, lags1);
             !why.empty()) {
           rep.info["insufficient_data"].push_back(why);
           rep.mismatch = true;  // the encoders disagree, only the side is undecided
