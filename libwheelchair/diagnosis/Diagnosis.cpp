@@ -548,11 +548,11 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
     }
     const KinRows& kf2 = *pkf2;
     const KinRows& kv2 = *pkv2;
-    // which encoder: ground truth decides when the gyro cannot (EncoderSide.h)
-    const EncoderSideDecision side_truth = resolveEncoderSideByGroundTruth(
-        fit_recs, val_recs.empty() ? opt.fit_fraction : 1.0, cfg, kf2, cands, sel, lags1, alpha_b);
-    if (!side_truth.evidence.empty())
-      rep.info["encoder_side_from_ground_truth"] = side_truth.evidence;
+    // which encoder: ground truth or the currents decide when the gyro cannot (EncoderSide.h)
+    const EncoderSideDecision side_truth =
+        resolveEncoderSide(fit_recs, val_recs.empty() ? opt.fit_fraction : 1.0, cfg, kf2, cands,
+                           sel, lags1, alpha_b, any_mot ? &fitS : nullptr, &opt);
+    if (!side_truth.evidence.empty()) rep.info["encoder_side"] = side_truth.evidence;
     // coefficients
     double bg = 0, bR = 0, bL = 0, b0 = 0;
     double sb0 = 0, sbg = 0, sbR = 0, sbL = 0, sdel = 0;

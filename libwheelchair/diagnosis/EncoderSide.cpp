@@ -1,9 +1,12 @@
 #include "libwheelchair/diagnosis/EncoderSide.h"
 
+#include <Eigen/Dense>
+
 #include "libwheelchair/identification/OdometryCalibration.h"
 #include "libwheelchair/stats/Distributions.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace wheelchair::diagnosis {
 
@@ -92,14 +95,28 @@ std::vector<identification::OdometryRun> truthRuns(const std::vector<io::Recordi
   return runs;
 }
 
+// RMS (A) of the motor-current equation error on the fit data with this explanation's encoder
+// scales applied, after the least-squares fit of every dynamic catalogue column (asymmetry,
+// Coulomb, payload, slope, delay): what the dynamics cannot explain with either side.
+double dynamicsRms(const std::vector<Streams>& fitS, const Explanation& e,
+                   const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+  Corrections c;
+  c.enc_scale[0] = e.k[0];
+  c.enc_scale[1] = e.k[1];
+  const DynRows r = dynamicRows(fitS, c, cfg, opt);
+  if (r.y.size() < 50) return std::nan("");
+  const Eigen::VectorXd b = r.X.colPivHouseholderQr().solve(r.y);
+  return std::sqrt((r.y - r.X * b).squaredNorm() / r.y.size());
+}
+
 }  // namespace
 
-EncoderSideDecision resolveEncoderSideByGroundTruth(const std::vector<io::Recording>& fit,
-                                                    double fit_fraction,
-                                                    const config::WheelchairConfig& cfg,
-                                                    const KinRows& k,
-                                                    const std::vector<Candidate>& cands,
-                                                    Selection& sel, int lags, double alpha_b) {
+EncoderSideDecision resolveEncoderSide(const std::vector<io::Recording>& fit, double fit_fraction,
+                                       const config::WheelchairConfig& cfg, const KinRows& k,
+                                       const std::vector<Candidate>& cands, Selection& sel,
+                                       int lags, double alpha_b,
+                                       const std::vector<Streams>* dyn_fit,
+                                       const DiagnosisOptions* opt) {
   EncoderSideDecision d;
   const auto alts = alternatives(cands, sel.accepted);
   if (alts.empty() || k.X.rows() == 0) return d;
@@ -119,19 +136,25 @@ EncoderSideDecision resolveEncoderSideByGroundTruth(const std::vector<io::Record
   }
   if (ex.size() < 2) return d;  // the gyro decides
   const auto runs = truthRuns(fit, fit_fraction);
-  if (runs.empty()) return d;
+  const bool by_truth = !runs.empty();
+  if (!by_truth && !(dyn_fit && opt)) return d;
   const auto nominal = identification::odometryGeometry(cfg);
   std::size_t best = 0;
   nlohmann::json err = nlohmann::json::object(), scale = nlohmann::json::object();
   for (std::size_t i = 0; i < ex.size(); ++i) {
-    auto g = nominal;
-    g.m_per_tick_right /= ex[i].k[0];
-    g.m_per_tick_left /= ex[i].k[1];
-    ex[i].error_m = identification::meanOdometryError(runs, g).mean_position_m;
+    if (by_truth) {
+      auto g = nominal;
+      g.m_per_tick_right /= ex[i].k[0];
+      g.m_per_tick_left /= ex[i].k[1];
+      ex[i].error_m = identification::meanOdometryError(runs, g).mean_position_m;
+    } else {
+      ex[i].error_m = dynamicsRms(*dyn_fit, ex[i], cfg, *opt);
+    }
     err[ex[i].name] = ex[i].error_m;
     scale[ex[i].name] = {{"right", ex[i].k[0]}, {"left", ex[i].k[1]}};
     if (ex[i].error_m < ex[best].error_m) best = i;
   }
+  if (!std::isfinite(ex[best].error_m)) return d;
   // Decided when the best predicts 20 % better than every other; or when all explanations
   // within that margin put the large encoder error on the same side (then only a small
   // remainder -- the other encoder or the gyro scale -- is ambiguous: `near_tie`).
@@ -149,9 +172,11 @@ EncoderSideDecision resolveEncoderSideByGroundTruth(const std::vector<io::Record
       {"gyro_likelihood_ratio", gyro},
       {"gyro_needed", needed},
       {"runs", runs.size()},
-      {"mean_position_error_m", err},
+      {"by", by_truth ? "ground_truth" : "dynamics"},
+      {by_truth ? "mean_position_error_m" : "current_residual_rms_A", err},
       {"encoder_scales", scale},
-      {"no_encoder_correction_m", identification::meanOdometryError(runs, nominal).mean_position_m},
+      {"no_encoder_correction_m",
+       by_truth ? identification::meanOdometryError(runs, nominal).mean_position_m : std::nan("")},
       {"ratio_needed", kTruthRatio},
       {"decided", d.decided},
       {"near_tie", near},
