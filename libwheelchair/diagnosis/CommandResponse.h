@@ -169,8 +169,10 @@ model::CommandSignal commandSignal(const io::Recording& rec, bool ignore_zero_ru
 /// fit_before / fit_after = held-out open-loop drift (drift_10s_m, drift_60s_m,
 /// heading_drift_10s_deg, heading_drift_60s_deg) and window residual RMS without / with it.
 /// Sets rep.fit_before / rep.fit_after (nominal vs corrected, held-out drift) and puts the
-/// analyser's own JSON into rep.validation["command_response"]. Terms that fail validation
-/// are listed in rep.info["command_response_rejected"], not as findings.
+/// analyser's own JSON into rep.validation["command_response"]. Terms removed by the held-out
+/// rule are listed in rep.info["command_response_rejected"] with their parameters,
+/// `rejected_by` and the `heldout` numbers, not as findings; the unmodeled finding of a
+/// channel holds only its kept library terms (each passed the rule on its own).
 void addCommandResponseFindings(const CommandResponseResult& r, DiagnosisReport& rep);
 
 /// Writes the selected model into [mrclam_response] (the keys of config/mrclam.ini, read by
