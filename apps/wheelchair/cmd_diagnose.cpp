@@ -11,6 +11,7 @@
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/CommandResponse.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
+#include "libwheelchair/diagnosis/HeldOut.h"
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/util/AtomicFile.h"
 #include "libwheelchair/util/OutputDir.h"
@@ -94,6 +95,7 @@ diagnosis::DiagnosisReport analyse(const Inputs& in, const config::WheelchairCon
     rep.info["command_response_validation"] = how;
     if (!any_encoders) rep.info["validation"] = how;
   }
+  diagnosis::enforceHeldOutRule(rep);  // every analyser: held-out prediction never worse
   return rep;
 }
 
@@ -131,6 +133,14 @@ std::string findingsText(const diagnosis::DiagnosisReport& rep) {
                                   "better than the configured geometry")) +
               "\n";
   }
+  // Held-out rule (issue 16): what was found in the fit data but not reported.
+  for (const char* key : {"rejected_heldout", "command_response_rejected"})
+    if (rep.info.contains(key))
+      for (const auto& r : rep.info[key])
+        text += fmt::format(
+            "  not reported ({}): {}{} -- its held-out prediction is not better\n",
+            r.value("rejected_by", std::string("held-out rule")), r.value("effect", std::string()),
+            r.contains("channel") ? " (" + r["channel"].get<std::string>() + ")" : std::string());
   if (rep.info.contains("skipped"))
     for (auto it = rep.info["skipped"].begin(); it != rep.info["skipped"].end(); ++it)
       if (it->is_string()) text += "  not tested: " + it->get<std::string>() + "\n";

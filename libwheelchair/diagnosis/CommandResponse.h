@@ -17,10 +17,23 @@
 // Forward selection: accept the best candidate if BIC drops by more than min_delta_bic AND its
 // likelihood-ratio test is significant at alpha / (candidates tried), on the effective sample
 // size of the autocorrelated window residuals (Bartlett), AND its parameters are plausible.
-// Every accepted term must then reduce the residual on the VALIDATION recordings (else it is
-// reported with validated = false and not used). What is left is regressed on a library of
-// command features (1, v_cmd, omega_cmd, |omega_cmd|, v_cmd |omega_cmd|) per channel; terms
-// passing the same evidence test are reported as `unmodeled` with their channel.
+// What is left is regressed on a library of command features (1, v_cmd, omega_cmd,
+// |omega_cmd|, v_cmd |omega_cmd|) per channel; terms passing the same evidence test are
+// candidates for `unmodeled` terms of their channel.
+//
+// Held-out rule (issue 16; no term is kept on in-sample evidence alone), two steps:
+//  1. Cross-validation on the FIT data: folds = the fit recordings (leave one out; one
+//     recording: 4 time blocks). Per fold the gains and library coefficients are refitted on
+//     the other folds (delays / time constants stay at the full fit) with and without each
+//     term. A term stays only if, pooled over folds, (a) its channel's window residual drops
+//     with a moving-block bootstrap (blocks of hac_lags windows) probability of no gain below
+//     `cv_bootstrap_level`, and (b) the median 10-s open-loop position and heading drift are
+//     not worse. Backward elimination: the worst failing term goes, the rest are refitted.
+//  2. Gate on the VALIDATION recordings: with the model refitted on all fit data, each term
+//     must lower its channel's window residual and make none of the four drift medians (10 s,
+//     60 s, position, heading) worse; else it is removed (and the rest refitted).
+// Removed terms are findings with validated = false, `rejected_by` ("cross_validation" /
+// "validation") and the numbers in `heldout`; they are not in the model or its config.
 //
 // Before/after: open-loop drift on the validation recordings (windows of 10 s and 60 s started
 // every `drift_start_every_s` at the true pose, the model integrated from the commands alone;
@@ -57,6 +70,7 @@ struct CommandResponseOptions {
   int hac_lags = 20;                    ///< windows for the effective sample size (5 s at 0.25 s)
   double min_gain = 0.2, max_gain = 5;  ///< plausible command_gain range
   double drift_start_every_s = 5;       ///< open-loop drift windows
+  double cv_bootstrap_level = 0.05;     ///< held-out rule, step 1 (a)
   double max_gt_gap_s = 0.5;            ///< ground-truth gap that invalidates a window end
 };
 
@@ -97,6 +111,11 @@ struct CommandResponseFinding {
   /// (the other selected terms as fitted).
   DriftMetrics drift_without, drift_with;
   double validation_rms_without = 0, validation_rms_with = 0;
+  /// Held-out rule: empty when kept, else "cross_validation" or "validation".
+  std::string rejected_by;
+  /// Numbers of the held-out rule: cross-validation (bootstrap probability of no gain, pooled
+  /// window RSS and median 10-s drift without / with) and the validation gate.
+  nlohmann::json heldout = nlohmann::json::object();
 };
 
 struct ChannelResidualStats {
@@ -150,8 +169,10 @@ model::CommandSignal commandSignal(const io::Recording& rec, bool ignore_zero_ru
 /// fit_before / fit_after = held-out open-loop drift (drift_10s_m, drift_60s_m,
 /// heading_drift_10s_deg, heading_drift_60s_deg) and window residual RMS without / with it.
 /// Sets rep.fit_before / rep.fit_after (nominal vs corrected, held-out drift) and puts the
-/// analyser's own JSON into rep.validation["command_response"]. Terms that fail validation
-/// are listed in rep.info["command_response_rejected"], not as findings.
+/// analyser's own JSON into rep.validation["command_response"]. Terms removed by the held-out
+/// rule are listed in rep.info["command_response_rejected"] with their parameters,
+/// `rejected_by` and the `heldout` numbers, not as findings; the unmodeled finding of a
+/// channel holds only its kept library terms (each passed the rule on its own).
 void addCommandResponseFindings(const CommandResponseResult& r, DiagnosisReport& rep);
 
 /// Writes the selected model into [mrclam_response] (the keys of config/mrclam.ini, read by

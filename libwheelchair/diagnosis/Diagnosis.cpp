@@ -1,4 +1,6 @@
 #include "libwheelchair/diagnosis/Diagnosis.h"
+#include "libwheelchair/diagnosis/EncoderSide.h"
+#include "libwheelchair/diagnosis/HeldOut.h"
 
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/diagnosis/SensorFaults.h"
@@ -546,6 +548,11 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
     }
     const KinRows& kf2 = *pkf2;
     const KinRows& kv2 = *pkv2;
+    // which encoder: ground truth or the currents decide when the gyro cannot (EncoderSide.h)
+    const EncoderSideDecision side_truth =
+        resolveEncoderSide(fit_recs, val_recs.empty() ? opt.fit_fraction : 1.0, cfg, kf2, cands,
+                           sel, lags1, alpha_b, any_mot ? &fitS : nullptr, &opt);
+    if (!side_truth.evidence.empty()) rep.info["encoder_side"] = side_truth.evidence;
     // coefficients
     double bg = 0, bR = 0, bL = 0, b0 = 0;
     double sb0 = 0, sbg = 0, sbR = 0, sbL = 0, sdel = 0;
@@ -632,8 +639,10 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
       } else if (c.effect == "encoder_scale") {
         int s = c.name == "encoder_scale/right" ? 0 : 1;
         const int other = c.name == "encoder_scale/right" ? 3 : 2;  // kinematicCandidates order
-        if (const std::string why = encoderSideUndecided(kf2, cands, sel.accepted, sel.accepted[a],
-                                                         other, alpha_b, lags1);
+        if (const std::string why =
+                side_truth.decided ? std::string()
+                                   : encoderSideUndecided(kf2, cands, sel.accepted, sel.accepted[a],
+                                                          other, alpha_b, lags1);
             !why.empty()) {
           rep.info["insufficient_data"].push_back(why);
           rep.mismatch = true;  // the encoders disagree, only the side is undecided
@@ -1002,6 +1011,7 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
                                    {"delay_imu_s", corr.delay_imu},
                                    {"delay_encoders_s", corr.delay_enc},
                                    {"delay_motors_s", corr.delay_motors}};
+  enforceHeldOutRule(rep);  // issue 16: no finding whose held-out prediction gets worse
   rep.info["runtime_s"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - tstart).count();
   return rep;

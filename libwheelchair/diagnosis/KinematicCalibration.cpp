@@ -166,8 +166,21 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
                 std::abs(rel(kc.fitted.track_m, kc.nominal.track_m))});
   const bool better =
       kc.heldout_after.mean_position_m < (1 - kMinHeldOutGain) * kc.heldout_before.mean_position_m;
-  kc.accepted = change >= kMinRelativeChange && better;
-  if (!better)
+  // held-out rule (issue 16): neither the end position nor the end heading (the quantity the
+  // track and the radius ratio set) may get worse either
+  const bool not_worse = kc.heldout_after.end_position_m <= kc.heldout_before.end_position_m &&
+                         kc.heldout_after.end_heading_rad <= kc.heldout_before.end_heading_rad;
+  kc.accepted = change >= kMinRelativeChange && better && not_worse;
+  if (better && !not_worse)
+    kc.rejected = fmt::format(
+        "the {} correction lowers the held-out mean position error ({:.4f} m -> {:.4f} m) but "
+        "makes the end position ({:.4f} m -> {:.4f} m) or the end heading ({:.2f} deg -> "
+        "{:.2f} deg) worse: not reported",
+        kc.model, kc.heldout_before.mean_position_m, kc.heldout_after.mean_position_m,
+        kc.heldout_before.end_position_m, kc.heldout_after.end_position_m,
+        kc.heldout_before.end_heading_rad * 180 / M_PI,
+        kc.heldout_after.end_heading_rad * 180 / M_PI);
+  else if (!better)
     kc.rejected = fmt::format(
         "the {} correction fitted on the fit data does not lower the held-out odometry error "
         "by {:.0f} % ({:.4f} m -> {:.4f} m): not reported",

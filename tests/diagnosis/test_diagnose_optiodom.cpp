@@ -54,6 +54,26 @@ TEST(DiagnoseOptiodom, NamesWheelGeometryAndCorrectedConfigPredictsHeldOutRunBet
   std::ifstream jf(d / "o.json");
   const auto j = nlohmann::json::parse(jf);
   EXPECT_EQ(j["config"], "recorded in " + cw);
+  // Held-out rule (issue 16): no reported finding -- wheel_geometry or any command-response
+  // term (the excerpt has the robot's commands too) -- predicts its held-out data worse.
+  for (const auto& x : j["findings"])
+    for (const char* k :
+         {"odometry_mean_position_error_m", "odometry_end_position_error_m",
+          "odometry_end_heading_error_deg", "drift_10s_m", "drift_60s_m", "heading_drift_10s_deg",
+          "heading_drift_60s_deg", "validation_rms_m_s", "validation_rms_rad_s"})
+      if (x["fit_before"].contains(k) && x["fit_before"][k].is_number() &&
+          x["fit_after"].contains(k) && x["fit_after"][k].is_number())
+        EXPECT_LE(x["fit_after"][k].get<double>(), x["fit_before"][k].get<double>() + 1e-12)
+            << x["effect"] << " " << k;
+  // what the command-response analyser proposed and the held-out rule rejected is listed
+  // with its numbers and said in the summary
+  for (const auto& r : j["info"].value("command_response_rejected", nlohmann::json::array())) {
+    EXPECT_TRUE(r.contains("heldout")) << r.dump();
+    EXPECT_NE(out.find("not reported (" + r["rejected_by"].get<std::string>() +
+                       "): " + r["effect"].get<std::string>()),
+              std::string::npos)
+        << out;
+  }
   const nlohmann::json* f = nullptr;
   for (const auto& x : j["findings"])
     if (x["effect"] == "wheel_geometry") f = &x;

@@ -1,0 +1,98 @@
+#include "libwheelchair/diagnosis/HeldOut.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+namespace wheelchair::diagnosis {
+
+double blockBootstrapProbNotPositive(const std::vector<double>& d, int block, int resamples,
+                                     unsigned seed) {
+  const int n = static_cast<int>(d.size());
+  if (n == 0) return 1.0;
+  const int b = std::clamp(block, 1, n);
+  const int nb = (n + b - 1) / b;  // blocks per resample
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> start(0, n - 1);
+  int not_positive = 0;
+  for (int r = 0; r < resamples; ++r) {
+    double sum = 0;
+    int cnt = 0;
+    for (int k = 0; k < nb; ++k) {
+      const int s = start(rng);
+      for (int q = 0; q < b && cnt < n; ++q, ++cnt) sum += d[(s + q) % n];
+    }
+    if (sum <= 0) ++not_positive;
+  }
+  return static_cast<double>(not_positive) / resamples;
+}
+
+const std::vector<std::string>& heldOutKeys() {
+  static const std::vector<std::string> keys = {"validation_rms_rad",
+                                                "validation_rms_A",
+                                                "validation_rms_m_s",
+                                                "validation_rms_rad_s",
+                                                "validation_rms",
+                                                "drift_10s_m",
+                                                "drift_60s_m",
+                                                "heading_drift_10s_deg",
+                                                "heading_drift_60s_deg",
+                                                "odometry_mean_position_error_m",
+                                                "odometry_end_position_error_m",
+                                                "odometry_end_heading_error_deg"};
+  return keys;
+}
+
+int enforceHeldOutRule(DiagnosisReport& rep) {
+  std::vector<Finding> kept;
+  nlohmann::json rejected = rep.info.contains("rejected_heldout") ? rep.info["rejected_heldout"]
+                                                                  : nlohmann::json::array();
+  int removed = 0;
+  for (auto& f : rep.findings) {
+    std::vector<std::string> worse;
+    for (const auto& k : heldOutKeys()) {
+      if (!f.fit_before.contains(k) || !f.fit_after.contains(k)) continue;
+      const auto &b = f.fit_before[k], &a = f.fit_after[k];
+      if (!b.is_number() || !a.is_number()) continue;
+      const double vb = b.get<double>(), va = a.get<double>();
+      // Relative tolerance of rounding only: equal predictions are not "worse".
+      if (std::isfinite(vb) && std::isfinite(va) && va > vb + 1e-9 * std::max(1.0, std::abs(vb)))
+        worse.push_back(k);
+    }
+    // The stage's own check says the held-out data cannot test this term (predicted held-out
+    // likelihood-ratio gain below its threshold, e.g. a gyro scale when the held-out part has
+    // no turning): its held-out residual change is noise, neither better nor worse. Kept, and
+    // said so.
+    const bool untestable = f.evidence.contains("validation_tested") &&
+                            f.evidence["validation_tested"].is_boolean() &&
+                            !f.evidence["validation_tested"].get<bool>();
+    if (untestable) {
+      f.evidence["heldout"] = "not testable on the held-out data (it predicts no difference there)";
+      worse.erase(
+          std::remove_if(worse.begin(), worse.end(),
+                         [](const std::string& k) { return k.rfind("validation_rms", 0) == 0; }),
+          worse.end());
+    }
+    if (worse.empty()) {
+      kept.push_back(std::move(f));
+      continue;
+    }
+    ++removed;
+    rejected.push_back({{"effect", f.effect},
+                        {"analyser", f.command_response ? "command_response" : "diagnose"},
+                        {"parameters", f.parameters},
+                        {"reason", "its own held-out prediction gets worse"},
+                        {"worse", worse},
+                        {"fit_before", f.fit_before},
+                        {"fit_after", f.fit_after}});
+  }
+  const bool had = !rep.findings.empty();
+  rep.findings = std::move(kept);
+  if (removed > 0) {
+    rep.info["rejected_heldout"] = rejected;
+    if (had && rep.findings.empty()) rep.mismatch = rep.info.contains("insufficient_data");
+  }
+  return removed;
+}
+
+}  // namespace wheelchair::diagnosis
