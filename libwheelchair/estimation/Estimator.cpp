@@ -2,8 +2,9 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/estimation/BaselineEkf.h"
-#include "libwheelchair/stats/Distributions.h"
 #include "libwheelchair/estimation/WheelchairEkf.h"
+#include "libwheelchair/io/MrclamImport.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include <sys/mman.h>
 
@@ -11,7 +12,9 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
+#include <deque>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <tuple>
 
@@ -133,6 +136,16 @@ std::vector<double> InputSignal::breakpoints(double t0, double t1) const {
 double InputSignal::nextSampleAfter(double t) const {
   const auto it = std::upper_bound(t_.begin(), t_.end(), t);
   return it == t_.end() ? std::numeric_limits<double>::infinity() : *it;
+}
+
+void InputSignal::discardBefore(double t) {
+  // Keep the last sample at or before t (u between it and the next one is still needed).
+  const auto it = std::upper_bound(t_.begin(), t_.end(), t);
+  const auto k = static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, it - t_.begin() - 1));
+  if (k < 8192 || 2 * k < t_.size()) return;  // amortised: erase when mostly dead
+  t_.erase(t_.begin(), t_.begin() + static_cast<std::ptrdiff_t>(k));
+  u_.erase(u_.begin(), u_.begin() + static_cast<std::ptrdiff_t>(k));
+  hint_ = hint_ >= k ? hint_ - k : 0;
 }
 
 bool InputSignal::isSampleTime(double t) const {
@@ -320,28 +333,17 @@ namespace {
 
 enum EventKind : int { kEncStart = 0, kEncInterval = 1, kGyro = 2, kSonar = 3, kPozyx = 4 };
 
+/// One measurement in the merged order: (t, kind), then the stream's own (time, value) order.
 struct Event {
-  double t;
-  int kind;
-  std::size_t index;
+  double t = 0;
+  int kind = 0;
+  std::size_t stored = 0;  ///< index of the sample (interval: its closing sample) as stored
+  sensors::WheelSpeedInterval iv;
+  double a = 0, b = 0;  ///< gyro z / sonar range / Pozyx x, y
 };
 
-/// The stream itself when it is already in `less` order (the usual, time-ordered recording:
-/// no copy; `order` stays empty, meaning the identity), else a stable-sorted copy kept in
-/// `store`, with in `order` the index in v of each sorted element (to name a sample as stored
-/// when something fails).
-template <typename T, typename Less>
-const std::vector<T>& sortedView(const std::vector<T>& v, std::vector<T>& store,
-                                 std::vector<std::size_t>& order, Less less) {
-  if (std::is_sorted(v.begin(), v.end(), less)) return v;
-  order.resize(v.size());
-  for (std::size_t i = 0; i < v.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::size_t a, std::size_t b) { return less(v[a], v[b]); });
-  store.clear();
-  store.reserve(v.size());
-  for (const std::size_t i : order) store.push_back(v[i]);
-  return store;
+bool eventLess(const Event& x, const Event& y) {
+  return std::tie(x.t, x.kind) < std::tie(y.t, y.kind);
 }
 
 /// Stream label (as in the rawlog) of an event kind.
@@ -359,80 +361,309 @@ const char* eventStream(int kind) {
   }
 }
 
-EstimationResult runEstimatorImpl(const io::Recording& rec, const config::WheelchairConfig& cfg,
+/// One stream in (time, value) order, stable (equal samples keep their stored order): either
+/// an in-memory vector (the vector itself when already in order, else a sorted copy) or
+/// samples pushed as read from a file, kept in a heap until the merge takes them.
+template <typename T>
+class SortedStream {
+ public:
+  using Less = bool (*)(const T&, const T&);
+  explicit SortedStream(Less less) : less_(less) {}
+
+  void attach(const std::vector<T>& v) {
+    if (std::is_sorted(v.begin(), v.end(), less_)) {
+      view_ = &v;
+      return;
+    }
+    std::vector<std::size_t> order(v.size());
+    for (std::size_t i = 0; i < v.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return less_(v[a], v[b]); });
+    store_.reserve(v.size());
+    for (const std::size_t i : order) store_.push_back(v[i]);
+    order_ = std::move(order);
+    view_ = &store_;
+  }
+  void push(const T& s, std::size_t stored) {
+    heap_.push_back({s, stored});
+    std::push_heap(heap_.begin(), heap_.end(), later_);
+  }
+  /// The next sample if it is known complete: its time is below `watermark` (all samples
+  /// before the watermark have been pushed); null otherwise or when the stream is done.
+  const T* head(double watermark) const {
+    if (view_) return pos_ < view_->size() ? &(*view_)[pos_] : nullptr;
+    return !heap_.empty() && heap_.front().s.t_s < watermark ? &heap_.front().s : nullptr;
+  }
+  /// Index as stored of the current head.
+  std::size_t headStored() const {
+    if (view_) return pos_ < order_.size() ? order_[pos_] : pos_;
+    return heap_.front().stored;
+  }
+  void pop() {
+    if (view_) {
+      ++pos_;
+      return;
+    }
+    std::pop_heap(heap_.begin(), heap_.end(), later_);
+    heap_.pop_back();
+  }
+  /// Nothing buffered (with the file read to its end: the stream is done).
+  bool drained() const { return view_ ? pos_ >= view_->size() : heap_.empty(); }
+
+ private:
+  struct Item {
+    T s;
+    std::size_t stored;
+  };
+  Less less_;
+  const std::vector<T>* view_ = nullptr;
+  std::vector<T> store_;
+  std::vector<std::size_t> order_;
+  std::size_t pos_ = 0;
+  struct Later {  // heap order: x comes after y
+    Less less;
+    bool operator()(const Item& x, const Item& y) const {
+      return less(y.s, x.s) || (!less(x.s, y.s) && x.stored > y.stored);
+    }
+  };
+  std::vector<Item> heap_;
+  Later later_{less_};
+};
+
+bool encLess(const io::EncoderSample& a, const io::EncoderSample& b) {
+  return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
+         std::tie(b.t_s, b.right_ticks, b.left_ticks);
+}
+bool imuLess(const io::ImuSample& a, const io::ImuSample& b) {
+  return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);
+}
+bool sonarLess(const io::SonarSample& a, const io::SonarSample& b) {
+  return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
+}
+bool pozyxLess(const io::PozyxSample& a, const io::PozyxSample& b) {
+  return std::tie(a.t_s, a.x_m, a.y_m) < std::tie(b.t_s, b.x_m, b.y_m);
+}
+
+/// The measurements of every used stream merged into one time-ordered event sequence
+/// (header comment of Estimator.h), from in-memory streams or from samples pushed as read.
+/// Pushed samples are released only when complete: below the watermark (see
+/// io/RawlogStream.h), and only once the input signal is known past them.
+class EventMerger {
+ public:
+  /// `counts`: the samples each stream will deliver in all.
+  EventMerger(const config::WheelchairConfig& cfg, const EkfOptions& opt,
+              const io::RecordingSummary& counts, InputSignal& input)
+      : opt_(opt),
+        input_(input),
+        conv_(cfg.encoders.params, cfg.vehicle.geom.wheel_radius_m, cfg.vehicle.geom.track_width_m),
+        enc_total_(counts.count(io::StreamKind::Encoders)),
+        mot_total_(counts.count(io::StreamKind::Motors)) {}
+
+  void attach(const io::Recording& rec) {
+    enc_.attach(rec.encoders);
+    imu_.attach(rec.imu);
+    mot_.attach(rec.motors);
+    son_.attach(rec.sonar);
+    poz_.attach(rec.pozyx);
+  }
+  /// A sample as read (file order; index within its stream). Streams not used are dropped.
+  void push(const io::AnySample& s, std::size_t stored) {
+    if (auto* e = std::get_if<io::EncoderSample>(&s)) {
+      if (opt_.use_encoders) enc_.push(*e, stored);
+    } else if (auto* g = std::get_if<io::ImuSample>(&s)) {
+      if (opt_.use_gyro) imu_.push(*g, stored);
+    } else if (auto* m = std::get_if<io::MotorSample>(&s)) {
+      mot_.push(*m, stored);
+    } else if (auto* r = std::get_if<io::SonarSample>(&s)) {
+      if (opt_.use_sonar) son_.push(*r, stored);
+    } else if (auto* p = std::get_if<io::PozyxSample>(&s)) {
+      if (opt_.use_pozyx) poz_.push(*p, stored);
+    }
+  }
+  /// Everything before `t` has been pushed; `eof`: everything has.
+  void setWatermark(double t, bool eof) {
+    watermark_ = t;
+    eof_ = eof;
+  }
+  bool eof() const { return eof_; }
+
+  /// The next event if it can be decided from what was pushed so far: false with `more` set
+  /// when more samples are needed, false with `more` clear at the end.
+  bool next(Event& out, bool& more) {
+    pumpMotors();
+    pumpEncoders();
+    Event best;
+    bool have = false;
+    const auto consider = [&](const Event& e) {
+      if (!have || eventLess(e, best)) {
+        best = e;
+        have = true;
+      }
+    };
+    if (!enc_events_.empty()) consider(enc_events_.front());
+    if (opt_.use_gyro)
+      if (const auto* s = imu_.head(watermark_))
+        consider({s->t_s, kGyro, imu_.headStored(), {}, s->gyro_z_rad_s, 0});
+    if (opt_.use_sonar)
+      if (const auto* s = son_.head(watermark_))
+        consider({s->t_s, kSonar, son_.headStored(), {}, s->range_m, 0});
+    if (opt_.use_pozyx)
+      if (const auto* s = poz_.head(watermark_))
+        consider({s->t_s, kPozyx, poz_.headStored(), {}, s->x_m, s->y_m});
+    more = false;
+    if (!have) {
+      more = !eof_;
+      return false;
+    }
+    // Anything not yet known comes at or after the watermark; a pending encoder start (first
+    // sample seen, no interval yet) would come at its reference time, before same-time events.
+    double bound = eof_ ? std::numeric_limits<double>::infinity() : watermark_;
+    if (conv_.started() && !first_interval_ && enc_used_ < enc_total_)
+      bound = std::min(bound, conv_.referenceTime());
+    const bool input_known = motor_t_max_ > best.t || mot_used_ >= mot_total_;
+    if (!(best.t < bound) || !input_known) {
+      more = true;  // (at the end of the file both conditions hold)
+      return false;
+    }
+    out = best;
+    switch (best.kind) {
+      case kEncStart:
+      case kEncInterval:
+        enc_events_.pop_front();
+        break;
+      case kGyro:
+        imu_.pop();
+        break;
+      case kSonar:
+        son_.pop();
+        break;
+      default:
+        poz_.pop();
+    }
+    return true;
+  }
+
+ private:
+  void pumpMotors() {
+    while (const auto* m = mot_.head(watermark_)) {
+      input_.add(*m);
+      motor_t_max_ = m->t_s;
+      mot_.pop();
+      ++mot_used_;
+    }
+  }
+  void pumpEncoders() {
+    if (!opt_.use_encoders) return;
+    while (enc_events_.empty()) {
+      const auto* s = enc_.head(watermark_);
+      if (!s) return;
+      if (!conv_.started()) start_stored_ = enc_.headStored();
+      const std::size_t stored = enc_.headStored();
+      const auto iv = conv_.add(*s);
+      enc_.pop();
+      ++enc_used_;
+      if (!iv) continue;
+      if (!first_interval_) {
+        first_interval_ = true;
+        enc_events_.push_back({iv->t0_s, kEncStart, start_stored_, {}, 0, 0});
+      }
+      enc_events_.push_back({iv->t1_s, kEncInterval, stored, *iv, 0, 0});
+    }
+  }
+
+  const EkfOptions& opt_;
+  InputSignal& input_;
+  sensors::WheelSpeedConverter conv_;
+  SortedStream<io::EncoderSample> enc_{encLess};
+  SortedStream<io::ImuSample> imu_{imuLess};
+  SortedStream<io::MotorSample> mot_{motorLess};
+  SortedStream<io::SonarSample> son_{sonarLess};
+  SortedStream<io::PozyxSample> poz_{pozyxLess};
+  std::deque<Event> enc_events_;
+  std::size_t start_stored_ = 0;
+  bool first_interval_ = false;
+  std::size_t enc_total_, mot_total_, enc_used_ = 0, mot_used_ = 0;
+  double motor_t_max_ = -std::numeric_limits<double>::infinity();
+  double watermark_ = std::numeric_limits<double>::infinity();
+  bool eof_ = true;
+};
+
+/// Where the samples come from: a recording in memory, or a rawlog read as a stream.
+struct Source {
+  const io::Recording* rec = nullptr;
+  const std::string* path = nullptr;
+  io::RecordingSummary summary;
+};
+
+EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairConfig& cfg,
                                   const EkfOptions& options, EstimateSink* sink,
                                   const std::function<void(double)>& progress) {
   EkfOptions opt = options;
   opt.resolveSensorDefaults(cfg);
   opt.validate();
+  const auto& counts = src.summary;
+  using io::StreamKind;
 
   InputSignal input(opt.input_interpolation);
-  input.setSamples(rec.motors);
   auto est = makeEstimator(cfg, opt, &input);
   est->keepNisRecords(sink == nullptr);
   EstimationResult& res = est->result();
+  if (!opt.use_encoders)
+    res.sensors[int(Sensor::Encoders)].skipped = long(counts.count(StreamKind::Encoders));
+  if (!opt.use_gyro) res.sensors[int(Sensor::Gyro)].skipped = long(counts.count(StreamKind::Imu));
+  if (!opt.use_sonar)
+    res.sensors[int(Sensor::Sonar)].skipped = long(counts.count(StreamKind::Sonar));
+  if (!opt.use_pozyx)
+    res.sensors[int(Sensor::Pozyx)].skipped = long(counts.count(StreamKind::Pozyx));
+  // Expected number of events (progress, and the result's size when stored).
+  const std::size_t n_expected = (opt.use_encoders ? counts.count(StreamKind::Encoders) : 0) +
+                                 (opt.use_gyro ? counts.count(StreamKind::Imu) : 0) +
+                                 (opt.use_sonar ? counts.count(StreamKind::Sonar) : 0) +
+                                 (opt.use_pozyx ? counts.count(StreamKind::Pozyx) : 0);
 
-  // Every stream sorted by (time, value): the same multiset of samples gives the same order.
-  // order[k][i]: index in the recording's stream of the i-th sorted sample (error messages;
-  // empty when the stream was stored in order).
-  std::array<std::vector<std::size_t>, 5> order;
-  std::vector<io::EncoderSample> enc_store;
-  std::vector<io::ImuSample> imu_store;
-  std::vector<io::SonarSample> son_store;
-  std::vector<io::PozyxSample> poz_store;
-  const auto& enc = sortedView(rec.encoders, enc_store, order[kEncStart],
-                               [](const io::EncoderSample& a, const io::EncoderSample& b) {
-                                 return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
-                                        std::tie(b.t_s, b.right_ticks, b.left_ticks);
-                               });
-  const auto& imu = sortedView(rec.imu, imu_store, order[kGyro],
-                               [](const io::ImuSample& a, const io::ImuSample& b) {
-                                 return std::tie(a.t_s, a.gyro_z_rad_s) <
-                                        std::tie(b.t_s, b.gyro_z_rad_s);
-                               });
-  const auto& son = sortedView(rec.sonar, son_store, order[kSonar],
-                               [](const io::SonarSample& a, const io::SonarSample& b) {
-                                 return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
-                               });
-  const auto& poz = sortedView(rec.pozyx, poz_store, order[kPozyx],
-                               [](const io::PozyxSample& a, const io::PozyxSample& b) {
-                                 return std::tie(a.t_s, a.x_m, a.y_m) <
-                                        std::tie(b.t_s, b.x_m, b.y_m);
-                               });
-
-  std::vector<Event> ev;
-  std::vector<sensors::WheelSpeedInterval> iv;
-  if (opt.use_encoders) {
-    iv = sensors::wheelSpeedsFromTicks(enc, cfg.encoders.params, cfg.vehicle.geom);
-    if (!iv.empty()) ev.push_back({iv.front().t0_s, kEncStart, 0});
-    for (std::size_t i = 0; i < iv.size(); ++i) ev.push_back({iv[i].t1_s, kEncInterval, i});
+  EventMerger merger(cfg, opt, counts, input);
+  std::optional<io::RawlogSampleReader> reader;
+  double t_read_max = -std::numeric_limits<double>::infinity();
+  if (src.rec) {
+    merger.attach(*src.rec);
   } else {
-    res.sensors[int(Sensor::Encoders)].skipped = static_cast<long>(enc.size());
+    reader.emplace(*src.path);
+    merger.setWatermark(t_read_max, false);
   }
-  auto addStream = [&](bool use, std::size_t n, const auto& timeOf, int kind, Sensor s) {
-    if (!use) {
-      res.sensors[int(s)].skipped = static_cast<long>(n);
-      return;
+  // Reads a block of samples and moves the watermark; false at the end of the file.
+  const auto feed = [&] {
+    io::AnySample s;
+    std::size_t k = 0;
+    for (int i = 0; i < 4096; ++i) {
+      if (!reader->next(s, k)) {
+        merger.setWatermark(std::numeric_limits<double>::infinity(), true);
+        return false;
+      }
+      t_read_max = std::max(t_read_max, io::timeOf(s));
+      merger.push(s, k);
     }
-    for (std::size_t i = 0; i < n; ++i) ev.push_back({timeOf(i), kind, i});
+    merger.setWatermark(t_read_max - counts.lateness_s, false);
+    return true;
   };
-  addStream(
-      opt.use_gyro, imu.size(), [&](std::size_t i) { return imu[i].t_s; }, kGyro, Sensor::Gyro);
-  addStream(
-      opt.use_sonar, son.size(), [&](std::size_t i) { return son[i].t_s; }, kSonar, Sensor::Sonar);
-  addStream(
-      opt.use_pozyx, poz.size(), [&](std::size_t i) { return poz[i].t_s; }, kPozyx, Sensor::Pozyx);
-  std::stable_sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) {
-    return std::tie(a.t, a.kind, a.index) < std::tie(b.t, b.kind, b.index);
-  });
-  if (ev.empty()) {
+  const auto nextEvent = [&](Event& e) {
+    bool more = false;
+    while (!merger.next(e, more)) {
+      if (!more) return false;
+      feed();
+    }
+    return true;
+  };
+
+  Event E, N;
+  bool have = nextEvent(E);
+  if (!have) {
     res.warnings.push_back("no measurements: nothing estimated");
     return std::move(res);
   }
-  if (opt.filter == FilterKind::Physics && input.empty())
+  if (opt.filter == FilterKind::Physics && counts.count(StreamKind::Motors) == 0)
     res.warnings.push_back("no motor currents: the input is held at 0 A");
 
-  const double t0 = ev.front().t;
+  const double t0 = E.t;
   est->start(t0);
   const bool fixed_rate = opt.output_rate_hz > 0;
   // Sized once: growing a vector of ~0.5 kB samples by doubling was a third of the baseline
@@ -440,9 +671,9 @@ EstimationResult runEstimatorImpl(const io::Recording& rec, const config::Wheelc
   // nothing: memory stays flat however long the drive.
   if (!sink) {
     res.estimates.reserve(
-        fixed_rate ? static_cast<std::size_t>((ev.back().t - t0) * opt.output_rate_hz) + 2
-                   : ev.size());
-    res.nis.reserve(ev.size());
+        fixed_rate ? static_cast<std::size_t>((counts.end_s - t0) * opt.output_rate_hz) + 2
+                   : n_expected);
+    res.nis.reserve(n_expected);
   }
   const auto emit = [&](const EstimateSample& s) {
     ++res.n_estimates;
@@ -455,11 +686,9 @@ EstimationResult runEstimatorImpl(const io::Recording& rec, const config::Wheelc
   };
   long k_out = 0;
   auto nextOut = [&] { return t0 + static_cast<double>(k_out) / opt.output_rate_hz; };
-  const std::size_t progress_every = std::max<std::size_t>(1, ev.size() / 100);
-  const auto processEvent = [&](std::size_t e) {
-    const Event& E = ev[e];
+  const auto processEvent = [&](const Event& e) {
     if (fixed_rate) {
-      while (nextOut() <= E.t) {
+      while (nextOut() <= e.t) {
         est->predictTo(nextOut());
         EstimateSample s = est->estimate();
         s.t_s = nextOut();
@@ -467,52 +696,48 @@ EstimationResult runEstimatorImpl(const io::Recording& rec, const config::Wheelc
         ++k_out;
       }
     }
-    est->predictTo(E.t);
-    switch (E.kind) {
+    est->predictTo(e.t);
+    switch (e.kind) {
       case kEncStart:
-        est->encoderStart(E.t);
+        est->encoderStart(e.t);
         break;
       case kEncInterval:
-        est->encoderInterval(iv[E.index]);
+        est->encoderInterval(e.iv);
         break;
       case kGyro:
-        est->gyro(E.t, imu[E.index].gyro_z_rad_s);
+        est->gyro(e.t, e.a);
         break;
       case kSonar:
-        est->sonar(E.t, son[E.index].range_m);
+        est->sonar(e.t, e.a);
         break;
       case kPozyx:
-        est->pozyx(E.t, Eigen::Vector2d(poz[E.index].x_m, poz[E.index].y_m));
+        est->pozyx(e.t, Eigen::Vector2d(e.a, e.b));
         break;
     }
-    // One output per measurement time (after all measurements of that time).
-    if (!fixed_rate && (e + 1 == ev.size() || ev[e + 1].t != E.t)) emit(est->estimate());
   };
   // Names the measurement being processed when a filter fails (e.g. CVODE after a clock jump):
   // stream, sample index as stored in the recording (0-based) and time.
-  const auto describe = [&](const Event& E) {
-    std::size_t sorted = E.index;
-    if (E.kind == kEncInterval) {
-      // The interval ends at an encoder sample: find it among the sorted samples.
-      const auto it =
-          std::lower_bound(enc.begin(), enc.end(), iv[E.index].t1_s,
-                           [](const io::EncoderSample& a, double t) { return a.t_s < t; });
-      sorted = static_cast<std::size_t>(it - enc.begin());
-    } else if (E.kind == kEncStart) {
-      sorted = 0;
-    }
-    const auto& ord = order[E.kind == kEncInterval ? kEncStart : E.kind];
-    const std::size_t stored = sorted < ord.size() ? ord[sorted] : sorted;
-    return fmt::format("{} sample {} (t = {:.6f} s)", eventStream(E.kind), stored, E.t);
-  };
-  for (std::size_t e = 0; e < ev.size(); ++e) {
-    const Event& E = ev[e];
-    if (progress && e % progress_every == 0) progress(static_cast<double>(e) / ev.size());
+  const auto named = [&](const Event& e, const auto& f) {
     try {
-      processEvent(e);
+      f();
     } catch (const std::exception& ex) {
-      throw std::runtime_error(fmt::format("{}: {}", describe(E), ex.what()));
+      throw std::runtime_error(fmt::format("{} sample {} (t = {:.6f} s): {}", eventStream(e.kind),
+                                           e.stored, e.t, ex.what()));
     }
+  };
+  const std::size_t progress_every = std::max<std::size_t>(1, n_expected / 100);
+  std::size_t done = 0;
+  while (have) {
+    if (progress && done % progress_every == 0)
+      progress(std::min(1.0, static_cast<double>(done) / std::max<std::size_t>(n_expected, 1)));
+    named(E, [&] { processEvent(E); });
+    ++done;
+    // Samples of the input signal the filter has passed are dropped (streaming only).
+    if (reader) input.discardBefore(E.t - 1.0);
+    have = nextEvent(N);
+    // One output per measurement time (after all measurements of that time).
+    if (!fixed_rate && (!have || N.t != E.t)) named(E, [&] { emit(est->estimate()); });
+    E = N;
   }
   if (!res.estimates.empty()) res.last = res.estimates.back();
   if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) res.cvode = w->filter().stats();
@@ -524,13 +749,36 @@ EstimationResult runEstimatorImpl(const io::Recording& rec, const config::Wheelc
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
                               const EkfOptions& options,
                               const std::function<void(double)>& progress) {
-  return runEstimatorImpl(rec, cfg, options, nullptr, progress);
+  return runEstimatorImpl({&rec, nullptr, io::summarize(rec)}, cfg, options, nullptr, progress);
 }
 
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
                               const EkfOptions& options, EstimateSink& sink,
                               const std::function<void(double)>& progress) {
-  return runEstimatorImpl(rec, cfg, options, &sink, progress);
+  return runEstimatorImpl({&rec, nullptr, io::summarize(rec)}, cfg, options, &sink, progress);
+}
+
+EstimationResult runEstimator(const std::string& rawlog, const io::RecordingSummary& summary,
+                              const config::WheelchairConfig& cfg, const EkfOptions& options,
+                              EstimateSink& sink, const std::function<void(double)>& progress) {
+  return runEstimatorImpl({nullptr, &rawlog, summary}, cfg, options, &sink, progress);
+}
+
+EstimatorFamily selectEstimator(const io::RecordingSummary& rec, const std::string& forced) {
+  if (forced == "command") return EstimatorFamily::CommandDriven;
+  if (!forced.empty()) return EstimatorFamily::Wheelchair;
+  using io::StreamKind;
+  const bool wheelchair_streams = rec.count(StreamKind::Encoders) || rec.count(StreamKind::Imu) ||
+                                  rec.count(StreamKind::Sonar) || rec.count(StreamKind::Pozyx);
+  io::Recording meta_only;
+  meta_only.meta = rec.meta;
+  const bool landmarks = rec.count(StreamKind::Landmarks) || !io::landmarkMap(meta_only).empty();
+  return landmarks && !wheelchair_streams ? EstimatorFamily::CommandDriven
+                                          : EstimatorFamily::Wheelchair;
+}
+
+EstimatorFamily selectEstimator(const io::Recording& rec, const std::string& forced) {
+  return selectEstimator(io::summarize(rec), forced);
 }
 
 }  // namespace wheelchair::estimation

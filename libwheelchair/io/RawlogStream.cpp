@@ -1,0 +1,87 @@
+#include "libwheelchair/io/RawlogStream.h"
+
+#include <algorithm>
+#include <limits>
+
+namespace wheelchair::io {
+
+std::size_t RecordingSummary::size() const {
+  std::size_t n = 0;
+  for (const std::size_t c : counts) n += c;
+  return n;
+}
+
+RecordingSummary summarize(const Recording& rec) {
+  RecordingSummary s;
+  s.counts = {rec.encoders.size(),     rec.imu.size(),      rec.motors.size(),
+              rec.sonar.size(),        rec.pozyx.size(),    rec.joystick.size(),
+              rec.ground_truth.size(), rec.landmarks.size()};
+  s.start_s = rec.startTime();
+  s.end_s = rec.endTime();
+  s.lateness_s = std::numeric_limits<double>::infinity();
+  s.meta = rec.meta;
+  return s;
+}
+
+RawlogSampleReader::RawlogSampleReader(const std::string& path) : in_(path) {}
+
+bool RawlogSampleReader::next(AnySample& s, std::size_t& stream_index) {
+  mrpt::serialization::CSerializable::Ptr obj;
+  while (in_.next(obj)) {
+    auto o = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj);
+    if (!o) {
+      ++ignored_;
+      continue;
+    }
+    if (auto text = io::headerText(*o)) {
+      header_text_ = *text;
+      continue;
+    }
+    auto sample = fromObservation(*o);
+    if (!sample) {
+      ++ignored_;
+      continue;
+    }
+    s = std::move(*sample);
+    stream_index = index_[s.index()]++;
+    return true;
+  }
+  return false;
+}
+
+RecordingSummary scanRawlog(const std::string& path) {
+  RecordingSummary sum;
+  RawlogSampleReader in(path);
+  AnySample s;
+  std::size_t k = 0;
+  double t_min = std::numeric_limits<double>::infinity();
+  double t_max = -std::numeric_limits<double>::infinity();
+  while (in.next(s, k)) {
+    const double t = timeOf(s);
+    if (t_max - t > sum.lateness_s) sum.lateness_s = t_max - t;
+    t_min = std::min(t_min, t);
+    t_max = std::max(t_max, t);
+    ++sum.counts[s.index()];
+  }
+  if (sum.size()) {
+    sum.start_s = t_min;
+    sum.end_s = t_max;
+  }
+  sum.report.records = in.recordsRead();
+  sum.report.ignored = in.ignored_;
+  sum.report.broken = in.error();
+  sum.report.header_text = in.header_text_;
+  if (!in.header_text_.empty()) sum.meta = headerMeta(in.header_text_);
+  return sum;
+}
+
+RecordingSummary scanRawlogSalvaging(const std::string& path, bool salvage, std::string* warning) {
+  RecordingSummary sum = scanRawlog(path);
+  if (sum.report.broken) {
+    const std::string w = salvageOrThrow(path, *sum.report.broken, sum.size(), salvage);
+    if (warning) *warning = w;
+  }
+  return sum;
+}
+
+}  // namespace wheelchair::io
