@@ -343,22 +343,32 @@ int runFilter(const FilterCliOptions& o) {
   }
   if (o.variants) {
     const std::string base = o.trajectory.empty() ? "filter.tum" : o.trajectory;
-    // One variant at a time: written, measured, dropped.
-    auto writeVariant = [](const std::string& path,
-                           const std::vector<estimation::DeadReckoningSample>& dr) {
-      evaluation::TumWriter tum(path);  // time-ordered already: no trajectory copy
-      for (const auto& p : dr) tum.add({p.t_s, p.x_m, p.y_m, p.phi_rad});
+    // One variant at a time, each pose written as it is produced (streamed from the rawlog
+    // unless the model extensions hold a corrected recording).
+    const auto writeVariant = [&](const std::string& path, bool with_gyro) {
+      evaluation::TumWriter tum(path);
+      const auto add = [&](const estimation::DeadReckoningSample& p) {
+        tum.add({p.t_s, p.x_m, p.y_m, p.phi_rad});
+      };
+      double d_path = 0;
+      if (rec) {
+        const auto& p = cfg.encoders.params;
+        const auto dr = with_gyro ? estimation::deadReckoningEncoderGyro(rec->encoders, rec->imu,
+                                                                         p, cfg.vehicle.geom)
+                                  : estimation::deadReckoningEncoders(rec->encoders, p,
+                                                                      cfg.vehicle.geom);
+        for (const auto& x : dr) add(x);
+        d_path = estimation::pathLength(dr);
+      } else {
+        d_path = estimation::deadReckonRawlog(o.input, sum, with_gyro, cfg.encoders.params,
+                                              cfg.vehicle.geom, add)
+                     .path_m;
+      }
       tum.commit();
-      return estimation::pathLength(dr);
+      return d_path;
     };
-    if (!rec) rec = readAll();
-    const double d_enc = writeVariant(
-        withSuffix(base, "_encoders"),
-        estimation::deadReckoningEncoders(rec->encoders, cfg.encoders.params, cfg.vehicle.geom));
-    const double d_encg =
-        writeVariant(withSuffix(base, "_encoders_gyro"),
-                     estimation::deadReckoningEncoderGyro(rec->encoders, rec->imu,
-                                                          cfg.encoders.params, cfg.vehicle.geom));
+    const double d_enc = writeVariant(withSuffix(base, "_encoders"), false);
+    const double d_encg = writeVariant(withSuffix(base, "_encoders_gyro"), true);
     fmt::print("Fig. 5 variants: {} (d_path {:.2f} m), {} (d_path {:.2f} m)\n",
                withSuffix(base, "_encoders"), d_enc, withSuffix(base, "_encoders_gyro"), d_encg);
   }

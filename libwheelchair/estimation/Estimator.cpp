@@ -72,15 +72,9 @@ const EstimateSample& EstimationResult::final() const {
 // ---------------------------------------------------------------------------------------------
 // InputSignal
 
-namespace {
-bool motorLess(const io::MotorSample& a, const io::MotorSample& b) {
-  return std::tie(a.t_s, a.current_right_A, a.current_left_A, a.vrc_right_V, a.vrc_left_V) <
-         std::tie(b.t_s, b.current_right_A, b.current_left_A, b.vrc_right_V, b.vrc_left_V);
-}
-}  // namespace
 
 void InputSignal::setSamples(std::vector<io::MotorSample> s) {
-  std::sort(s.begin(), s.end(), motorLess);
+  std::sort(s.begin(), s.end(), io::motorLess);
   t_.clear();
   u_.clear();
   for (const auto& m : s) {
@@ -361,89 +355,6 @@ const char* eventStream(int kind) {
   }
 }
 
-/// One stream in (time, value) order, stable (equal samples keep their stored order): either
-/// an in-memory vector (the vector itself when already in order, else a sorted copy) or
-/// samples pushed as read from a file, kept in a heap until the merge takes them.
-template <typename T>
-class SortedStream {
- public:
-  using Less = bool (*)(const T&, const T&);
-  explicit SortedStream(Less less) : less_(less) {}
-
-  void attach(const std::vector<T>& v) {
-    if (std::is_sorted(v.begin(), v.end(), less_)) {
-      view_ = &v;
-      return;
-    }
-    std::vector<std::size_t> order(v.size());
-    for (std::size_t i = 0; i < v.size(); ++i) order[i] = i;
-    std::stable_sort(order.begin(), order.end(),
-                     [&](std::size_t a, std::size_t b) { return less_(v[a], v[b]); });
-    store_.reserve(v.size());
-    for (const std::size_t i : order) store_.push_back(v[i]);
-    order_ = std::move(order);
-    view_ = &store_;
-  }
-  void push(const T& s, std::size_t stored) {
-    heap_.push_back({s, stored});
-    std::push_heap(heap_.begin(), heap_.end(), later_);
-  }
-  /// The next sample if it is known complete: its time is below `watermark` (all samples
-  /// before the watermark have been pushed); null otherwise or when the stream is done.
-  const T* head(double watermark) const {
-    if (view_) return pos_ < view_->size() ? &(*view_)[pos_] : nullptr;
-    return !heap_.empty() && heap_.front().s.t_s < watermark ? &heap_.front().s : nullptr;
-  }
-  /// Index as stored of the current head.
-  std::size_t headStored() const {
-    if (view_) return pos_ < order_.size() ? order_[pos_] : pos_;
-    return heap_.front().stored;
-  }
-  void pop() {
-    if (view_) {
-      ++pos_;
-      return;
-    }
-    std::pop_heap(heap_.begin(), heap_.end(), later_);
-    heap_.pop_back();
-  }
-  /// Nothing buffered (with the file read to its end: the stream is done).
-  bool drained() const { return view_ ? pos_ >= view_->size() : heap_.empty(); }
-
- private:
-  struct Item {
-    T s;
-    std::size_t stored;
-  };
-  Less less_;
-  const std::vector<T>* view_ = nullptr;
-  std::vector<T> store_;
-  std::vector<std::size_t> order_;
-  std::size_t pos_ = 0;
-  struct Later {  // heap order: x comes after y
-    Less less;
-    bool operator()(const Item& x, const Item& y) const {
-      return less(y.s, x.s) || (!less(x.s, y.s) && x.stored > y.stored);
-    }
-  };
-  std::vector<Item> heap_;
-  Later later_{less_};
-};
-
-bool encLess(const io::EncoderSample& a, const io::EncoderSample& b) {
-  return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
-         std::tie(b.t_s, b.right_ticks, b.left_ticks);
-}
-bool imuLess(const io::ImuSample& a, const io::ImuSample& b) {
-  return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);
-}
-bool sonarLess(const io::SonarSample& a, const io::SonarSample& b) {
-  return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
-}
-bool pozyxLess(const io::PozyxSample& a, const io::PozyxSample& b) {
-  return std::tie(a.t_s, a.x_m, a.y_m) < std::tie(b.t_s, b.x_m, b.y_m);
-}
-
 /// The measurements of every used stream merged into one time-ordered event sequence
 /// (header comment of Estimator.h), from in-memory streams or from samples pushed as read.
 /// Pushed samples are released only when complete: below the watermark (see
@@ -574,11 +485,11 @@ class EventMerger {
   const EkfOptions& opt_;
   InputSignal& input_;
   sensors::WheelSpeedConverter conv_;
-  SortedStream<io::EncoderSample> enc_{encLess};
-  SortedStream<io::ImuSample> imu_{imuLess};
-  SortedStream<io::MotorSample> mot_{motorLess};
-  SortedStream<io::SonarSample> son_{sonarLess};
-  SortedStream<io::PozyxSample> poz_{pozyxLess};
+  io::SortedStream<io::EncoderSample> enc_{io::encoderLess};
+  io::SortedStream<io::ImuSample> imu_{io::imuLess};
+  io::SortedStream<io::MotorSample> mot_{io::motorLess};
+  io::SortedStream<io::SonarSample> son_{io::sonarLess};
+  io::SortedStream<io::PozyxSample> poz_{io::pozyxLess};
   std::deque<Event> enc_events_;
   std::size_t start_stored_ = 0;
   bool first_interval_ = false;
@@ -622,28 +533,17 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
                                  (opt.use_pozyx ? counts.count(StreamKind::Pozyx) : 0);
 
   EventMerger merger(cfg, opt, counts, input);
-  std::optional<io::RawlogSampleReader> reader;
-  double t_read_max = -std::numeric_limits<double>::infinity();
+  std::optional<io::RawlogWindowReader> reader;
   if (src.rec) {
     merger.attach(*src.rec);
   } else {
-    reader.emplace(*src.path);
-    merger.setWatermark(t_read_max, false);
+    reader.emplace(*src.path, counts.lateness_s);
+    merger.setWatermark(reader->watermark(), false);
   }
-  // Reads a block of samples and moves the watermark; false at the end of the file.
+  // Reads a block of samples and moves the watermark.
   const auto feed = [&] {
-    io::AnySample s;
-    std::size_t k = 0;
-    for (int i = 0; i < 4096; ++i) {
-      if (!reader->next(s, k)) {
-        merger.setWatermark(std::numeric_limits<double>::infinity(), true);
-        return false;
-      }
-      t_read_max = std::max(t_read_max, io::timeOf(s));
-      merger.push(s, k);
-    }
-    merger.setWatermark(t_read_max - counts.lateness_s, false);
-    return true;
+    reader->read([&](const io::AnySample& s, std::size_t k) { merger.push(s, k); });
+    merger.setWatermark(reader->watermark(), reader->eof());
   };
   const auto nextEvent = [&](Event& e) {
     bool more = false;

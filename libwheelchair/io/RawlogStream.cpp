@@ -2,8 +2,26 @@
 
 #include <algorithm>
 #include <limits>
+#include <tuple>
 
 namespace wheelchair::io {
+
+bool encoderLess(const EncoderSample& a, const EncoderSample& b) {
+  return std::tie(a.t_s, a.right_ticks, a.left_ticks) < std::tie(b.t_s, b.right_ticks, b.left_ticks);
+}
+bool imuLess(const ImuSample& a, const ImuSample& b) {
+  return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);
+}
+bool motorLess(const MotorSample& a, const MotorSample& b) {
+  return std::tie(a.t_s, a.current_right_A, a.current_left_A, a.vrc_right_V, a.vrc_left_V) <
+         std::tie(b.t_s, b.current_right_A, b.current_left_A, b.vrc_right_V, b.vrc_left_V);
+}
+bool sonarLess(const SonarSample& a, const SonarSample& b) {
+  return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
+}
+bool pozyxLess(const PozyxSample& a, const PozyxSample& b) {
+  return std::tie(a.t_s, a.x_m, a.y_m) < std::tie(b.t_s, b.x_m, b.y_m);
+}
 
 std::size_t RecordingSummary::size() const {
   std::size_t n = 0;
@@ -47,6 +65,22 @@ bool RawlogSampleReader::next(AnySample& s, std::size_t& stream_index) {
     return true;
   }
   return false;
+}
+
+void RawlogWindowReader::read(const std::function<void(const AnySample&, std::size_t)>& push,
+                              int block) {
+  AnySample s;
+  std::size_t k = 0;
+  for (int i = 0; i < block; ++i) {
+    if (!in_.next(s, k)) {
+      eof_ = true;
+      watermark_ = std::numeric_limits<double>::infinity();
+      return;
+    }
+    t_max_ = std::max(t_max_, timeOf(s));
+    push(s, k);
+  }
+  watermark_ = t_max_ - lateness_s_;
 }
 
 RecordingSummary scanRawlog(const std::string& path) {

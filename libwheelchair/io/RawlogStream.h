@@ -25,11 +25,15 @@
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/Samples.h"
 
+#include <algorithm>
 #include <array>
+#include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace wheelchair::io {
 
@@ -66,6 +70,105 @@ class RawlogSampleReader {
   std::size_t ignored_ = 0;
   std::string header_text_;
   friend RecordingSummary scanRawlog(const std::string& path);
+};
+
+/// Pass 2 with the merge window (see the header comment): read() passes a block of samples to
+/// `push` in file order and moves watermark(), below which every sample has been passed.
+class RawlogWindowReader {
+ public:
+  RawlogWindowReader(const std::string& path, double lateness_s) : in_(path), lateness_s_(lateness_s) {}
+  /// Reads up to `block` samples; at the end of the file eof() and watermark() = +infinity.
+  void read(const std::function<void(const AnySample&, std::size_t)>& push, int block = 4096);
+  double watermark() const { return watermark_; }
+  bool eof() const { return eof_; }
+
+ private:
+  RawlogSampleReader in_;
+  double lateness_s_;
+  double t_max_ = -std::numeric_limits<double>::infinity();
+  double watermark_ = -std::numeric_limits<double>::infinity();
+  bool eof_ = false;
+};
+
+/// The (time, value) order of each stream: time, then the values in declaration order (the
+/// order the estimators and dead reckoning sort a stream in, so that a recording's result
+/// does not depend on the order its samples were stored in).
+bool encoderLess(const EncoderSample& a, const EncoderSample& b);
+bool imuLess(const ImuSample& a, const ImuSample& b);  ///< time, gyro z
+bool motorLess(const MotorSample& a, const MotorSample& b);
+bool sonarLess(const SonarSample& a, const SonarSample& b);
+bool pozyxLess(const PozyxSample& a, const PozyxSample& b);  ///< time, x, y
+
+/// One stream in (time, value) order (`less`), stable (equal samples keep their stored order):
+/// either an in-memory vector (the vector itself when already in order, else a sorted copy)
+/// or samples pushed as read from a file, kept in a heap until taken. Example:
+///   SortedStream<ImuSample> s(imuLess);
+///   s.push(sample, k);                          // as read (k: index within the stream)
+///   while (auto* h = s.head(reader.watermark())) { use(*h); s.pop(); }
+template <typename T>
+class SortedStream {
+ public:
+  using Less = bool (*)(const T&, const T&);
+  explicit SortedStream(Less less) : less_(less) {}
+
+  void attach(const std::vector<T>& v) {
+    if (std::is_sorted(v.begin(), v.end(), less_)) {
+      view_ = &v;
+      return;
+    }
+    std::vector<std::size_t> order(v.size());
+    for (std::size_t i = 0; i < v.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return less_(v[a], v[b]); });
+    store_.reserve(v.size());
+    for (const std::size_t i : order) store_.push_back(v[i]);
+    order_ = std::move(order);
+    view_ = &store_;
+  }
+  void push(const T& s, std::size_t stored) {
+    heap_.push_back({s, stored});
+    std::push_heap(heap_.begin(), heap_.end(), later_);
+  }
+  /// The next sample if it is known complete: its time is below `watermark` (all samples
+  /// before the watermark have been pushed); null otherwise or when the stream is done.
+  const T* head(double watermark) const {
+    if (view_) return pos_ < view_->size() ? &(*view_)[pos_] : nullptr;
+    return !heap_.empty() && heap_.front().s.t_s < watermark ? &heap_.front().s : nullptr;
+  }
+  /// Index as stored of the current head.
+  std::size_t headStored() const {
+    if (view_) return pos_ < order_.size() ? order_[pos_] : pos_;
+    return heap_.front().stored;
+  }
+  void pop() {
+    if (view_) {
+      ++pos_;
+      return;
+    }
+    std::pop_heap(heap_.begin(), heap_.end(), later_);
+    heap_.pop_back();
+  }
+  /// Nothing buffered (with the file read to its end: the stream is done).
+  bool drained() const { return view_ ? pos_ >= view_->size() : heap_.empty(); }
+
+ private:
+  struct Item {
+    T s;
+    std::size_t stored;
+  };
+  Less less_;
+  const std::vector<T>* view_ = nullptr;
+  std::vector<T> store_;
+  std::vector<std::size_t> order_;
+  std::size_t pos_ = 0;
+  struct Later {  // heap order: x comes after y
+    Less less;
+    bool operator()(const Item& x, const Item& y) const {
+      return less(y.s, x.s) || (!less(x.s, y.s) && x.stored > y.stored);
+    }
+  };
+  std::vector<Item> heap_;
+  Later later_{less_};
 };
 
 /// Pass 1 (see the header comment). A broken file is not an error here: see report.broken.
