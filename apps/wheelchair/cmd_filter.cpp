@@ -353,10 +353,10 @@ int runFilter(const FilterCliOptions& o) {
       double d_path = 0;
       if (rec) {
         const auto& p = cfg.encoders.params;
-        const auto dr = with_gyro ? estimation::deadReckoningEncoderGyro(rec->encoders, rec->imu,
-                                                                         p, cfg.vehicle.geom)
-                                  : estimation::deadReckoningEncoders(rec->encoders, p,
-                                                                      cfg.vehicle.geom);
+        const auto dr =
+            with_gyro
+                ? estimation::deadReckoningEncoderGyro(rec->encoders, rec->imu, p, cfg.vehicle.geom)
+                : estimation::deadReckoningEncoders(rec->encoders, p, cfg.vehicle.geom);
         for (const auto& x : dr) add(x);
         d_path = estimation::pathLength(dr);
       } else {

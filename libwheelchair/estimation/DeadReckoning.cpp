@@ -3,8 +3,8 @@
 #include "libwheelchair/model/Kinematics.h"
 
 #include <algorithm>
-#include <deque>
 #include <cmath>
+#include <deque>
 #include <tuple>
 
 namespace wheelchair::estimation {
@@ -131,7 +131,8 @@ std::vector<DeadReckoningSample> deadReckoningEncoderGyro(const std::vector<io::
   for (const auto& [t, w] : gy) integ.addGyro(t, w);
   gy = {};
   integ.setGyroComplete();
-  for (const auto& w : iv) integ.interval(w, [&](const DeadReckoningSample& s) { out.push_back(s); });
+  for (const auto& w : iv)
+    integ.interval(w, [&](const DeadReckoningSample& s) { out.push_back(s); });
   return out;
 }
 

@@ -72,7 +72,6 @@ const EstimateSample& EstimationResult::final() const {
 // ---------------------------------------------------------------------------------------------
 // InputSignal
 
-
 void InputSignal::setSamples(std::vector<io::MotorSample> s) {
   std::sort(s.begin(), s.end(), io::motorLess);
   t_.clear();

@@ -8,8 +8,9 @@
 //   encoders_gyro  dead reckoning, encoder v + gyro omega (estimation::deadReckoningEncoderGyro)
 //   baseline       kinematic discrete EKF (filter=baseline), when BatchOptions::baseline
 //
-// Command-driven recordings (estimation::isCommandDrivenRecording: landmark sightings or a
-// landmark map, e.g. `wheelchair import --format mrclam`) get two rows instead:
+// Command-driven recordings (estimation::selectEstimator, the rule `filter` uses too: landmark
+// sightings or a landmark map and no encoder/IMU/sonar/Pozyx stream, e.g. `wheelchair import
+// --format mrclam`) get two rows instead:
 //
 //   ekf            command-driven EKF on commands + landmark range-bearing, map known
 //                  (estimation::runCommandDrivenEkf; options from the configuration's
@@ -189,6 +190,7 @@ std::string alignmentText(Alignment a, double first_s);
 /// encoders needs ENCODERS readings, encoders_gyro ENCODERS and IMU, ekf/baseline any of
 /// ENCODERS, IMU or SONAR.
 std::string variantNotApplicable(const std::string& variant, const io::Recording& rec);
+std::string variantNotApplicable(const std::string& variant, const io::RecordingSummary& rec);
 
 /// Evaluates one recording (never throws: failures become error rows).
 std::vector<BatchRow> evaluateRecording(const std::string& path,

@@ -7,7 +7,8 @@
 namespace wheelchair::io {
 
 bool encoderLess(const EncoderSample& a, const EncoderSample& b) {
-  return std::tie(a.t_s, a.right_ticks, a.left_ticks) < std::tie(b.t_s, b.right_ticks, b.left_ticks);
+  return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
+         std::tie(b.t_s, b.right_ticks, b.left_ticks);
 }
 bool imuLess(const ImuSample& a, const ImuSample& b) {
   return std::tie(a.t_s, a.gyro_z_rad_s) < std::tie(b.t_s, b.gyro_z_rad_s);

@@ -76,7 +76,8 @@ class RawlogSampleReader {
 /// `push` in file order and moves watermark(), below which every sample has been passed.
 class RawlogWindowReader {
  public:
-  RawlogWindowReader(const std::string& path, double lateness_s) : in_(path), lateness_s_(lateness_s) {}
+  RawlogWindowReader(const std::string& path, double lateness_s)
+      : in_(path), lateness_s_(lateness_s) {}
   /// Reads up to `block` samples; at the end of the file eof() and watermark() = +infinity.
   void read(const std::function<void(const AnySample&, std::size_t)>& push, int block = 4096);
   double watermark() const { return watermark_; }
