@@ -79,7 +79,7 @@ class RawlogWindowReader {
   RawlogWindowReader(const std::string& path, double lateness_s)
       : in_(path), lateness_s_(lateness_s) {}
   /// Reads up to `block` samples; at the end of the file eof() and watermark() = +infinity.
-  void read(const std::function<void(const AnySample&, std::size_t)>& push, int block = 4096);
+  void read(const std::function<void(const AnySample&, std::size_t)>& push, int block = 256);
   double watermark() const { return watermark_; }
   bool eof() const { return eof_; }
 
