@@ -261,6 +261,11 @@ void forEachVariantTrajectory(
   auto filter = [&](estimation::FilterKind kind, const char* empty_error) {
     TrajectorySink poses;
     const auto opt = ekfOptions(cfg, kind);
+    using io::StreamKind;  // at most one pose per measurement: sized once
+    poses.reserve((opt.use_encoders ? sum.count(StreamKind::Encoders) : 0) +
+                  (opt.use_gyro ? sum.count(StreamKind::Imu) : 0) +
+                  (opt.use_sonar ? sum.count(StreamKind::Sonar) : 0) +
+                  (opt.use_pozyx ? sum.count(StreamKind::Pozyx) : 0));
     const auto res = rec ? estimation::runEstimator(*rec, cfg, opt, poses)
                          : estimation::runEstimator(path, sum, cfg, opt, poses);
     if (res.n_estimates == 0) throw std::runtime_error(empty_error);
@@ -275,6 +280,9 @@ void forEachVariantTrajectory(
               ? estimation::deadReckoningEncoderGyro(rec->encoders, rec->imu, p, cfg.vehicle.geom)
               : estimation::deadReckoningEncoders(rec->encoders, p, cfg.vehicle.geom));
     } else {
+      // At most one sample per encoder sample and gyro time: sized once.
+      t.reserve(sum.count(io::StreamKind::Encoders) +
+                (with_gyro ? sum.count(io::StreamKind::Imu) : 0));
       estimation::deadReckonRawlog(path, sum, with_gyro, p, cfg.vehicle.geom,
                                    [&](const estimation::DeadReckoningSample& s) {
                                      t.push_back({s.t_s, s.x_m, s.y_m, s.phi_rad});

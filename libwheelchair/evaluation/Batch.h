@@ -89,6 +89,8 @@ class TrajectorySink : public estimation::EstimateSink {
   void add(const estimation::EstimateSample& e) override {
     poses_.push_back({e.t_s, e.x(2), e.x(3), e.x(4)});
   }
+  /// Room for n poses at once (a long drive's trajectory without the doubling slack).
+  void reserve(std::size_t n) { poses_.reserve(n); }
   /// The poses, strictly increasing in time (of equal timestamps the last); empties the sink.
   Trajectory take();
 
