@@ -375,6 +375,11 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
     // Pass 1 (io/RawlogStream.h): what the file holds, the salvage rule; the variants then
     // read it as a stream. Command-driven recordings (small: MRCLAM) are read whole.
     const io::RecordingSummary sum = io::scanRawlogSalvaging(path, options.salvage, &salvaged);
+    if (!salvaged.empty() && options.warning) {
+      static std::mutex warning_mutex;
+      const std::lock_guard<std::mutex> lock(warning_mutex);
+      options.warning(salvaged);
+    }
     const bool command_driven =
         estimation::selectEstimator(sum) == estimation::EstimatorFamily::CommandDriven;
     const io::Recording rec =
