@@ -505,6 +505,47 @@ struct Source {
   io::RecordingSummary summary;
 };
 
+/// Books the samples of the streams the options leave out as skipped and returns the number
+/// of measurements of the others (progress, and the result's size when stored).
+std::size_t countStreams(const EkfOptions& opt, const io::RecordingSummary& counts,
+                         EstimationResult& res) {
+  using io::StreamKind;
+  const std::pair<bool, StreamKind> used[] = {{opt.use_encoders, StreamKind::Encoders},
+                                              {opt.use_gyro, StreamKind::Imu},
+                                              {opt.use_sonar, StreamKind::Sonar},
+                                              {opt.use_pozyx, StreamKind::Pozyx}};
+  const Sensor sensor[] = {Sensor::Encoders, Sensor::Gyro, Sensor::Sonar, Sensor::Pozyx};
+  std::size_t n = 0;
+  for (int k = 0; k < 4; ++k) {
+    if (used[k].first)
+      n += counts.count(used[k].second);
+    else
+      res.sensors[int(sensor[k])].skipped = long(counts.count(used[k].second));
+  }
+  return n;
+}
+
+/// The measurement update of one event (the state already predicted to its time).
+void applyEvent(Estimator& est, const Event& e) {
+  switch (e.kind) {
+    case kEncStart:
+      est.encoderStart(e.t);
+      break;
+    case kEncInterval:
+      est.encoderInterval(e.iv);
+      break;
+    case kGyro:
+      est.gyro(e.t, e.a);
+      break;
+    case kSonar:
+      est.sonar(e.t, e.a);
+      break;
+    case kPozyx:
+      est.pozyx(e.t, Eigen::Vector2d(e.a, e.b));
+      break;
+  }
+}
+
 EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairConfig& cfg,
                                   const EkfOptions& options, EstimateSink* sink,
                                   const std::function<void(double)>& progress) {
@@ -518,18 +559,7 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
   auto est = makeEstimator(cfg, opt, &input);
   est->keepNisRecords(sink == nullptr);
   EstimationResult& res = est->result();
-  if (!opt.use_encoders)
-    res.sensors[int(Sensor::Encoders)].skipped = long(counts.count(StreamKind::Encoders));
-  if (!opt.use_gyro) res.sensors[int(Sensor::Gyro)].skipped = long(counts.count(StreamKind::Imu));
-  if (!opt.use_sonar)
-    res.sensors[int(Sensor::Sonar)].skipped = long(counts.count(StreamKind::Sonar));
-  if (!opt.use_pozyx)
-    res.sensors[int(Sensor::Pozyx)].skipped = long(counts.count(StreamKind::Pozyx));
-  // Expected number of events (progress, and the result's size when stored).
-  const std::size_t n_expected = (opt.use_encoders ? counts.count(StreamKind::Encoders) : 0) +
-                                 (opt.use_gyro ? counts.count(StreamKind::Imu) : 0) +
-                                 (opt.use_sonar ? counts.count(StreamKind::Sonar) : 0) +
-                                 (opt.use_pozyx ? counts.count(StreamKind::Pozyx) : 0);
+  const std::size_t n_expected = countStreams(opt, counts, res);
 
   EventMerger merger(cfg, opt, counts, input);
   std::optional<io::RawlogWindowReader> reader;
@@ -596,23 +626,7 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
       }
     }
     est->predictTo(e.t);
-    switch (e.kind) {
-      case kEncStart:
-        est->encoderStart(e.t);
-        break;
-      case kEncInterval:
-        est->encoderInterval(e.iv);
-        break;
-      case kGyro:
-        est->gyro(e.t, e.a);
-        break;
-      case kSonar:
-        est->sonar(e.t, e.a);
-        break;
-      case kPozyx:
-        est->pozyx(e.t, Eigen::Vector2d(e.a, e.b));
-        break;
-    }
+    applyEvent(*est, e);
   };
   // Names the measurement being processed when a filter fails (e.g. CVODE after a clock jump):
   // stream, sample index as stored in the recording (0-based) and time.
