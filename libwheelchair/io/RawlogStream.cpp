@@ -84,6 +84,60 @@ void RawlogWindowReader::read(const std::function<void(const AnySample&, std::si
   watermark_ = t_max_ - lateness_s_;
 }
 
+TimeOrderedRawlogWriter::TimeOrderedRawlogWriter(const std::string& path,
+                                                 const config::WheelchairConfig& cfg,
+                                                 const std::vector<StreamKind>& expected)
+    : out_(path), cfg_(cfg) {
+  for (const StreamKind k : expected) expected_[static_cast<int>(k)] = true;
+}
+
+void TimeOrderedRawlogWriter::add(const AnySample& s) {
+  const int k = static_cast<int>(s.index());
+  expected_[k] = true;  // a stream nobody announced: wait for it too
+  t_min_ = std::min(t_min_, timeOf(s));
+  ++counts_[k];
+  buf_[k].push_back(s);
+  emit(false);
+}
+
+void TimeOrderedRawlogWriter::emit(bool all) {
+  // forEachInTimeOrder's rule (the earliest head, ties to the lower stream), applied only
+  // when every stream that may still deliver has a head (or at the end).
+  for (;;) {
+    int best = -1;
+    double best_t = std::numeric_limits<double>::infinity(), first_t = best_t;
+    for (int k = 0; k < kNumStreams; ++k) {
+      if (buf_[k].empty()) {
+        if (expected_[k] && !all) return;
+        continue;
+      }
+      const double t = timeOf(buf_[k].front());
+      first_t = std::min(first_t, t);
+      if (best < 0 || t < best_t) {
+        best = k;
+        best_t = t;
+      }
+    }
+    if (best < 0) return;
+    if (!header_written_) {
+      header_t_ = first_t;
+      out_.writeHeader(meta_, cfg_, header_t_);
+      header_written_ = true;
+    }
+    out_.write(buf_[best].front(), cfg_);
+    buf_[best].pop_front();
+  }
+}
+
+void TimeOrderedRawlogWriter::commit() {
+  emit(true);
+  const double t0 = counts_ == std::array<std::size_t, kNumStreams>{} ? 0.0 : t_min_;
+  if (!header_written_) out_.writeHeader(meta_, cfg_, t0);
+  if (header_written_ && header_t_ != t0)
+    throw HeaderTimeMismatch("a sample earlier than every stream's first one");
+  out_.commit();
+}
+
 RecordingSummary scanRawlog(const std::string& path) {
   RecordingSummary sum;
   RawlogSampleReader in(path);

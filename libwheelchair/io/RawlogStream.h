@@ -27,6 +27,8 @@
 
 #include <algorithm>
 #include <array>
+#include <deque>
+#include <stdexcept>
 #include <functional>
 #include <limits>
 #include <map>
@@ -170,6 +172,43 @@ class SortedStream {
   };
   std::vector<Item> heap_;
   Later later_{less_};
+};
+
+/// io::writeRawlog for samples that arrive as they are produced (stream by stream, each in its
+/// own order): the same file, byte for byte, holding back only what the time-ordered merge
+/// cannot decide yet (each stream's samples until every expected stream has one).
+/// writeRawlog writes the header with the recording's earliest time; here it is the earliest
+/// first sample of the expected streams, which is the same for streams whose times increase;
+/// commit() throws HeaderTimeMismatch (nothing written) when a later sample was earlier, so
+/// the caller can fall back to writeRawlog. Example:
+///   TimeOrderedRawlogWriter w("sim.rawlog", cfg, {StreamKind::Encoders, StreamKind::Imu});
+///   w.setMeta(meta);  w.add(sample);  ...;  w.commit();
+class TimeOrderedRawlogWriter {
+ public:
+  struct HeaderTimeMismatch : std::runtime_error {
+    using std::runtime_error::runtime_error;
+  };
+  /// Creates the temporary beside `path` (a bad path fails here, before any work).
+  TimeOrderedRawlogWriter(const std::string& path, const config::WheelchairConfig& cfg,
+                          const std::vector<StreamKind>& expected);
+  /// The header's `[recording]` keys (before the first add()).
+  void setMeta(std::map<std::string, std::string> meta) { meta_ = std::move(meta); }
+  void add(const AnySample& s);
+  void commit();
+  /// Samples added per stream.
+  const std::array<std::size_t, kNumStreams>& counts() const { return counts_; }
+
+ private:
+  void emit(bool all);
+
+  RawlogWriter out_;
+  const config::WheelchairConfig& cfg_;
+  std::map<std::string, std::string> meta_;
+  std::array<bool, kNumStreams> expected_{};
+  std::array<std::deque<AnySample>, kNumStreams> buf_;
+  std::array<std::size_t, kNumStreams> counts_{};
+  bool header_written_ = false;
+  double header_t_ = 0, t_min_ = std::numeric_limits<double>::infinity();
 };
 
 /// Pass 1 (see the header comment). A broken file is not an error here: see report.broken.
