@@ -28,12 +28,12 @@
 #include <algorithm>
 #include <array>
 #include <deque>
-#include <stdexcept>
 #include <functional>
 #include <limits>
 #include <map>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 

@@ -14,18 +14,32 @@ namespace wheelchair::simulation {
 
 namespace {
 
-/// Truth samples in an anonymous temporary file (std::tmpfile: gone when closed, even after
-/// a crash), every write and read checked.
+/// Truth samples: in memory up to kInMemory samples (~30 MB; a drive of ~35 min at 100 Hz),
+/// beyond that in an anonymous temporary file (std::tmpfile: gone when closed, even after a
+/// crash), every write and read checked; errors name the truth file being produced.
 class TruthScratch {
  public:
-  TruthScratch() : f_(std::tmpfile(), &std::fclose) {
-    if (!f_) fail("cannot create");
-  }
+  static constexpr std::size_t kInMemory = 200000;
+  explicit TruthScratch(std::string target) : target_(std::move(target)) {}
   void add(const TruthSample& s) {
-    if (std::fwrite(&s, sizeof s, 1, f_.get()) != 1) fail("cannot write");
+    if (!f_ && mem_.size() < kInMemory) {
+      mem_.push_back(s);
+      return;
+    }
+    if (!f_) {  // spill
+      f_.reset(std::tmpfile());
+      if (!f_) fail("cannot create");
+      write(mem_.data(), mem_.size());
+      mem_ = {};
+    }
+    write(&s, 1);
   }
   /// Calls f for every sample in order.
   void replay(const std::function<void(const TruthSample&)>& f) {
+    if (!f_) {
+      for (const auto& s : mem_) f(s);
+      return;
+    }
     if (std::fflush(f_.get()) != 0) fail("cannot write");
     std::rewind(f_.get());
     std::vector<TruthSample> chunk(4096);
@@ -39,19 +53,26 @@ class TruthScratch {
   }
 
  private:
-  [[noreturn]] static void fail(const char* what) {
-    throw std::runtime_error(std::string("truth scratch file (temporary directory): ") + what +
+  void write(const TruthSample* s, std::size_t n) {
+    if (n && std::fwrite(s, sizeof *s, n, f_.get()) != n) fail("cannot write");
+  }
+  [[noreturn]] void fail(const char* what) const {
+    throw std::runtime_error(target_ +
+                             ": scratch file of the truth samples (temporary directory): " + what +
                              ": " + std::strerror(errno));
   }
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f_;
+  std::string target_;
+  std::vector<TruthSample> mem_;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f_{nullptr, &std::fclose};
 };
 
 struct FileSink : SimulationSink {
   io::TimeOrderedRawlogWriter rawlog;
   TruthScratch truth_samples;
   bool ground_truth;
-  FileSink(const std::string& path, const config::WheelchairConfig& cfg, bool gt)
-      : rawlog(path, cfg, expectedStreams(gt)), ground_truth(gt) {}
+  FileSink(const std::string& path, const std::string& truth_path,
+           const config::WheelchairConfig& cfg, bool gt)
+      : rawlog(path, cfg, expectedStreams(gt)), truth_samples(truth_path), ground_truth(gt) {}
   static std::vector<io::StreamKind> expectedStreams(bool gt) {
     using io::StreamKind;
     std::vector<StreamKind> k = {StreamKind::Encoders, StreamKind::Imu,   StreamKind::Motors,
@@ -69,15 +90,15 @@ struct FileSink : SimulationSink {
 
 }  // namespace
 
-StreamedSimulation simulateToFiles(const config::WheelchairConfig& cfg,
-                                   const std::string& scenario, uint64_t seed, double duration_s,
+StreamedSimulation simulateToFiles(const config::WheelchairConfig& cfg, const std::string& scenario,
+                                   uint64_t seed, double duration_s,
                                    const std::vector<EffectSpec>& effects,
                                    const SimulationOptions& options, const std::string& rawlog,
                                    const std::string& truth_path) {
   StreamedSimulation out;
   util::RemoveUnlessKept outputs;  // a failed truth file removes the recording again
   {
-    FileSink sink(rawlog, cfg, options.record_ground_truth);
+    FileSink sink(rawlog, truth_path, cfg, options.record_ground_truth);
     SimulationOptions opt = options;
     opt.sink = &sink;
     out.result = simulate(cfg, scenario, seed, duration_s, effects, opt);
