@@ -365,9 +365,8 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   const long truth_stride = std::max(1L, std::lround(1.0 / (opt.truth_rate_hz * h)));
   // Sized once (no doubling slack, no copy on growth: a long drive's peak is its data), or
   // passed to SimulationOptions::sink as produced.
-  if (!opt.sink)
-    res.truth.samples.reserve(static_cast<std::size_t>(n_steps / truth_stride) + 1);
   if (!opt.sink) {
+    res.truth.samples.reserve(static_cast<std::size_t>(n_steps / truth_stride) + 1);
     rec.encoders.reserve(clocks[kEncoders].capacityFor(T));
     rec.imu.reserve(clocks[kImu].capacityFor(T));
     rec.motors.reserve(clocks[kMotors].capacityFor(T));
