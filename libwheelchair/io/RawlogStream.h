@@ -189,6 +189,8 @@ class TimeOrderedRawlogWriter {
     using std::runtime_error::runtime_error;
   };
   /// Creates the temporary beside `path` (a bad path fails here, before any work).
+  /// `expected`: every stream that will deliver samples (an undeclared one is waited for only
+  /// from its first sample on, too late for what was written before it).
   TimeOrderedRawlogWriter(const std::string& path, const config::WheelchairConfig& cfg,
                           const std::vector<StreamKind>& expected);
   /// The header's `[recording]` keys (before the first add()).

@@ -14,15 +14,16 @@ namespace wheelchair::simulation {
 
 namespace {
 
-/// Truth samples: in memory up to kInMemory samples (~30 MB; a drive of ~35 min at 100 Hz),
+/// Truth samples: in memory up to `in_memory` samples (default 200000, ~30 MB: a drive of
+/// ~35 min at 100 Hz),
 /// beyond that in an anonymous temporary file (std::tmpfile: gone when closed, even after a
 /// crash), every write and read checked; errors name the truth file being produced.
 class TruthScratch {
  public:
-  static constexpr std::size_t kInMemory = 200000;
-  explicit TruthScratch(std::string target) : target_(std::move(target)) {}
+  TruthScratch(std::string target, std::size_t in_memory)
+      : target_(std::move(target)), in_memory_(in_memory) {}
   void add(const TruthSample& s) {
-    if (!f_ && mem_.size() < kInMemory) {
+    if (!f_ && mem_.size() < in_memory_) {
       mem_.push_back(s);
       return;
     }
@@ -62,6 +63,7 @@ class TruthScratch {
                              ": " + std::strerror(errno));
   }
   std::string target_;
+  std::size_t in_memory_;
   std::vector<TruthSample> mem_;
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> f_{nullptr, &std::fclose};
 };
@@ -70,9 +72,11 @@ struct FileSink : SimulationSink {
   io::TimeOrderedRawlogWriter rawlog;
   TruthScratch truth_samples;
   bool ground_truth;
-  FileSink(const std::string& path, const std::string& truth_path,
+  FileSink(const std::string& path, const std::string& truth_path, std::size_t in_memory,
            const config::WheelchairConfig& cfg, bool gt)
-      : rawlog(path, cfg, expectedStreams(gt)), truth_samples(truth_path), ground_truth(gt) {}
+      : rawlog(path, cfg, expectedStreams(gt)),
+        truth_samples(truth_path, in_memory),
+        ground_truth(gt) {}
   static std::vector<io::StreamKind> expectedStreams(bool gt) {
     using io::StreamKind;
     std::vector<StreamKind> k = {StreamKind::Encoders, StreamKind::Imu,   StreamKind::Motors,
@@ -94,11 +98,11 @@ StreamedSimulation simulateToFiles(const config::WheelchairConfig& cfg, const st
                                    uint64_t seed, double duration_s,
                                    const std::vector<EffectSpec>& effects,
                                    const SimulationOptions& options, const std::string& rawlog,
-                                   const std::string& truth_path) {
+                                   const std::string& truth_path, std::size_t truth_in_memory) {
   StreamedSimulation out;
   util::RemoveUnlessKept outputs;  // a failed truth file removes the recording again
   {
-    FileSink sink(rawlog, truth_path, cfg, options.record_ground_truth);
+    FileSink sink(rawlog, truth_path, truth_in_memory, cfg, options.record_ground_truth);
     SimulationOptions opt = options;
     opt.sink = &sink;
     out.result = simulate(cfg, scenario, seed, duration_s, effects, opt);

@@ -30,6 +30,7 @@ StreamedSimulation simulateToFiles(const config::WheelchairConfig& cfg, const st
                                    uint64_t seed, double duration_s,
                                    const std::vector<EffectSpec>& effects,
                                    const SimulationOptions& options, const std::string& rawlog,
-                                   const std::string& truth_path);
+                                   const std::string& truth_path,
+                                   std::size_t truth_in_memory = 200000);
 
 }  // namespace wheelchair::simulation
