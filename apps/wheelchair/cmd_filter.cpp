@@ -27,6 +27,7 @@
 #include "libwheelchair/evaluation/Trajectory.h"
 #include "libwheelchair/io/MrclamImport.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/util/AtomicFile.h"
 
 #include <mrpt/config/CConfigFile.h>
@@ -229,14 +230,17 @@ int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progre
 int runFilter(const FilterCliOptions& o) {
   Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   progress.tick("reading");
-  io::RawlogReadReport rep;
-  io::Recording rec = readRawlogFor("filter", o.input, o.salvage, &rep);
+  // Pass 1 over the file: what it holds, where it breaks (the salvage rule applies here), how
+  // far out of time order it is. The wheelchair filters then read it again as a stream
+  // (memory flat in the drive's length, io/RawlogStream.h).
+  std::string salvaged;
+  const io::RecordingSummary sum = io::scanRawlogSalvaging(o.input, o.salvage, &salvaged);
   progress.stop();
-  const bool has_wheelchair_streams =
-      !rec.encoders.empty() || !rec.imu.empty() || !rec.sonar.empty() || !rec.pozyx.empty();
-  if (o.filter == "command" ||
-      (o.filter.empty() && estimation::isCommandDrivenRecording(rec) && !has_wheelchair_streams))
-    return runCommandDriven(o, rec, progress);
+  if (!salvaged.empty()) std::cerr << "wheelchair filter: warning: " << salvaged << "\n";
+  // The whole recording, where a path needs it (damage already accepted above).
+  const auto readAll = [&] { return io::readRawlogSalvaging(o.input, true, nullptr); };
+  if (estimation::selectEstimator(sum, o.filter) == estimation::EstimatorFamily::CommandDriven)
+    return runCommandDriven(o, readAll(), progress);
 
   auto cfg = o.config_path.empty() ? config::WheelchairConfig()
                                    : config::WheelchairConfig::load(o.config_path);
@@ -247,16 +251,23 @@ int runFilter(const FilterCliOptions& o) {
   opt.loadFromConfig(cfg.ini());
   opt.resolveSensorDefaults(cfg);
 
-  if (const std::string why = missingForWheelchairFilter(rec, opt); !why.empty()) {
-    std::cerr << "wheelchair filter: " << o.input << ": " << why << "\n";
+  using io::StreamKind;
+  if ((!opt.use_encoders || sum.count(StreamKind::Encoders) < 2) &&
+      (!opt.use_gyro || !sum.count(StreamKind::Imu)) &&
+      (!opt.use_sonar || !sum.count(StreamKind::Sonar)) &&
+      (!opt.use_pozyx || !sum.count(StreamKind::Pozyx))) {
+    std::cerr << "wheelchair filter: " << o.input << ": "
+              << missingForWheelchairFilter(readAll(), opt) << "\n";
     return kExitBadInput;
   }
   // A corrected configuration (`wheelchair diagnose --write-config`) calibrates the sensors
-  // and the drive train before filtering (estimation/ModelExtensions.h).
+  // and the drive train before filtering (estimation/ModelExtensions.h): that path holds the
+  // corrected recording in memory.
+  std::optional<io::Recording> rec;
   const auto ext = estimation::ModelExtensions::fromConfig(cfg.ini());
   if (!ext.empty()) {
     cfg = ext.adjustConfig(cfg);
-    rec = ext.apply(rec, cfg);
+    rec = ext.apply(readAll(), cfg);
     fmt::print("model extensions applied: {}\n", ext.summary());
   }
   // The outputs are streamed while the filter runs (memory flat in the drive's length); their
@@ -269,8 +280,9 @@ int runFilter(const FilterCliOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   const estimation::EstimationResult res = [&] {
     try {  // name the file: runEstimator names the sample and time of a failure
-      return estimation::runEstimator(rec, cfg, opt, sinks,
-                                      [&](double f) { progress.update(f, "filtering"); });
+      const auto bar = [&](double f) { progress.update(f, "filtering"); };
+      return rec ? estimation::runEstimator(*rec, cfg, opt, sinks, bar)
+                 : estimation::runEstimator(o.input, sum, cfg, opt, sinks, bar);
     } catch (const std::exception& e) {
       throw std::runtime_error(o.input + ": " + e.what());
     }
@@ -279,7 +291,7 @@ int runFilter(const FilterCliOptions& o) {
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  const double duration_s = rec.endTime() - rec.startTime();
+  const double duration_s = sum.end_s - sum.start_s;
   long measurements = 0;
   fmt::print("{}: {:.1f} s of recording, {} filter, processed in {:.3f} s ({:.0f}x real time)\n",
              o.input, duration_s, res.filter, wall_s, wall_s > 0 ? duration_s / wall_s : 0.0);
@@ -331,21 +343,32 @@ int runFilter(const FilterCliOptions& o) {
   }
   if (o.variants) {
     const std::string base = o.trajectory.empty() ? "filter.tum" : o.trajectory;
-    // One variant at a time: written, measured, dropped.
-    auto writeVariant = [](const std::string& path,
-                           const std::vector<estimation::DeadReckoningSample>& dr) {
-      evaluation::TumWriter tum(path);  // time-ordered already: no trajectory copy
-      for (const auto& p : dr) tum.add({p.t_s, p.x_m, p.y_m, p.phi_rad});
+    // One variant at a time, each pose written as it is produced (streamed from the rawlog
+    // unless the model extensions hold a corrected recording).
+    const auto writeVariant = [&](const std::string& path, bool with_gyro) {
+      evaluation::TumWriter tum(path);
+      const auto add = [&](const estimation::DeadReckoningSample& p) {
+        tum.add({p.t_s, p.x_m, p.y_m, p.phi_rad});
+      };
+      double d_path = 0;
+      if (rec) {
+        const auto& p = cfg.encoders.params;
+        const auto dr =
+            with_gyro
+                ? estimation::deadReckoningEncoderGyro(rec->encoders, rec->imu, p, cfg.vehicle.geom)
+                : estimation::deadReckoningEncoders(rec->encoders, p, cfg.vehicle.geom);
+        for (const auto& x : dr) add(x);
+        d_path = estimation::pathLength(dr);
+      } else {
+        d_path = estimation::deadReckonRawlog(o.input, sum, with_gyro, cfg.encoders.params,
+                                              cfg.vehicle.geom, add)
+                     .path_m;
+      }
       tum.commit();
-      return estimation::pathLength(dr);
+      return d_path;
     };
-    const double d_enc = writeVariant(
-        withSuffix(base, "_encoders"),
-        estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom));
-    const double d_encg =
-        writeVariant(withSuffix(base, "_encoders_gyro"),
-                     estimation::deadReckoningEncoderGyro(rec.encoders, rec.imu,
-                                                          cfg.encoders.params, cfg.vehicle.geom));
+    const double d_enc = writeVariant(withSuffix(base, "_encoders"), false);
+    const double d_encg = writeVariant(withSuffix(base, "_encoders_gyro"), true);
     fmt::print("Fig. 5 variants: {} (d_path {:.2f} m), {} (d_path {:.2f} m)\n",
                withSuffix(base, "_encoders"), d_enc, withSuffix(base, "_encoders_gyro"), d_encg);
   }

@@ -7,13 +7,16 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/io/TextFormat.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Simulator.h"
+#include "libwheelchair/simulation/StreamedRun.h"
 #include "libwheelchair/util/OutputDir.h"
 
 #include <fmt/core.h>
 
+#include <array>
 #include <iostream>
 #include <memory>
 
@@ -77,23 +80,33 @@ int runSimulate(const SimulateOptions& o) {
   if (o.ground_truth) opt.record_ground_truth = true;
   opt.engine = o.engine;
 
-  const auto res = simulation::simulate(cfg, o.scenario, o.seed, o.duration_s, effects, opt);
-  util::RemoveUnlessKept outputs;  // a failed truth file removes the recording again
-  if (o.format == "rawlog")
-    io::writeRawlog(res.recording, o.output, cfg);
-  else
-    io::writeTextRecording(res.recording, o.output);
-  outputs.add(o.output);
   const std::string truth_path = o.truth.empty() ? o.output + ".truth.json" : o.truth;
-  res.writeTruth(truth_path);
-  outputs.keep();
+  // A rawlog and the truth are written as the run produces them (memory flat in the drive's
+  // length, simulation/StreamedRun.h); the text format holds the recording.
+  simulation::SimulationResult res;
+  std::array<std::size_t, io::kNumStreams> n{};
+  if (o.format == "rawlog") {
+    auto run = simulation::simulateToFiles(cfg, o.scenario, o.seed, o.duration_s, effects, opt,
+                                           o.output, truth_path);
+    res = std::move(run.result);
+    n = run.counts;
+  } else {
+    res = simulation::simulate(cfg, o.scenario, o.seed, o.duration_s, effects, opt);
+    util::RemoveUnlessKept outputs;  // a failed truth file removes the recording again
+    io::writeTextRecording(res.recording, o.output);
+    outputs.add(o.output);
+    res.writeTruth(truth_path);
+    outputs.keep();
+    n = io::summarize(res.recording).counts;
+  }
 
-  const auto& r = res.recording;
+  using io::StreamKind;
+  const auto count = [&](StreamKind k) { return n[static_cast<int>(k)]; };
   fmt::print("simulated '{}' seed {} (engine {}): {:.2f} s, supervisory control {}\n", o.scenario,
              o.seed, res.engine, res.duration_s, res.supervisory ? "on" : "off");
   fmt::print("  samples: encoders {}, imu {}, motors {}, sonar {}, pozyx {}, joystick {}\n",
-             r.encoders.size(), r.imu.size(), r.motors.size(), r.sonar.size(), r.pozyx.size(),
-             r.joystick.size());
+             count(StreamKind::Encoders), count(StreamKind::Imu), count(StreamKind::Motors),
+             count(StreamKind::Sonar), count(StreamKind::Pozyx), count(StreamKind::Joystick));
   if (effects.empty()) fmt::print("  effects: none\n");
   for (const auto& e : effects) fmt::print("  effect: {}\n", simulation::formatEffect(e));
   const auto& end = res.truth.samples.back();

@@ -17,10 +17,13 @@
 //   cfg.vehicle.geom);
 #pragma once
 
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/io/Recording.h"
 #include "libwheelchair/model/VehicleParams.h"
 #include "libwheelchair/sensors/Encoders.h"
 
+#include <functional>
+#include <string>
 #include <vector>
 
 namespace wheelchair::estimation {
@@ -42,6 +45,22 @@ std::vector<DeadReckoningSample> deadReckoningEncoderGyro(const std::vector<io::
                                                           const std::vector<io::ImuSample>& imu,
                                                           const sensors::EncoderParams& p,
                                                           const model::Geometry& g);
+
+/// What deadReckonRawlog produced: samples and the path length (pathLength of them).
+struct DeadReckoningRun {
+  std::size_t samples = 0;
+  double path_m = 0;
+};
+
+/// deadReckoningEncoders (with_gyro false) or deadReckoningEncoderGyro (true) over a rawlog
+/// read as a stream (io/RawlogStream.h; `summary` from io::scanRawlog): each sample goes to `f`
+/// as it is produced, bit-identical to the vector functions on io::readRawlog(rawlog), and
+/// memory does not grow with the drive. Example:
+///   auto run = deadReckonRawlog("d.rawlog", sum, true, enc, geom, [&](auto& s) { tum.add(...); });
+DeadReckoningRun deadReckonRawlog(const std::string& rawlog, const io::RecordingSummary& summary,
+                                  bool with_gyro, const sensors::EncoderParams& p,
+                                  const model::Geometry& g,
+                                  const std::function<void(const DeadReckoningSample&)>& f);
 
 /// Length of the travelled path (sum of the distances between consecutive positions), the
 /// paper's d_path.

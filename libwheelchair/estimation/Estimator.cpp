@@ -2,8 +2,9 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/estimation/BaselineEkf.h"
-#include "libwheelchair/stats/Distributions.h"
 #include "libwheelchair/estimation/WheelchairEkf.h"
+#include "libwheelchair/io/MrclamImport.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include <sys/mman.h>
 
@@ -11,7 +12,9 @@
 #include <array>
 #include <cmath>
 #include <cstdlib>
+#include <deque>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <tuple>
 
@@ -69,15 +72,8 @@ const EstimateSample& EstimationResult::final() const {
 // ---------------------------------------------------------------------------------------------
 // InputSignal
 
-namespace {
-bool motorLess(const io::MotorSample& a, const io::MotorSample& b) {
-  return std::tie(a.t_s, a.current_right_A, a.current_left_A, a.vrc_right_V, a.vrc_left_V) <
-         std::tie(b.t_s, b.current_right_A, b.current_left_A, b.vrc_right_V, b.vrc_left_V);
-}
-}  // namespace
-
 void InputSignal::setSamples(std::vector<io::MotorSample> s) {
-  std::sort(s.begin(), s.end(), motorLess);
+  std::sort(s.begin(), s.end(), io::motorLess);
   t_.clear();
   u_.clear();
   for (const auto& m : s) {
@@ -133,6 +129,16 @@ std::vector<double> InputSignal::breakpoints(double t0, double t1) const {
 double InputSignal::nextSampleAfter(double t) const {
   const auto it = std::upper_bound(t_.begin(), t_.end(), t);
   return it == t_.end() ? std::numeric_limits<double>::infinity() : *it;
+}
+
+void InputSignal::discardBefore(double t) {
+  // Keep the last sample at or before t (u between it and the next one is still needed).
+  const auto it = std::upper_bound(t_.begin(), t_.end(), t);
+  const auto k = static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, it - t_.begin() - 1));
+  if (k < 8192 || 2 * k < t_.size()) return;  // amortised: erase when mostly dead
+  t_.erase(t_.begin(), t_.begin() + static_cast<std::ptrdiff_t>(k));
+  u_.erase(u_.begin(), u_.begin() + static_cast<std::ptrdiff_t>(k));
+  hint_ = hint_ >= k ? hint_ - k : 0;
 }
 
 bool InputSignal::isSampleTime(double t) const {
@@ -320,28 +326,17 @@ namespace {
 
 enum EventKind : int { kEncStart = 0, kEncInterval = 1, kGyro = 2, kSonar = 3, kPozyx = 4 };
 
+/// One measurement in the merged order: (t, kind), then the stream's own (time, value) order.
 struct Event {
-  double t;
-  int kind;
-  std::size_t index;
+  double t = 0;
+  int kind = 0;
+  std::size_t stored = 0;  ///< index of the sample (interval: its closing sample) as stored
+  sensors::WheelSpeedInterval iv;
+  double a = 0, b = 0;  ///< gyro z / sonar range / Pozyx x, y
 };
 
-/// The stream itself when it is already in `less` order (the usual, time-ordered recording:
-/// no copy; `order` stays empty, meaning the identity), else a stable-sorted copy kept in
-/// `store`, with in `order` the index in v of each sorted element (to name a sample as stored
-/// when something fails).
-template <typename T, typename Less>
-const std::vector<T>& sortedView(const std::vector<T>& v, std::vector<T>& store,
-                                 std::vector<std::size_t>& order, Less less) {
-  if (std::is_sorted(v.begin(), v.end(), less)) return v;
-  order.resize(v.size());
-  for (std::size_t i = 0; i < v.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::size_t a, std::size_t b) { return less(v[a], v[b]); });
-  store.clear();
-  store.reserve(v.size());
-  for (const std::size_t i : order) store.push_back(v[i]);
-  return store;
+bool eventLess(const Event& x, const Event& y) {
+  return std::tie(x.t, x.kind) < std::tie(y.t, y.kind);
 }
 
 /// Stream label (as in the rawlog) of an event kind.
@@ -359,80 +354,245 @@ const char* eventStream(int kind) {
   }
 }
 
-EstimationResult runEstimatorImpl(const io::Recording& rec, const config::WheelchairConfig& cfg,
+/// The measurements of every used stream merged into one time-ordered event sequence
+/// (header comment of Estimator.h), from in-memory streams or from samples pushed as read.
+/// Pushed samples are released only when complete: below the watermark (see
+/// io/RawlogStream.h), and only once the input signal is known past them.
+class EventMerger {
+ public:
+  /// `counts`: the samples each stream will deliver in all.
+  EventMerger(const config::WheelchairConfig& cfg, const EkfOptions& opt,
+              const io::RecordingSummary& counts, InputSignal& input)
+      : opt_(opt),
+        input_(input),
+        conv_(cfg.encoders.params, cfg.vehicle.geom.wheel_radius_m, cfg.vehicle.geom.track_width_m),
+        enc_total_(counts.count(io::StreamKind::Encoders)),
+        mot_total_(counts.count(io::StreamKind::Motors)) {}
+
+  void attach(const io::Recording& rec) {
+    enc_.attach(rec.encoders);
+    imu_.attach(rec.imu);
+    mot_.attach(rec.motors);
+    son_.attach(rec.sonar);
+    poz_.attach(rec.pozyx);
+  }
+  /// A sample as read (file order; index within its stream). Streams not used are dropped.
+  void push(const io::AnySample& s, std::size_t stored) {
+    if (auto* e = std::get_if<io::EncoderSample>(&s)) {
+      if (opt_.use_encoders) enc_.push(*e, stored);
+    } else if (auto* g = std::get_if<io::ImuSample>(&s)) {
+      if (opt_.use_gyro) imu_.push(*g, stored);
+    } else if (auto* m = std::get_if<io::MotorSample>(&s)) {
+      mot_.push(*m, stored);
+    } else if (auto* r = std::get_if<io::SonarSample>(&s)) {
+      if (opt_.use_sonar) son_.push(*r, stored);
+    } else if (auto* p = std::get_if<io::PozyxSample>(&s)) {
+      if (opt_.use_pozyx) poz_.push(*p, stored);
+    }
+  }
+  /// Everything before `t` has been pushed; `eof`: everything has.
+  void setWatermark(double t, bool eof) {
+    watermark_ = t;
+    eof_ = eof;
+  }
+  bool eof() const { return eof_; }
+
+  /// The next event if it can be decided from what was pushed so far: false with `more` set
+  /// when more samples are needed, false with `more` clear at the end.
+  bool next(Event& out, bool& more) {
+    pumpMotors();
+    pumpEncoders();
+    Event best;
+    bool have = false;
+    const auto consider = [&](const Event& e) {
+      if (!have || eventLess(e, best)) {
+        best = e;
+        have = true;
+      }
+    };
+    if (!enc_events_.empty()) consider(enc_events_.front());
+    if (opt_.use_gyro)
+      if (const auto* s = imu_.head(watermark_))
+        consider({s->t_s, kGyro, imu_.headStored(), {}, s->gyro_z_rad_s, 0});
+    if (opt_.use_sonar)
+      if (const auto* s = son_.head(watermark_))
+        consider({s->t_s, kSonar, son_.headStored(), {}, s->range_m, 0});
+    if (opt_.use_pozyx)
+      if (const auto* s = poz_.head(watermark_))
+        consider({s->t_s, kPozyx, poz_.headStored(), {}, s->x_m, s->y_m});
+    more = false;
+    if (!have) {
+      more = !eof_;
+      return false;
+    }
+    // Anything not yet known comes at or after the watermark; a pending encoder start (first
+    // sample seen, no interval yet) would come at its reference time, before same-time events.
+    double bound = eof_ ? std::numeric_limits<double>::infinity() : watermark_;
+    if (conv_.started() && !first_interval_ && enc_used_ < enc_total_)
+      bound = std::min(bound, conv_.referenceTime());
+    const bool input_known = motor_t_max_ > best.t || mot_used_ >= mot_total_;
+    if (!(best.t < bound) || !input_known) {
+      more = true;  // (at the end of the file both conditions hold)
+      return false;
+    }
+    out = best;
+    switch (best.kind) {
+      case kEncStart:
+      case kEncInterval:
+        enc_events_.pop_front();
+        break;
+      case kGyro:
+        imu_.pop();
+        break;
+      case kSonar:
+        son_.pop();
+        break;
+      default:
+        poz_.pop();
+    }
+    return true;
+  }
+
+ private:
+  void pumpMotors() {
+    while (const auto* m = mot_.head(watermark_)) {
+      input_.add(*m);
+      motor_t_max_ = m->t_s;
+      mot_.pop();
+      ++mot_used_;
+    }
+  }
+  void pumpEncoders() {
+    if (!opt_.use_encoders) return;
+    while (enc_events_.empty()) {
+      const auto* s = enc_.head(watermark_);
+      if (!s) return;
+      if (!conv_.started()) start_stored_ = enc_.headStored();
+      const std::size_t stored = enc_.headStored();
+      const auto iv = conv_.add(*s);
+      enc_.pop();
+      ++enc_used_;
+      if (!iv) continue;
+      if (!first_interval_) {
+        first_interval_ = true;
+        enc_events_.push_back({iv->t0_s, kEncStart, start_stored_, {}, 0, 0});
+      }
+      enc_events_.push_back({iv->t1_s, kEncInterval, stored, *iv, 0, 0});
+    }
+  }
+
+  const EkfOptions& opt_;
+  InputSignal& input_;
+  sensors::WheelSpeedConverter conv_;
+  io::SortedStream<io::EncoderSample> enc_{io::encoderLess};
+  io::SortedStream<io::ImuSample> imu_{io::imuLess};
+  io::SortedStream<io::MotorSample> mot_{io::motorLess};
+  io::SortedStream<io::SonarSample> son_{io::sonarLess};
+  io::SortedStream<io::PozyxSample> poz_{io::pozyxLess};
+  std::deque<Event> enc_events_;
+  std::size_t start_stored_ = 0;
+  bool first_interval_ = false;
+  std::size_t enc_total_, mot_total_, enc_used_ = 0, mot_used_ = 0;
+  double motor_t_max_ = -std::numeric_limits<double>::infinity();
+  double watermark_ = std::numeric_limits<double>::infinity();
+  bool eof_ = true;
+};
+
+/// Where the samples come from: a recording in memory, or a rawlog read as a stream.
+struct Source {
+  const io::Recording* rec = nullptr;
+  const std::string* path = nullptr;
+  io::RecordingSummary summary;
+};
+
+/// Books the samples of the streams the options leave out as skipped and returns the number
+/// of measurements of the others (progress, and the result's size when stored).
+std::size_t countStreams(const EkfOptions& opt, const io::RecordingSummary& counts,
+                         EstimationResult& res) {
+  using io::StreamKind;
+  const std::pair<bool, StreamKind> used[] = {{opt.use_encoders, StreamKind::Encoders},
+                                              {opt.use_gyro, StreamKind::Imu},
+                                              {opt.use_sonar, StreamKind::Sonar},
+                                              {opt.use_pozyx, StreamKind::Pozyx}};
+  const Sensor sensor[] = {Sensor::Encoders, Sensor::Gyro, Sensor::Sonar, Sensor::Pozyx};
+  std::size_t n = 0;
+  for (int k = 0; k < 4; ++k) {
+    if (used[k].first)
+      n += counts.count(used[k].second);
+    else
+      res.sensors[int(sensor[k])].skipped = long(counts.count(used[k].second));
+  }
+  return n;
+}
+
+/// The measurement update of one event (the state already predicted to its time).
+void applyEvent(Estimator& est, const Event& e) {
+  switch (e.kind) {
+    case kEncStart:
+      est.encoderStart(e.t);
+      break;
+    case kEncInterval:
+      est.encoderInterval(e.iv);
+      break;
+    case kGyro:
+      est.gyro(e.t, e.a);
+      break;
+    case kSonar:
+      est.sonar(e.t, e.a);
+      break;
+    case kPozyx:
+      est.pozyx(e.t, Eigen::Vector2d(e.a, e.b));
+      break;
+  }
+}
+
+EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairConfig& cfg,
                                   const EkfOptions& options, EstimateSink* sink,
                                   const std::function<void(double)>& progress) {
   EkfOptions opt = options;
   opt.resolveSensorDefaults(cfg);
   opt.validate();
+  const auto& counts = src.summary;
+  using io::StreamKind;
 
   InputSignal input(opt.input_interpolation);
-  input.setSamples(rec.motors);
   auto est = makeEstimator(cfg, opt, &input);
   est->keepNisRecords(sink == nullptr);
   EstimationResult& res = est->result();
+  const std::size_t n_expected = countStreams(opt, counts, res);
 
-  // Every stream sorted by (time, value): the same multiset of samples gives the same order.
-  // order[k][i]: index in the recording's stream of the i-th sorted sample (error messages;
-  // empty when the stream was stored in order).
-  std::array<std::vector<std::size_t>, 5> order;
-  std::vector<io::EncoderSample> enc_store;
-  std::vector<io::ImuSample> imu_store;
-  std::vector<io::SonarSample> son_store;
-  std::vector<io::PozyxSample> poz_store;
-  const auto& enc = sortedView(rec.encoders, enc_store, order[kEncStart],
-                               [](const io::EncoderSample& a, const io::EncoderSample& b) {
-                                 return std::tie(a.t_s, a.right_ticks, a.left_ticks) <
-                                        std::tie(b.t_s, b.right_ticks, b.left_ticks);
-                               });
-  const auto& imu = sortedView(rec.imu, imu_store, order[kGyro],
-                               [](const io::ImuSample& a, const io::ImuSample& b) {
-                                 return std::tie(a.t_s, a.gyro_z_rad_s) <
-                                        std::tie(b.t_s, b.gyro_z_rad_s);
-                               });
-  const auto& son = sortedView(rec.sonar, son_store, order[kSonar],
-                               [](const io::SonarSample& a, const io::SonarSample& b) {
-                                 return std::tie(a.t_s, a.range_m) < std::tie(b.t_s, b.range_m);
-                               });
-  const auto& poz = sortedView(rec.pozyx, poz_store, order[kPozyx],
-                               [](const io::PozyxSample& a, const io::PozyxSample& b) {
-                                 return std::tie(a.t_s, a.x_m, a.y_m) <
-                                        std::tie(b.t_s, b.x_m, b.y_m);
-                               });
-
-  std::vector<Event> ev;
-  std::vector<sensors::WheelSpeedInterval> iv;
-  if (opt.use_encoders) {
-    iv = sensors::wheelSpeedsFromTicks(enc, cfg.encoders.params, cfg.vehicle.geom);
-    if (!iv.empty()) ev.push_back({iv.front().t0_s, kEncStart, 0});
-    for (std::size_t i = 0; i < iv.size(); ++i) ev.push_back({iv[i].t1_s, kEncInterval, i});
+  EventMerger merger(cfg, opt, counts, input);
+  std::optional<io::RawlogWindowReader> reader;
+  if (src.rec) {
+    merger.attach(*src.rec);
   } else {
-    res.sensors[int(Sensor::Encoders)].skipped = static_cast<long>(enc.size());
+    reader.emplace(*src.path, counts.lateness_s);
+    merger.setWatermark(reader->watermark(), false);
   }
-  auto addStream = [&](bool use, std::size_t n, const auto& timeOf, int kind, Sensor s) {
-    if (!use) {
-      res.sensors[int(s)].skipped = static_cast<long>(n);
-      return;
-    }
-    for (std::size_t i = 0; i < n; ++i) ev.push_back({timeOf(i), kind, i});
+  // Reads a block of samples and moves the watermark.
+  const auto feed = [&] {
+    reader->read([&](const io::AnySample& s, std::size_t k) { merger.push(s, k); });
+    merger.setWatermark(reader->watermark(), reader->eof());
   };
-  addStream(
-      opt.use_gyro, imu.size(), [&](std::size_t i) { return imu[i].t_s; }, kGyro, Sensor::Gyro);
-  addStream(
-      opt.use_sonar, son.size(), [&](std::size_t i) { return son[i].t_s; }, kSonar, Sensor::Sonar);
-  addStream(
-      opt.use_pozyx, poz.size(), [&](std::size_t i) { return poz[i].t_s; }, kPozyx, Sensor::Pozyx);
-  std::stable_sort(ev.begin(), ev.end(), [](const Event& a, const Event& b) {
-    return std::tie(a.t, a.kind, a.index) < std::tie(b.t, b.kind, b.index);
-  });
-  if (ev.empty()) {
+  const auto nextEvent = [&](Event& e) {
+    bool more = false;
+    while (!merger.next(e, more)) {
+      if (!more) return false;
+      feed();
+    }
+    return true;
+  };
+
+  Event E, N;
+  bool have = nextEvent(E);
+  if (!have) {
     res.warnings.push_back("no measurements: nothing estimated");
     return std::move(res);
   }
-  if (opt.filter == FilterKind::Physics && input.empty())
+  if (opt.filter == FilterKind::Physics && counts.count(StreamKind::Motors) == 0)
     res.warnings.push_back("no motor currents: the input is held at 0 A");
 
-  const double t0 = ev.front().t;
+  const double t0 = E.t;
   est->start(t0);
   const bool fixed_rate = opt.output_rate_hz > 0;
   // Sized once: growing a vector of ~0.5 kB samples by doubling was a third of the baseline
@@ -440,9 +600,9 @@ EstimationResult runEstimatorImpl(const io::Recording& rec, const config::Wheelc
   // nothing: memory stays flat however long the drive.
   if (!sink) {
     res.estimates.reserve(
-        fixed_rate ? static_cast<std::size_t>((ev.back().t - t0) * opt.output_rate_hz) + 2
-                   : ev.size());
-    res.nis.reserve(ev.size());
+        fixed_rate ? static_cast<std::size_t>((counts.end_s - t0) * opt.output_rate_hz) + 2
+                   : n_expected);
+    res.nis.reserve(n_expected);
   }
   const auto emit = [&](const EstimateSample& s) {
     ++res.n_estimates;
@@ -455,11 +615,9 @@ EstimationResult runEstimatorImpl(const io::Recording& rec, const config::Wheelc
   };
   long k_out = 0;
   auto nextOut = [&] { return t0 + static_cast<double>(k_out) / opt.output_rate_hz; };
-  const std::size_t progress_every = std::max<std::size_t>(1, ev.size() / 100);
-  const auto processEvent = [&](std::size_t e) {
-    const Event& E = ev[e];
+  const auto processEvent = [&](const Event& e) {
     if (fixed_rate) {
-      while (nextOut() <= E.t) {
+      while (nextOut() <= e.t) {
         est->predictTo(nextOut());
         EstimateSample s = est->estimate();
         s.t_s = nextOut();
@@ -467,52 +625,32 @@ EstimationResult runEstimatorImpl(const io::Recording& rec, const config::Wheelc
         ++k_out;
       }
     }
-    est->predictTo(E.t);
-    switch (E.kind) {
-      case kEncStart:
-        est->encoderStart(E.t);
-        break;
-      case kEncInterval:
-        est->encoderInterval(iv[E.index]);
-        break;
-      case kGyro:
-        est->gyro(E.t, imu[E.index].gyro_z_rad_s);
-        break;
-      case kSonar:
-        est->sonar(E.t, son[E.index].range_m);
-        break;
-      case kPozyx:
-        est->pozyx(E.t, Eigen::Vector2d(poz[E.index].x_m, poz[E.index].y_m));
-        break;
-    }
-    // One output per measurement time (after all measurements of that time).
-    if (!fixed_rate && (e + 1 == ev.size() || ev[e + 1].t != E.t)) emit(est->estimate());
+    est->predictTo(e.t);
+    applyEvent(*est, e);
   };
   // Names the measurement being processed when a filter fails (e.g. CVODE after a clock jump):
   // stream, sample index as stored in the recording (0-based) and time.
-  const auto describe = [&](const Event& E) {
-    std::size_t sorted = E.index;
-    if (E.kind == kEncInterval) {
-      // The interval ends at an encoder sample: find it among the sorted samples.
-      const auto it =
-          std::lower_bound(enc.begin(), enc.end(), iv[E.index].t1_s,
-                           [](const io::EncoderSample& a, double t) { return a.t_s < t; });
-      sorted = static_cast<std::size_t>(it - enc.begin());
-    } else if (E.kind == kEncStart) {
-      sorted = 0;
-    }
-    const auto& ord = order[E.kind == kEncInterval ? kEncStart : E.kind];
-    const std::size_t stored = sorted < ord.size() ? ord[sorted] : sorted;
-    return fmt::format("{} sample {} (t = {:.6f} s)", eventStream(E.kind), stored, E.t);
-  };
-  for (std::size_t e = 0; e < ev.size(); ++e) {
-    const Event& E = ev[e];
-    if (progress && e % progress_every == 0) progress(static_cast<double>(e) / ev.size());
+  const auto named = [&](const Event& e, const auto& f) {
     try {
-      processEvent(e);
+      f();
     } catch (const std::exception& ex) {
-      throw std::runtime_error(fmt::format("{}: {}", describe(E), ex.what()));
+      throw std::runtime_error(fmt::format("{} sample {} (t = {:.6f} s): {}", eventStream(e.kind),
+                                           e.stored, e.t, ex.what()));
     }
+  };
+  const std::size_t progress_every = std::max<std::size_t>(1, n_expected / 100);
+  std::size_t done = 0;
+  while (have) {
+    if (progress && done % progress_every == 0)
+      progress(std::min(1.0, static_cast<double>(done) / std::max<std::size_t>(n_expected, 1)));
+    named(E, [&] { processEvent(E); });
+    ++done;
+    // Samples of the input signal the filter has passed are dropped (streaming only).
+    if (reader) input.discardBefore(E.t - 1.0);
+    have = nextEvent(N);
+    // One output per measurement time (after all measurements of that time).
+    if (!fixed_rate && (!have || N.t != E.t)) named(E, [&] { emit(est->estimate()); });
+    E = N;
   }
   if (!res.estimates.empty()) res.last = res.estimates.back();
   if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) res.cvode = w->filter().stats();
@@ -524,13 +662,36 @@ EstimationResult runEstimatorImpl(const io::Recording& rec, const config::Wheelc
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
                               const EkfOptions& options,
                               const std::function<void(double)>& progress) {
-  return runEstimatorImpl(rec, cfg, options, nullptr, progress);
+  return runEstimatorImpl({&rec, nullptr, io::summarize(rec)}, cfg, options, nullptr, progress);
 }
 
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
                               const EkfOptions& options, EstimateSink& sink,
                               const std::function<void(double)>& progress) {
-  return runEstimatorImpl(rec, cfg, options, &sink, progress);
+  return runEstimatorImpl({&rec, nullptr, io::summarize(rec)}, cfg, options, &sink, progress);
+}
+
+EstimationResult runEstimator(const std::string& rawlog, const io::RecordingSummary& summary,
+                              const config::WheelchairConfig& cfg, const EkfOptions& options,
+                              EstimateSink& sink, const std::function<void(double)>& progress) {
+  return runEstimatorImpl({nullptr, &rawlog, summary}, cfg, options, &sink, progress);
+}
+
+EstimatorFamily selectEstimator(const io::RecordingSummary& rec, const std::string& forced) {
+  if (forced == "command") return EstimatorFamily::CommandDriven;
+  if (!forced.empty()) return EstimatorFamily::Wheelchair;
+  using io::StreamKind;
+  const bool wheelchair_streams = rec.count(StreamKind::Encoders) || rec.count(StreamKind::Imu) ||
+                                  rec.count(StreamKind::Sonar) || rec.count(StreamKind::Pozyx);
+  io::Recording meta_only;
+  meta_only.meta = rec.meta;
+  const bool landmarks = rec.count(StreamKind::Landmarks) || !io::landmarkMap(meta_only).empty();
+  return landmarks && !wheelchair_streams ? EstimatorFamily::CommandDriven
+                                          : EstimatorFamily::Wheelchair;
+}
+
+EstimatorFamily selectEstimator(const io::Recording& rec, const std::string& forced) {
+  return selectEstimator(io::summarize(rec), forced);
 }
 
 }  // namespace wheelchair::estimation

@@ -1,9 +1,11 @@
 // The estimators' common interface and the driver that runs one over a recording.
 //
 // runEstimator() merges every measurement of an io::Recording into ONE time-ordered event
-// list (each stream sorted by time first; equal timestamps ordered by the fixed stream
+// sequence (each stream sorted by time first; equal timestamps ordered by the fixed stream
 // priority encoders < gyro < sonar < Pozyx, then by value), so the result does not depend on
-// the order in which samples were stored or arrived. Motor currents are not events: they are
+// the order in which samples were stored or arrived. Its rawlog overload does the same merge
+// while reading the file as a stream, in a window of the file's measured lateness
+// (io/RawlogStream.h), with bit-identical results. Motor currents are not events: they are
 // the input signal u(t) of the physics filter (InputSignal), whose sample times become extra
 // integration breakpoints in zero-order-hold mode (u jumps there); piecewise-linear u is
 // continuous and is integrated through (docs/estimation.md, "CVODE settings").
@@ -19,6 +21,7 @@
 #include "libwheelchair/estimation/CdEkf.h"
 #include "libwheelchair/estimation/EkfOptions.h"
 #include "libwheelchair/estimation/EstimationTypes.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/io/Recording.h"
 #include "libwheelchair/sensors/Encoders.h"
 
@@ -47,6 +50,9 @@ class InputSignal {
   void add(const io::MotorSample& s);
   /// u at t (right limit at a sample time in Hold mode).
   Eigen::Vector2d at(double t_s) const;
+  /// Forgets samples before the last one at or before t (streaming use: u(t) for times >= t
+  /// is unchanged; the memory is released in amortised batches).
+  void discardBefore(double t_s);
   /// Sample times strictly inside (t0, t1): where u(t) has a kink or a jump.
   std::vector<double> breakpoints(double t0_s, double t1_s) const;
   /// First sample time strictly after t (+infinity when there is none).
@@ -164,5 +170,31 @@ EstimationResult runEstimator(const io::Recording& rec, const config::Wheelchair
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
                               const EkfOptions& opt, EstimateSink& sink,
                               const std::function<void(double)>& progress = {});
+
+/// The same streamed run over a rawlog read as a stream (io/RawlogStream.h): `summary` is
+/// its io::scanRawlog (or scanRawlogSalvaging), the samples are read a second time and merged
+/// in a window of summary.lateness_s seconds, the input signal is kept only around the
+/// filter's time. Memory does not grow with the drive; results and estimates are
+/// bit-identical to runEstimator(io::readRawlog(rawlog), ...) (a damaged file is used up to
+/// its break, as with --salvage). Example:
+///   const auto sum = io::scanRawlogSalvaging("d.rawlog", salvage, &warning);
+///   auto res = runEstimator("d.rawlog", sum, cfg, opt, csv);
+EstimationResult runEstimator(const std::string& rawlog, const io::RecordingSummary& summary,
+                              const config::WheelchairConfig& cfg, const EkfOptions& opt,
+                              EstimateSink& sink, const std::function<void(double)>& progress = {});
+
+/// The two families of estimators: the wheelchair filters (physics CD-EKF or baseline, on
+/// encoders / gyro / sonar / Pozyx) and the command-driven EKF (commands + landmark
+/// range-bearing, map known; CommandDrivenEkf.h).
+enum class EstimatorFamily { Wheelchair, CommandDriven };
+
+/// Which family runs a recording, the one rule of `filter` and `evaluate`. `forced`: ""
+/// (automatic), "physics" or "baseline" (wheelchair), "command" (command-driven). Automatic:
+/// command-driven when the recording has landmark sightings or a landmark map and none of
+/// the wheelchair filters' streams (ENCODERS, IMU, SONAR, POZYX); the wheelchair filters
+/// otherwise (a wheelchair drive that also saw landmarks is a wheelchair drive). Example:
+///   if (selectEstimator(rec) == EstimatorFamily::CommandDriven) runCommandDrivenEkf(...);
+EstimatorFamily selectEstimator(const io::RecordingSummary& rec, const std::string& forced = "");
+EstimatorFamily selectEstimator(const io::Recording& rec, const std::string& forced = "");
 
 }  // namespace wheelchair::estimation

@@ -4,6 +4,7 @@
 #include "libwheelchair/estimation/EkfOptions.h"
 #include "libwheelchair/estimation/Estimator.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/util/AtomicFile.h"
 
 #include <fmt/core.h>
@@ -15,6 +16,7 @@
 #include <cstdio>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -234,16 +236,18 @@ RecordingEstimates estimateVariants(const io::Recording& raw_rec,
 namespace {
 
 // The wheelchair variants of estimateVariants, one after the other: each trajectory (or its
-// error) is passed to `f` and dropped before the next is computed, and the filters stream
-// their poses (TrajectorySink), so the peak is one pose trajectory, not four full results.
+// error) is passed to `f` and dropped before the next is computed. The rawlog is read as a
+// stream by every variant (io/RawlogStream.h: the filters stream their poses into a
+// TrajectorySink, dead reckoning its samples), so the peak is one pose trajectory, not the
+// recording; a configuration with model extensions needs the corrected recording in memory.
 void forEachVariantTrajectory(
-    const io::Recording& raw_rec, const config::WheelchairConfig& raw_cfg, bool with_baseline,
+    const std::string& path, const io::RecordingSummary& sum,
+    const config::WheelchairConfig& raw_cfg, bool with_baseline,
     const std::function<void(const std::string&, const std::string&, Trajectory)>& f) {
   const auto ext = estimation::ModelExtensions::fromConfig(raw_cfg.ini());
   const config::WheelchairConfig cfg = ext.adjustConfig(raw_cfg);
-  io::Recording corrected;
-  if (!ext.empty()) corrected = ext.apply(raw_rec, cfg);
-  const io::Recording& rec = ext.empty() ? raw_rec : corrected;
+  std::optional<io::Recording> rec;
+  if (!ext.empty()) rec = ext.apply(io::readRawlogSalvaging(path, true, nullptr), cfg);
   auto attempt = [&](const std::string& name, const std::function<Trajectory()>& make) {
     Trajectory t;
     std::string err;
@@ -256,28 +260,59 @@ void forEachVariantTrajectory(
   };
   auto filter = [&](estimation::FilterKind kind, const char* empty_error) {
     TrajectorySink poses;
-    const auto res = estimation::runEstimator(rec, cfg, ekfOptions(cfg, kind), poses);
+    const auto opt = ekfOptions(cfg, kind);
+    using io::StreamKind;  // at most one pose per measurement: sized once
+    poses.reserve((opt.use_encoders ? sum.count(StreamKind::Encoders) : 0) +
+                  (opt.use_gyro ? sum.count(StreamKind::Imu) : 0) +
+                  (opt.use_sonar ? sum.count(StreamKind::Sonar) : 0) +
+                  (opt.use_pozyx ? sum.count(StreamKind::Pozyx) : 0));
+    const auto res = rec ? estimation::runEstimator(*rec, cfg, opt, poses)
+                         : estimation::runEstimator(path, sum, cfg, opt, poses);
     if (res.n_estimates == 0) throw std::runtime_error(empty_error);
     return poses.take();
   };
+  auto deadReckoning = [&](bool with_gyro, const char* empty_error) {
+    const auto& p = cfg.encoders.params;
+    Trajectory t;
+    if (rec) {
+      t = toTrajectory(
+          with_gyro
+              ? estimation::deadReckoningEncoderGyro(rec->encoders, rec->imu, p, cfg.vehicle.geom)
+              : estimation::deadReckoningEncoders(rec->encoders, p, cfg.vehicle.geom));
+    } else {
+      // At most one sample per encoder sample and gyro time: sized once.
+      t.reserve(sum.count(io::StreamKind::Encoders) +
+                (with_gyro ? sum.count(io::StreamKind::Imu) : 0));
+      estimation::deadReckonRawlog(path, sum, with_gyro, p, cfg.vehicle.geom,
+                                   [&](const estimation::DeadReckoningSample& s) {
+                                     t.push_back({s.t_s, s.x_m, s.y_m, s.phi_rad});
+                                   });
+      sortByTimeKeepLast(t);
+    }
+    if (t.empty()) throw std::runtime_error(empty_error);
+    return t;
+  };
   attempt("ekf",
           [&] { return filter(estimation::FilterKind::Physics, "the EKF produced no estimate"); });
-  attempt("encoders", [&] {
-    const auto dr =
-        estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom);
-    if (dr.empty()) throw std::runtime_error("no encoder samples");
-    return toTrajectory(dr);
-  });
-  attempt("encoders_gyro", [&] {
-    const auto dr = estimation::deadReckoningEncoderGyro(rec.encoders, rec.imu, cfg.encoders.params,
-                                                         cfg.vehicle.geom);
-    if (dr.empty()) throw std::runtime_error("no encoder/gyro samples");
-    return toTrajectory(dr);
-  });
+  attempt("encoders", [&] { return deadReckoning(false, "no encoder samples"); });
+  attempt("encoders_gyro", [&] { return deadReckoning(true, "no encoder/gyro samples"); });
   if (with_baseline)
     attempt("baseline", [&] {
       return filter(estimation::FilterKind::Baseline, "the baseline produced no estimate");
     });
+}
+
+/// The streams groundTruthOf reads (GROUND_TRUTH, POZYX) of a rawlog, and its meta.
+io::Recording groundTruthStreams(const std::string& path) {
+  io::Recording rec;
+  io::RawlogSampleReader in(path);
+  io::AnySample s;
+  std::size_t k = 0;
+  while (in.next(s, k)) {
+    const auto kind = io::kindOf(s);
+    if (kind == io::StreamKind::GroundTruth || kind == io::StreamKind::Pozyx) io::append(rec, s);
+  }
+  return rec;
 }
 
 }  // namespace
@@ -314,14 +349,19 @@ std::string alignmentText(Alignment a, double first_s) {
   return a == Alignment::SE2FirstSeconds ? "se2-first:" + num(first_s) : toString(a);
 }
 
-std::string variantNotApplicable(const std::string& variant, const io::Recording& rec) {
-  const bool enc = rec.encoders.size() >= 2, gyro = !rec.imu.empty();
+std::string variantNotApplicable(const std::string& variant, const io::RecordingSummary& rec) {
+  using io::StreamKind;
+  const bool enc = rec.count(StreamKind::Encoders) >= 2, gyro = rec.count(StreamKind::Imu) > 0;
   if ((variant == "encoders" || variant == "encoders_gyro") && !enc)
     return "no encoder (encoders) readings";
   if (variant == "encoders_gyro" && !gyro) return "no gyro (imu) readings";
-  if ((variant == "ekf" || variant == "baseline") && !enc && !gyro && rec.sonar.empty())
+  if ((variant == "ekf" || variant == "baseline") && !enc && !gyro && !rec.count(StreamKind::Sonar))
     return "no encoder, gyro or sonar readings";
   return "";
+}
+
+std::string variantNotApplicable(const std::string& variant, const io::Recording& rec) {
+  return variantNotApplicable(variant, io::summarize(rec));
 }
 
 std::vector<BatchRow> evaluateRecording(const std::string& path,
@@ -332,12 +372,18 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
     // Own copy: nothing of the configuration is shared between worker threads.
     const auto cfg = config::WheelchairConfig::fromText(shared_cfg.text(), shared_cfg.origin());
     std::string salvaged;
-    const io::Recording rec = io::readRawlogSalvaging(path, options.salvage, &salvaged);
+    // Pass 1 (io/RawlogStream.h): what the file holds, the salvage rule; the variants then
+    // read it as a stream. Command-driven recordings (small: MRCLAM) are read whole.
+    const io::RecordingSummary sum = io::scanRawlogSalvaging(path, options.salvage, &salvaged);
     if (!salvaged.empty() && options.warning) {
       static std::mutex warning_mutex;
       const std::lock_guard<std::mutex> lock(warning_mutex);
       options.warning(salvaged);
     }
+    const bool command_driven =
+        estimation::selectEstimator(sum) == estimation::EstimatorFamily::CommandDriven;
+    const io::Recording rec =
+        command_driven ? io::readRawlogSalvaging(path, true, nullptr) : groundTruthStreams(path);
     const GroundTruth gt = groundTruthOf(rec, cfg);
     MetricOptions mo = options.metrics;
     mo.lever_arm_m = gt.lever_arm_m;
@@ -348,8 +394,7 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
       row.variant = variant;
       row.ground_truth = toString(gt.source);
       row.error = oneLine(err);
-      if (!estimation::isCommandDrivenRecording(rec))
-        row.not_applicable = variantNotApplicable(variant, rec);
+      if (!command_driven) row.not_applicable = variantNotApplicable(variant, sum);
       if (!row.not_applicable.empty()) row.error.clear();
       if (err.empty() && row.not_applicable.empty()) {
         try {
@@ -364,13 +409,13 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
     };
     // Command-driven recordings (MRCLAM): ekf + commands; others: the wheelchair variants,
     // streamed one at a time (memory flat in the drive's length).
-    if (estimation::isCommandDrivenRecording(rec)) {
+    if (command_driven) {
       const CommandDrivenEstimates cd = estimateCommandDrivenVariants(rec, cfg);
       for (const auto& [variant, err] : cd.errors)
         addRow(variant, err, [&, v = variant] { return cd.trajectory(v); });
     } else {
       forEachVariantTrajectory(
-          rec, cfg, options.baseline,
+          path, sum, cfg, options.baseline,
           [&](const std::string& variant, const std::string& err, Trajectory t) {
             addRow(variant, err, [&t] { return std::move(t); });
           });

@@ -8,8 +8,9 @@
 //   encoders_gyro  dead reckoning, encoder v + gyro omega (estimation::deadReckoningEncoderGyro)
 //   baseline       kinematic discrete EKF (filter=baseline), when BatchOptions::baseline
 //
-// Command-driven recordings (estimation::isCommandDrivenRecording: landmark sightings or a
-// landmark map, e.g. `wheelchair import --format mrclam`) get two rows instead:
+// Command-driven recordings (estimation::selectEstimator, the rule `filter` uses too: landmark
+// sightings or a landmark map and no encoder/IMU/sonar/Pozyx stream, e.g. `wheelchair import
+// --format mrclam`) get two rows instead:
 //
 //   ekf            command-driven EKF on commands + landmark range-bearing, map known
 //                  (estimation::runCommandDrivenEkf; options from the configuration's
@@ -88,6 +89,8 @@ class TrajectorySink : public estimation::EstimateSink {
   void add(const estimation::EstimateSample& e) override {
     poses_.push_back({e.t_s, e.x(2), e.x(3), e.x(4)});
   }
+  /// Room for n poses at once (a long drive's trajectory without the doubling slack).
+  void reserve(std::size_t n) { poses_.reserve(n); }
   /// The poses, strictly increasing in time (of equal timestamps the last); empties the sink.
   Trajectory take();
 
@@ -189,6 +192,7 @@ std::string alignmentText(Alignment a, double first_s);
 /// encoders needs ENCODERS readings, encoders_gyro ENCODERS and IMU, ekf/baseline any of
 /// ENCODERS, IMU or SONAR.
 std::string variantNotApplicable(const std::string& variant, const io::Recording& rec);
+std::string variantNotApplicable(const std::string& variant, const io::RecordingSummary& rec);
 
 /// Evaluates one recording (never throws: failures become error rows).
 std::vector<BatchRow> evaluateRecording(const std::string& path,

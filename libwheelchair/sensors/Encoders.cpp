@@ -68,47 +68,50 @@ UnwrappedTicks unwrapTicks(const std::vector<io::EncoderSample>& enc) {
   return out;
 }
 
+WheelSpeedConverter::WheelSpeedConverter(const EncoderParams& p, double wheel_radius_m,
+                                         double track_width_m)
+    : m_per_tick_(wheel_radius_m * p.wheelRadPerTick()), track_width_m_(track_width_m) {
+  if (!(track_width_m > 0)) throw std::invalid_argument("wheelSpeedsFromTicks: track width <= 0");
+}
+
+std::optional<WheelSpeedInterval> WheelSpeedConverter::add(const io::EncoderSample& s) {
+  const int64_t nr = ur_.unwrap(s.right_ticks);
+  const int64_t nl = ul_.unwrap(s.left_ticks);
+  if (!have_ref_) {
+    have_ref_ = true;
+    t_ref_ = s.t_s;
+    nr_ref_ = nr;
+    nl_ref_ = nl;
+    return std::nullopt;
+  }
+  const double dt = s.t_s - t_ref_;
+  if (!(dt > 0)) {  // also catches NaN
+    ++st_.skipped_nonpositive_dt;
+    return std::nullopt;
+  }
+  WheelSpeedInterval iv;
+  iv.t0_s = t_ref_;
+  iv.t1_s = s.t_s;
+  iv.u_right_m_s = m_per_tick_ * double(nr - nr_ref_) / dt;
+  iv.u_left_m_s = m_per_tick_ * double(nl - nl_ref_) / dt;
+  iv.v_m_s = 0.5 * (iv.u_right_m_s + iv.u_left_m_s);
+  iv.omega_rad_s = (iv.u_right_m_s - iv.u_left_m_s) / track_width_m_;
+  ++st_.intervals;
+  t_ref_ = s.t_s;
+  nr_ref_ = nr;
+  nl_ref_ = nl;
+  return iv;
+}
+
 std::vector<WheelSpeedInterval> wheelSpeedsFromTicks(const std::vector<io::EncoderSample>& enc,
                                                      const EncoderParams& p, double wheel_radius_m,
                                                      double track_width_m, WheelSpeedStats* stats) {
-  if (!(track_width_m > 0)) throw std::invalid_argument("wheelSpeedsFromTicks: track width <= 0");
-  WheelSpeedStats st;
+  WheelSpeedConverter conv(p, wheel_radius_m, track_width_m);
   std::vector<WheelSpeedInterval> out;
   if (enc.size() >= 2) out.reserve(enc.size() - 1);
-  const double m_per_tick = wheel_radius_m * p.wheelRadPerTick();
-  TickUnwrapper ur, ul;
-  bool have_ref = false;
-  double t_ref = 0;
-  int64_t nr_ref = 0, nl_ref = 0;
-  for (const auto& s : enc) {
-    const int64_t nr = ur.unwrap(s.right_ticks);
-    const int64_t nl = ul.unwrap(s.left_ticks);
-    if (!have_ref) {
-      have_ref = true;
-      t_ref = s.t_s;
-      nr_ref = nr;
-      nl_ref = nl;
-      continue;
-    }
-    const double dt = s.t_s - t_ref;
-    if (!(dt > 0)) {  // also catches NaN
-      ++st.skipped_nonpositive_dt;
-      continue;
-    }
-    WheelSpeedInterval iv;
-    iv.t0_s = t_ref;
-    iv.t1_s = s.t_s;
-    iv.u_right_m_s = m_per_tick * double(nr - nr_ref) / dt;
-    iv.u_left_m_s = m_per_tick * double(nl - nl_ref) / dt;
-    iv.v_m_s = 0.5 * (iv.u_right_m_s + iv.u_left_m_s);
-    iv.omega_rad_s = (iv.u_right_m_s - iv.u_left_m_s) / track_width_m;
-    out.push_back(iv);
-    t_ref = s.t_s;
-    nr_ref = nr;
-    nl_ref = nl;
-  }
-  st.intervals = out.size();
-  if (stats) *stats = st;
+  for (const auto& s : enc)
+    if (auto iv = conv.add(s)) out.push_back(*iv);
+  if (stats) *stats = conv.stats();
   return out;
 }
 

@@ -23,6 +23,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace wheelchair::sensors {
@@ -84,6 +85,30 @@ struct WheelSpeedInterval {
 struct WheelSpeedStats {
   std::size_t intervals = 0;               ///< intervals returned
   std::size_t skipped_nonpositive_dt = 0;  ///< samples not later than the last accepted one
+};
+
+/// wheelSpeedsFromTicks one sample at a time (streaming use; the vector functions below are
+/// this loop): add() returns the interval a sample closes, if any. Example:
+///   WheelSpeedConverter c(enc, 0.17, 0.55);
+///   for (const auto& s : samples) if (auto iv = c.add(s)) use(*iv);
+class WheelSpeedConverter {
+ public:
+  WheelSpeedConverter(const EncoderParams& p, double wheel_radius_m, double track_width_m);
+  /// Samples must come sorted by time; the first one only sets the reference.
+  std::optional<WheelSpeedInterval> add(const io::EncoderSample& s);
+  /// Whether the first sample (the start of the first interval) has been seen.
+  bool started() const { return have_ref_; }
+  /// Time of the last accepted sample (start of the next interval).
+  double referenceTime() const { return t_ref_; }
+  const WheelSpeedStats& stats() const { return st_; }
+
+ private:
+  double m_per_tick_, track_width_m_;
+  TickUnwrapper ur_, ul_;
+  bool have_ref_ = false;
+  double t_ref_ = 0;
+  int64_t nr_ref_ = 0, nl_ref_ = 0;
+  WheelSpeedStats st_;
 };
 
 /// Mean rim speeds over each interval between consecutive encoder samples (see the header

@@ -341,6 +341,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     d << T;
     rec.meta["duration_s"] = d.str();
   }
+  if (opt.sink) opt.sink->meta(rec.meta);
 
   // --- state ------------------------------------------------------------------------------
   Mech s;
@@ -362,14 +363,23 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   double sup_scale = 1.0, next_sup = 0.0;
   const long n_steps = static_cast<long>(std::ceil(T / h - 1e-9));
   const long truth_stride = std::max(1L, std::lround(1.0 / (opt.truth_rate_hz * h)));
-  // Sized once (no doubling slack, no copy on growth: a long drive's peak is its data).
-  res.truth.samples.reserve(static_cast<std::size_t>(n_steps / truth_stride) + 1);
-  rec.encoders.reserve(clocks[kEncoders].capacityFor(T));
-  rec.imu.reserve(clocks[kImu].capacityFor(T));
-  rec.motors.reserve(clocks[kMotors].capacityFor(T));
-  rec.sonar.reserve(clocks[kSonar].capacityFor(T));
-  rec.pozyx.reserve(clocks[kPozyx].capacityFor(T));
-  rec.joystick.reserve(clocks[kJoystick].capacityFor(T));
+  // Sized once (no doubling slack, no copy on growth: a long drive's peak is its data), or
+  // passed to SimulationOptions::sink as produced.
+  if (!opt.sink) {
+    res.truth.samples.reserve(static_cast<std::size_t>(n_steps / truth_stride) + 1);
+    rec.encoders.reserve(clocks[kEncoders].capacityFor(T));
+    rec.imu.reserve(clocks[kImu].capacityFor(T));
+    rec.motors.reserve(clocks[kMotors].capacityFor(T));
+    rec.sonar.reserve(clocks[kSonar].capacityFor(T));
+    rec.pozyx.reserve(clocks[kPozyx].capacityFor(T));
+    rec.joystick.reserve(clocks[kJoystick].capacityFor(T));
+  }
+  const auto put = [&](io::AnySample x) {
+    if (opt.sink)
+      opt.sink->sample(x);
+    else
+      io::append(rec, std::move(x));
+  };
 
   for (long k = 0; k <= n_steps; ++k) {
     const double t = k * h;
@@ -408,7 +418,12 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
       ts.v_demand_m_s = joy.v_m_s, ts.omega_demand_rad_s = joy.omega_rad_s;
       ts.v_ref_m_s = pm.vRef(), ts.omega_ref_rad_s = pm.omegaRef();
       ts.supervisory_scale = sup_scale;
-      res.truth.samples.push_back(ts);
+      if (opt.sink) {
+        opt.sink->truth(ts);
+        res.truth.samples.assign(1, ts);  // the last one only
+      } else {
+        res.truth.samples.push_back(ts);
+      }
     }
     if (k == n_steps) break;
 
@@ -477,9 +492,9 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
                 std::floor(sensors::wheelAngleToTicks(se.encoder_scale[0] * q.psiR, enc)));
             const auto tl = static_cast<int64_t>(
                 std::floor(sensors::wheelAngleToTicks(se.encoder_scale[1] * q.psiL, enc)));
-            rec.encoders.push_back(
-                {stamp, sensors::toHardwareCounter(opt.encoder_initial_ticks_right + tr),
-                 sensors::toHardwareCounter(opt.encoder_initial_ticks_left + tl)});
+            put(io::EncoderSample{stamp,
+                                  sensors::toHardwareCounter(opt.encoder_initial_ticks_right + tr),
+                                  sensors::toHardwareCounter(opt.encoder_initial_ticks_left + tl)});
             break;
           }
           case kImu: {
@@ -487,7 +502,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
             is.t_s = stamp;
             is.gyro_z_rad_s = se.gyro_scale * q.om + se.gyro_bias +
                               cfg.imu.gyro_noise_rad_s * gyro_noise.normal();
-            rec.imu.push_back(is);
+            put(is);
             break;
           }
           case kMotors: {
@@ -497,7 +512,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
             ms.current_left_A = I(1) + cfg.motors.current_noise_A * cur_noise.normal();
             ms.vrc_right_V = q.vrcR + cfg.motors.vrc_noise_V * vrc_noise.normal();
             ms.vrc_left_V = q.vrcL + cfg.motors.vrc_noise_V * vrc_noise.normal();
-            rec.motors.push_back(ms);
+            put(ms);
             break;
           }
           case kSonar: {
@@ -532,7 +547,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
               in_burst = in_burst ? (u >= 1.0 / L) : (u < std::min(1.0, p / (L * (1 - p))));
               if (in_burst) range = 0;
             }
-            rec.sonar.push_back({stamp, range});
+            put(io::SonarSample{stamp, range});
             break;
           }
           case kPozyx: {
@@ -550,18 +565,18 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
               ps.x_m += se.outlier_magnitude * mag * std::cos(dir);
               ps.y_m += se.outlier_magnitude * mag * std::sin(dir);
             }
-            rec.pozyx.push_back(ps);
+            put(ps);
             break;
           }
           case kJoystick:
-            rec.joystick.push_back({stamp, joy.v_m_s, joy.omega_rad_s});
+            put(io::JoystickSample{stamp, joy.v_m_s, joy.omega_rad_s});
             break;
         }
       }
     }
   }
   res.collisions = static_cast<int>(res.truth.collided_obstacles.size());
-  if (opt.record_ground_truth)
+  if (opt.record_ground_truth && !opt.sink)
     for (const auto& ts : res.truth.samples)
       rec.ground_truth.push_back({ts.t_s, ts.x_m, ts.y_m, ts.phi_rad});
   return res;
@@ -608,7 +623,7 @@ void putJsonNumber(std::ostream& os, double x) {
 
 // {"column": [v, ...], ...} in the key order and format of json::dump() (keys sorted, no
 // spaces), one column at a time from the samples.
-void writeTruthColumns(std::ostream& os, const std::vector<TruthSample>& samples) {
+void writeTruthColumns(std::ostream& os, const SimulationResult::TruthReplay& replay) {
   std::map<std::string, double TruthSample::*> columns;
 #define WC_MEMBER(c) columns[#c] = &TruthSample::c;
   WC_TRUTH_COLUMNS(WC_MEMBER)
@@ -617,10 +632,11 @@ void writeTruthColumns(std::ostream& os, const std::vector<TruthSample>& samples
   bool first = true;
   for (const auto& [name, member] : columns) {
     os << (first ? "" : ",") << json(name).dump() << ":[";
-    for (std::size_t i = 0; i < samples.size(); ++i) {
-      if (i) os << ',';
-      putJsonNumber(os, samples[i].*member);
-    }
+    std::size_t i = 0;
+    replay([&, m = member](const TruthSample& x) {
+      if (i++) os << ',';
+      putJsonNumber(os, x.*m);
+    });
     os << ']';
     first = false;
   }
@@ -630,6 +646,12 @@ void writeTruthColumns(std::ostream& os, const std::vector<TruthSample>& samples
 }  // namespace
 
 void SimulationResult::writeTruth(const std::string& path) const {
+  writeTruth(path, [this](const std::function<void(const TruthSample&)>& f) {
+    for (const auto& x : truth.samples) f(x);
+  });
+}
+
+void SimulationResult::writeTruth(const std::string& path, const TruthReplay& replay) const {
   const bool csv = path.size() >= 4 && path.compare(path.size() - 4, 4, ".csv") == 0;
   if (csv) {
     util::AtomicFile file(path);  // streamed row by row
@@ -640,14 +662,14 @@ void SimulationResult::writeTruth(const std::string& path) const {
 #undef WC_HDR
     os << out << "\n";
     std::size_t n = 0;
-    for (const auto& s : truth.samples) {
+    replay([&](const TruthSample& s) {
       std::string row;
 #define WC_ROW(c) row += (row.empty() ? "" : ",") + fmtNum(s.c);
       WC_TRUTH_COLUMNS(WC_ROW)
 #undef WC_ROW
       os << row << "\n";
       if (++n % 4096 == 0) file.check();
-    }
+    });
     file.commit();
     return;
   }
@@ -689,7 +711,7 @@ void SimulationResult::writeTruth(const std::string& path) const {
   for (auto it = j.begin(); it != j.end(); ++it) {
     os << (first ? "" : ",\n") << json(it.key()).dump() << ": ";
     if (it.key() == "trajectory")
-      writeTruthColumns(os, truth.samples);
+      writeTruthColumns(os, replay);
     else
       os << it.value().dump();
     file.check();

@@ -23,6 +23,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/io/Recording.h"
+#include "libwheelchair/io/Samples.h"
 #include "libwheelchair/simulation/Effects.h"
 #include "libwheelchair/simulation/PowerModule.h"
 #include "libwheelchair/simulation/Scenarios.h"
@@ -31,12 +32,29 @@
 #include <mrpt/config/CConfigFileBase.h>
 
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
 namespace wheelchair::simulation {
 
 /// Options of the simulator: [simulation] section of the configuration (units in the names).
+struct TruthSample;
+
+/// Where a streamed run's data goes (SimulationOptions::sink): first the recording's meta,
+/// then every recorded sample as it is produced (per stream in stream order) instead of into
+/// SimulationResult::recording, and every truth sample instead of truth.samples (which then
+/// keeps only the last one; with record_ground_truth the sink makes the GROUND_TRUTH stream
+/// from the truth samples). A long drive then needs no memory for its data (`wheelchair
+/// simulate`, docs/benchmarks.md "Memory").
+struct SimulationSink {
+  virtual ~SimulationSink() = default;
+  virtual void meta(const std::map<std::string, std::string>& meta) = 0;
+  virtual void sample(const io::AnySample& s) = 0;
+  virtual void truth(const TruthSample& s) = 0;
+};
+
 struct SimulationOptions {
   double step_s = 0.001;              ///< RK4 integration and power-module control period
   double truth_rate_hz = 100;         ///< rate of the truth trajectory samples
@@ -58,6 +76,9 @@ struct SimulationOptions {
   /// Truth engine: "model" (per-wheel torque balance, RK4) or "mujoco" (the chair as a MuJoCo
   /// multibody, MujocoEngine.h; its [mujoco] section is read from the configuration).
   std::string engine = "model";
+  /// When set, the run's data goes to the sink as it is produced instead of into the
+  /// SimulationResult (see SimulationSink).
+  SimulationSink* sink = nullptr;
 
   /// The key table (config/Options.h), bound to this object.
   config::Options options(const std::string& section = "simulation");
@@ -109,6 +130,11 @@ struct SimulationResult {
   /// anything else -> JSON with scenario, seed, effects, obstacles, anchor frame,
   /// collisions, configuration and the trajectory (column arrays).
   void writeTruth(const std::string& path) const;
+  /// The same file with the trajectory from `replay` (it calls its argument once per truth
+  /// sample, in order, each time it is called) instead of truth.samples: for a run whose
+  /// samples went to SimulationOptions::truth_sink (e.g. through a scratch file).
+  using TruthReplay = std::function<void(const std::function<void(const TruthSample&)>&)>;
+  void writeTruth(const std::string& path, const TruthReplay& replay) const;
 };
 
 /// Runs a scenario. duration_s <= 0: the scenario's default. Throws std::invalid_argument

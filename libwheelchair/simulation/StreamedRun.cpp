@@ -1,0 +1,133 @@
+#include "libwheelchair/simulation/StreamedRun.h"
+
+#include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
+#include "libwheelchair/util/OutputDir.h"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <stdexcept>
+
+namespace wheelchair::simulation {
+
+namespace {
+
+/// Truth samples: in memory up to `in_memory` samples (default 200000, ~30 MB: a drive of
+/// ~35 min at 100 Hz),
+/// beyond that in an anonymous temporary file (std::tmpfile: gone when closed, even after a
+/// crash), every write and read checked; errors name the truth file being produced.
+class TruthScratch {
+ public:
+  TruthScratch(std::string target, std::size_t in_memory)
+      : target_(std::move(target)), in_memory_(in_memory) {}
+  void add(const TruthSample& s) {
+    if (!f_ && mem_.size() < in_memory_) {
+      mem_.push_back(s);
+      return;
+    }
+    if (!f_) {  // spill
+      f_.reset(std::tmpfile());
+      if (!f_) fail("cannot create");
+      write(mem_.data(), mem_.size());
+      mem_ = {};
+    }
+    write(&s, 1);
+  }
+  /// Calls f for every sample in order.
+  void replay(const std::function<void(const TruthSample&)>& f) {
+    if (!f_) {
+      for (const auto& s : mem_) f(s);
+      return;
+    }
+    if (std::fflush(f_.get()) != 0) fail("cannot write");
+    std::rewind(f_.get());
+    std::vector<TruthSample> chunk(4096);
+    for (;;) {
+      const std::size_t n = std::fread(chunk.data(), sizeof(TruthSample), chunk.size(), f_.get());
+      for (std::size_t i = 0; i < n; ++i) f(chunk[i]);
+      if (n < chunk.size()) break;
+    }
+    if (std::ferror(f_.get())) fail("cannot read");
+    std::fseek(f_.get(), 0, SEEK_END);
+  }
+
+ private:
+  void write(const TruthSample* s, std::size_t n) {
+    if (n && std::fwrite(s, sizeof *s, n, f_.get()) != n) fail("cannot write");
+  }
+  [[noreturn]] void fail(const char* what) const {
+    throw std::runtime_error(target_ +
+                             ": scratch file of the truth samples (temporary directory): " + what +
+                             ": " + std::strerror(errno));
+  }
+  std::string target_;
+  std::size_t in_memory_;
+  std::vector<TruthSample> mem_;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f_{nullptr, &std::fclose};
+};
+
+struct FileSink : SimulationSink {
+  io::TimeOrderedRawlogWriter rawlog;
+  TruthScratch truth_samples;
+  bool ground_truth;
+  FileSink(const std::string& path, const std::string& truth_path, std::size_t in_memory,
+           const config::WheelchairConfig& cfg, bool gt)
+      : rawlog(path, cfg, expectedStreams(gt)),
+        truth_samples(truth_path, in_memory),
+        ground_truth(gt) {}
+  static std::vector<io::StreamKind> expectedStreams(bool gt) {
+    using io::StreamKind;
+    std::vector<StreamKind> k = {StreamKind::Encoders, StreamKind::Imu,   StreamKind::Motors,
+                                 StreamKind::Sonar,    StreamKind::Pozyx, StreamKind::Joystick};
+    if (gt) k.push_back(StreamKind::GroundTruth);
+    return k;
+  }
+  void meta(const std::map<std::string, std::string>& m) override { rawlog.setMeta(m); }
+  void sample(const io::AnySample& s) override { rawlog.add(s); }
+  void truth(const TruthSample& s) override {
+    truth_samples.add(s);
+    if (ground_truth) rawlog.add(io::GroundTruthPoseSample{s.t_s, s.x_m, s.y_m, s.phi_rad});
+  }
+};
+
+}  // namespace
+
+StreamedSimulation simulateToFiles(const config::WheelchairConfig& cfg, const std::string& scenario,
+                                   uint64_t seed, double duration_s,
+                                   const std::vector<EffectSpec>& effects,
+                                   const SimulationOptions& options, const std::string& rawlog,
+                                   const std::string& truth_path, std::size_t truth_in_memory) {
+  StreamedSimulation out;
+  util::RemoveUnlessKept outputs;  // a failed truth file removes the recording again
+  {
+    FileSink sink(rawlog, truth_path, truth_in_memory, cfg, options.record_ground_truth);
+    SimulationOptions opt = options;
+    opt.sink = &sink;
+    out.result = simulate(cfg, scenario, seed, duration_s, effects, opt);
+    out.counts = sink.rawlog.counts();
+    try {
+      sink.rawlog.commit();
+    } catch (const io::TimeOrderedRawlogWriter::HeaderTimeMismatch&) {
+      // The header time writeRawlog would write is not known before the end: repeat the
+      // (deterministic) run in memory.
+      SimulationResult res = simulate(cfg, scenario, seed, duration_s, effects, options);
+      io::writeRawlog(res.recording, rawlog, cfg);
+      outputs.add(rawlog);
+      res.writeTruth(truth_path);
+      outputs.keep();
+      res.recording = io::Recording{};
+      out.result = std::move(res);
+      return out;
+    }
+    outputs.add(rawlog);
+    out.result.writeTruth(truth_path, [&](const std::function<void(const TruthSample&)>& f) {
+      sink.truth_samples.replay(f);
+    });
+  }
+  outputs.keep();
+  return out;
+}
+
+}  // namespace wheelchair::simulation
