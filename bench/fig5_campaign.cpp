@@ -20,7 +20,7 @@
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Metrics.h"
-#include "libwheelchair/simulation/Effects.h"
+#include "libwheelchair/effects/Effect.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Simulator.h"
 
@@ -50,7 +50,7 @@ struct RunMetrics {
 };
 
 RunMetrics runOne(const config::WheelchairConfig& cfg, uint64_t seed,
-                  const std::vector<simulation::EffectSpec>& effects, bool against_truth,
+                  const std::vector<effects::EffectSpec>& effects, bool against_truth,
                   const std::string& engine) {
   RunMetrics out;
   out.seed = seed;
@@ -167,7 +167,7 @@ int main(int argc, char** argv) {
   }
   const auto cfg = config::WheelchairConfig::load(
       cfg_path.empty() ? std::string(WHEELCHAIR_SOURCE_DIR) + "/config/wheelchair.ini" : cfg_path);
-  std::vector<simulation::EffectSpec> effects;
+  std::vector<effects::EffectSpec> effects;
   std::stringstream ss(effects_text);
   for (std::string t; std::getline(ss, t, ';');)
     if (!t.empty()) effects.push_back(simulation::parseEngineEffect(t, engine));

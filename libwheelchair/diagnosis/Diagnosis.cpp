@@ -1100,16 +1100,16 @@ bool isModelExtension(const Finding& f) {
 
 }  // namespace
 
-std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep) {
-  std::vector<simulation::EffectSpec> out;
+std::vector<effects::EffectSpec> findingsAsEffects(const DiagnosisReport& rep) {
+  std::vector<effects::EffectSpec> out;
   for (auto& f : rep.findings) {
     if (!isModelExtension(f)) continue;
-    simulation::EffectSpec e;
+    effects::EffectSpec e;
     e.id = f.effect;
     for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it) {
-      if (simulation::findEffect(e.id)) {
+      if (effects::findEffect(e.id)) {
         bool known = false;
-        for (auto& p : simulation::findEffect(e.id)->params) known |= p.name == it.key();
+        for (auto& p : effects::findEffect(e.id)->info().params) known |= p.name == it.key();
         if (!known) continue;
       }
       if (it->is_number())
@@ -1132,7 +1132,7 @@ config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
     if (!isModelExtension(f)) continue;
     ++k;
     out.set("model_extensions", fmt::format("effect_{}", k),
-            simulation::formatEffect(effects[k - 1]));
+            effects::formatEffect(effects[k - 1]));
     std::string u;
     for (auto it = f.uncertainty.begin(); it != f.uncertainty.end(); ++it)
       if (it->is_number())

@@ -34,15 +34,8 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
+/// The streams in effects::streamNames() order (sensor_delay's index).
 enum Stream { kEncoders, kImu, kMotors, kSonar, kPozyx, kJoystick, kNumStreams };
-const char* const kStreamNames[kNumStreams] = {"encoders", "imu",   "motors",
-                                               "sonar",    "pozyx", "joystick"};
-
-int streamIndex(const std::string& name) {
-  for (int i = 0; i < kNumStreams; ++i)
-    if (name == kStreamNames[i]) return i;
-  throw std::invalid_argument("unknown sensor stream '" + name + "'");
-}
 
 /// Sampling instants of one stream: nominal grid with a per-seed phase plus uniform jitter.
 class StreamClock {
@@ -104,15 +97,6 @@ Mech rk4(const Mech& s, const model::DriveTrain& dt, const Eigen::Vector2d& I, d
 /// The sensors' view of the truth at one instant (linear interpolation within a step).
 struct Snap {
   double x, y, phi, v, om, psiR, psiL, vrcR, vrcL;
-};
-
-/// Everything effects change on the sensor side.
-struct SensorEffects {
-  double encoder_scale[2] = {1, 1};
-  double gyro_bias = 0, gyro_scale = 1;
-  double delay[kNumStreams] = {0, 0, 0, 0, 0, 0};
-  double dropout_probability = 0, dropout_burst = 3;
-  double outlier_rate = 0, outlier_magnitude = 1;
 };
 
 }  // namespace
@@ -231,7 +215,8 @@ void SimulationOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
 
 // ------------------------------------------------------------------------------------------
 SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string& scenario_name,
-                          uint64_t seed, double duration_s, const std::vector<EffectSpec>& effects,
+                          uint64_t seed, double duration_s,
+                          const std::vector<effects::EffectSpec>& effects,
                           const SimulationOptions& opt) {
   for (const auto& e : effects) validateEngineEffect(e, opt.engine);
   if (!(opt.step_s > 0 && opt.step_s <= 0.01))
@@ -242,42 +227,17 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   const double h = opt.step_s;
 
   // --- the true vehicle: nominal configuration + physical effects -------------------------
-  model::DriveTrain dt = model::DriveTrain::symmetric(cfg.vehicle);
-  dt.coulomb_smoothing_m_s = opt.coulomb_smoothing_m_s;
+  effects::TruthModel truth;
+  truth.drive = model::DriveTrain::symmetric(cfg.vehicle);
+  truth.drive.coulomb_smoothing_m_s = opt.coulomb_smoothing_m_s;
+  truth.actuator_delay_s = opt.power.delay_s;
+  truth.actuator_time_constant_s = opt.power.time_constant_s;
+  effects::actOnTruth(effects, truth);
+  const model::DriveTrain& dt = truth.drive;
   PowerModuleParams pmp = opt.power;
-  SensorEffects se;
-  for (const auto& e : effects) {
-    if (e.id == "motor_asymmetry") {
-      for (int s : effectSides(e)) {
-        dt.side[s].motor_viscous_Nm_s_rad *= e.number("friction_ratio");
-        dt.side[s].torque_constant_Nm_A *= e.number("km_ratio");
-      }
-    } else if (e.id == "encoder_scale") {
-      for (int s : effectSides(e)) se.encoder_scale[s] *= e.number("scale");
-    } else if (e.id == "gyro_bias") {
-      se.gyro_bias += e.number("bias_rad_s");
-    } else if (e.id == "gyro_scale") {
-      se.gyro_scale *= e.number("scale");
-    } else if (e.id == "coulomb_friction") {
-      for (int s : effectSides(e)) dt.side[s].coulomb_A += e.number("current_A");
-    } else if (e.id == "ground_slope") {
-      dt.slope_rad = e.number("angle_deg") * kDeg;
-      dt.downhill_heading_rad = e.number("downhill_heading_deg") * kDeg;
-    } else if (e.id == "sensor_delay") {
-      se.delay[streamIndex(e.text("sensor"))] += e.number("delay_s");
-    } else if (e.id == "payload_mass") {
-      dt.geom.body_mass_kg = e.number("body_mass_kg");
-    } else if (e.id == "actuator_lag") {
-      if (e.has("delay_s")) pmp.delay_s = e.number("delay_s");
-      if (e.has("time_constant_s")) pmp.time_constant_s = e.number("time_constant_s");
-    } else if (e.id == "sonar_dropout") {
-      se.dropout_probability = e.number("probability");
-      se.dropout_burst = e.number("burst_length");
-    } else if (e.id == "pozyx_outliers") {
-      se.outlier_rate = e.number("rate");
-      se.outlier_magnitude = e.number("magnitude_m");
-    }
-  }
+  pmp.delay_s = truth.actuator_delay_s;
+  pmp.time_constant_s = truth.actuator_time_constant_s;
+  const effects::SensorDistortion& se = truth.sensors;
   const double r = dt.geom.wheel_radius_m, lw = dt.geom.track_width_m, rG = dt.geom.gear_ratio;
   const double Rm = cfg.vehicle.armature_resistance_ohm;
   const double km[2] = {dt.side[0].torque_constant_Nm_A, dt.side[1].torque_constant_Nm_A};
@@ -330,7 +290,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   const double t0 = opt.start_time_s;
   {
     std::string eff;
-    for (const auto& e : effects) eff += (eff.empty() ? "" : " ") + formatEffect(e);
+    for (const auto& e : effects) eff += (eff.empty() ? "" : " ") + effects::formatEffect(e);
     rec.meta["source"] = "wheelchair simulate (libwheelchair truth simulator)";
     rec.meta["scenario"] = scenario_name;
     rec.meta["engine"] = opt.engine;
@@ -469,7 +429,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
         const double tm = clk.next();
         clk.advance();
         const Snap q = snapAt(tm);
-        const double stamp = t0 + tm + se.delay[st];
+        const double stamp = t0 + tm + se.delay_s[st];
         switch (st) {
           case kEncoders: {
             // The counter holds whole edges: floor of the continuous count of (9).
@@ -485,7 +445,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
           case kImu: {
             io::ImuSample is;
             is.t_s = stamp;
-            is.gyro_z_rad_s = se.gyro_scale * q.om + se.gyro_bias +
+            is.gyro_z_rad_s = se.gyro_scale * q.om + se.gyro_bias_rad_s +
                               cfg.imu.gyro_noise_rad_s * gyro_noise.normal();
             rec.imu.push_back(is);
             break;
@@ -547,8 +507,8 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
             const double u = pozyx_out.uniform(), dir = pozyx_out.uniform(0, 2 * M_PI),
                          mag = pozyx_out.uniform(0.5, 1.5);
             if (u < se.outlier_rate) {
-              ps.x_m += se.outlier_magnitude * mag * std::cos(dir);
-              ps.y_m += se.outlier_magnitude * mag * std::sin(dir);
+              ps.x_m += se.outlier_magnitude_m * mag * std::cos(dir);
+              ps.y_m += se.outlier_magnitude_m * mag * std::sin(dir);
             }
             rec.pozyx.push_back(ps);
             break;
@@ -578,7 +538,8 @@ using nlohmann::json;
   X(y_m)                                                                                          \
   X(phi_rad)                                                                                      \
   X(v_m_s)                                                                                        \
-  X(omega_rad_s) X(wheel_speed_right_rad_s) X(wheel_speed_left_rad_s) X(wheel_angle_right_rad)    \
+  X(omega_rad_s)                                                                                  \
+  X(wheel_speed_right_rad_s) X(wheel_speed_left_rad_s) X(wheel_angle_right_rad)                   \
       X(wheel_angle_left_rad) X(current_right_A) X(current_left_A) X(voltage_right_V)             \
           X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) X(omega_ref_rad_s) \
               X(supervisory_scale)
@@ -665,7 +626,7 @@ void SimulationResult::writeTruth(const std::string& path) const {
     json je;
     je["id"] = e.id;
     je["params"] = e.params;
-    je["text"] = formatEffect(e);
+    je["text"] = effects::formatEffect(e);
     eff.push_back(je);
   }
   j["effects"] = eff;

@@ -21,8 +21,8 @@ simulation::SimulationResult sim(const std::string& scenario, uint64_t seed, dou
   simulation::SimulationOptions so;
   so.loadFromConfig(cfg.ini());
   so.record_ground_truth = true;
-  std::vector<simulation::EffectSpec> e;
-  for (auto& s : effects) e.push_back(simulation::parseValidEffect(s));
+  std::vector<effects::EffectSpec> e;
+  for (auto& s : effects) e.push_back(effects::parseValidEffect(s));
   return simulation::simulate(cfg, scenario, seed, dur, e, so);
 }
 
@@ -100,7 +100,7 @@ TEST(Diagnose, PaperCaseUnequalMotorsAndFaultyEncoder) {
   auto cfg2 = diagnosis::correctedConfig(config::WheelchairConfig(), r);
   auto ext = estimation::ModelExtensions::fromConfig(cfg2.ini()).effects;
   ASSERT_EQ(ext.size(), 2u);
-  for (auto& e : ext) EXPECT_NO_THROW(simulation::validateEffect(e));
+  for (auto& e : ext) EXPECT_NO_THROW(effects::validateEffect(e));
 }
 
 // Missing streams: no gyro -> stage 1 skipped; no currents -> stage 2 skipped; no crash and no

@@ -15,8 +15,8 @@ io::Recording sim(const std::string& scenario, uint64_t seed, double dur,
   config::WheelchairConfig cfg;
   simulation::SimulationOptions so;
   so.loadFromConfig(cfg.ini());
-  std::vector<simulation::EffectSpec> e;
-  for (auto& s : effects) e.push_back(simulation::parseValidEffect(s));
+  std::vector<effects::EffectSpec> e;
+  for (auto& s : effects) e.push_back(effects::parseValidEffect(s));
   return simulation::simulate(cfg, scenario, seed, dur, e, so).recording;
 }
 

@@ -1,5 +1,5 @@
 // Effect specification parsing and validation (the catalogue is a contract).
-#include "libwheelchair/simulation/Effects.h"
+#include "libwheelchair/effects/Effect.h"
 
 #include <gtest/gtest.h>
 
@@ -8,32 +8,32 @@
 using namespace wheelchair::simulation;
 
 TEST(EffectParse, IdAndParams) {
-  const EffectSpec e = parseEffect("motor_asymmetry:side=right,friction_ratio=1.3");
+  const effects::EffectSpec e = effects::parseEffect("motor_asymmetry:side=right,friction_ratio=1.3");
   EXPECT_EQ(e.id, "motor_asymmetry");
   ASSERT_EQ(e.params.size(), 2u);
   EXPECT_EQ(e.params.at("side"), "right");
   EXPECT_DOUBLE_EQ(e.number("friction_ratio"), 1.3);
   EXPECT_DOUBLE_EQ(e.number("km_ratio"), 1.0);  // catalogue default
-  EXPECT_NO_THROW(validateEffect(e));
-  EXPECT_EQ(parseEffect(formatEffect(e)), e);
-  EXPECT_EQ(parseEffect(" gyro_bias : bias_rad_s = 0.01 ").number("bias_rad_s"), 0.01);
+  EXPECT_NO_THROW(effects::validateEffect(e));
+  EXPECT_EQ(effects::parseEffect(effects::formatEffect(e)), e);
+  EXPECT_EQ(effects::parseEffect(" gyro_bias : bias_rad_s = 0.01 ").number("bias_rad_s"), 0.01);
 }
 
 TEST(EffectParse, Errors) {
-  EXPECT_THROW(parseEffect(""), std::invalid_argument);
-  EXPECT_THROW(parseEffect("gyro_bias:bias_rad_s"), std::invalid_argument);
-  EXPECT_THROW(parseEffect("gyro_bias:a=1,a=2"), std::invalid_argument);
-  EXPECT_THROW(parseValidEffect("warp_drive:x=1"), std::invalid_argument);
-  EXPECT_THROW(parseValidEffect("gyro_bias:bias=0.1"), std::invalid_argument);    // unknown key
-  EXPECT_THROW(parseValidEffect("gyro_bias"), std::invalid_argument);             // required
-  EXPECT_THROW(parseValidEffect("gyro_scale:scale=abc"), std::invalid_argument);  // not a number
-  EXPECT_THROW(parseValidEffect("encoder_scale:side=middle,scale=1"), std::invalid_argument);
-  EXPECT_THROW(parseValidEffect("encoder_scale:side=left,scale=-1"), std::invalid_argument);
-  EXPECT_THROW(parseValidEffect("sonar_dropout:probability=1"), std::invalid_argument);
-  EXPECT_THROW(parseValidEffect("actuator_lag"), std::invalid_argument);
-  EXPECT_NO_THROW(parseValidEffect("actuator_lag:delay_s=0.2"));
-  EXPECT_NO_THROW(parseValidEffect("sensor_delay:sensor=imu,delay_s=0.05"));
-  EXPECT_THROW(parseValidEffect("sensor_delay:sensor=radar,delay_s=0.05"), std::invalid_argument);
+  EXPECT_THROW(effects::parseEffect(""), std::invalid_argument);
+  EXPECT_THROW(effects::parseEffect("gyro_bias:bias_rad_s"), std::invalid_argument);
+  EXPECT_THROW(effects::parseEffect("gyro_bias:a=1,a=2"), std::invalid_argument);
+  EXPECT_THROW(effects::parseValidEffect("warp_drive:x=1"), std::invalid_argument);
+  EXPECT_THROW(effects::parseValidEffect("gyro_bias:bias=0.1"), std::invalid_argument);    // unknown key
+  EXPECT_THROW(effects::parseValidEffect("gyro_bias"), std::invalid_argument);             // required
+  EXPECT_THROW(effects::parseValidEffect("gyro_scale:scale=abc"), std::invalid_argument);  // not a number
+  EXPECT_THROW(effects::parseValidEffect("encoder_scale:side=middle,scale=1"), std::invalid_argument);
+  EXPECT_THROW(effects::parseValidEffect("encoder_scale:side=left,scale=-1"), std::invalid_argument);
+  EXPECT_THROW(effects::parseValidEffect("sonar_dropout:probability=1"), std::invalid_argument);
+  EXPECT_THROW(effects::parseValidEffect("actuator_lag"), std::invalid_argument);
+  EXPECT_NO_THROW(effects::parseValidEffect("actuator_lag:delay_s=0.2"));
+  EXPECT_NO_THROW(effects::parseValidEffect("sensor_delay:sensor=imu,delay_s=0.05"));
+  EXPECT_THROW(effects::parseValidEffect("sensor_delay:sensor=radar,delay_s=0.05"), std::invalid_argument);
 }
 
 TEST(EffectParse, CatalogueContract) {
@@ -52,7 +52,7 @@ TEST(EffectParse, CatalogueContract) {
       {"pozyx_outliers", {"rate"}},
   };
   for (const auto& [id, keys] : contract) {
-    const EffectInfo* info = findEffect(id);
+    const effects::EffectInfo* info = effects::findEffect(id);
     ASSERT_NE(info, nullptr) << id;
     std::set<std::string> have;
     for (const auto& p : info->params) have.insert(p.name);

@@ -1,0 +1,80 @@
+// encoder_scale(side, scale): a wrong encoder pulley ratio N_ep/N_mp on one side (or both).
+//   truth      that encoder counts scale x the true wheel rotation
+//   inverse    that side's unwrapped cumulative ticks / scale (re-wrapped; < 1 tick error)
+//   residual   stage 1 window, gyro scale g = 1: y = int(gyro) - (dR - dL)/l_w with
+//              dR = scale dR_true: column dR/l_w (right) or -dL/l_w (left), coefficient
+//              1/scale - 1 (the diagnosis reports scale = g / (1 + b_g + b))
+#include "libwheelchair/effects/Catalogue.h"
+#include "libwheelchair/sensors/Encoders.h"
+
+#include <cmath>
+
+namespace wheelchair::effects {
+namespace {
+
+struct EncoderScaleParams {
+  std::vector<int> sides;
+  double scale = 1;
+  static EncoderScaleParams of(const EffectSpec& e) { return {effectSides(e), e.number("scale")}; }
+};
+
+class EncoderScale final : public Effect {
+ public:
+  const EffectInfo& info() const override {
+    static const EffectInfo i{
+        "encoder_scale",
+        "Wrong encoder pulley ratio N_ep/N_mp on one side: the encoder reports scale times the "
+        "true wheel rotation.",
+        {{"side", "enum", "encoder affected", "", sideChoicesBoth()},
+         {"scale", "-", "reported distance / true distance", "", {}, false, 0, 10, false}}};
+    return i;
+  }
+  void actOnTruth(const EffectSpec& e, TruthModel& t) const override {
+    const auto p = EncoderScaleParams::of(e);
+    for (int s : p.sides) t.sensors.encoder_scale[s] *= p.scale;
+  }
+  CorrectionPhase correctionPhase() const override { return CorrectionPhase::sensor; }
+  void correct(const EffectSpec& e, io::Recording& rec, const CorrectionContext&) const override {
+    const auto p = EncoderScaleParams::of(e);
+    if (!(p.scale > 0)) return;
+    for (const int side : p.sides) {
+      sensors::TickUnwrapper unwrap;
+      for (auto& s : rec.encoders) {
+        int32_t& raw = side == 0 ? s.right_ticks : s.left_ticks;
+        raw = sensors::toHardwareCounter(std::llround(unwrap.unwrap(raw) / p.scale));
+      }
+    }
+  }
+  std::vector<KinematicColumn> kinematicColumns() const override {
+    return {{"encoder_scale/right", [](const KinematicWindow& w) { return w.dR_m / w.track_m; }},
+            {"encoder_scale/left", [](const KinematicWindow& w) { return -w.dL_m / w.track_m; }}};
+  }
+  std::vector<ResidualTerm> residualTerms(const TermOptions&) const override {
+    std::vector<ResidualTerm> out;
+    for (int side = 0; side < 2; ++side) {
+      ResidualTerm t;
+      t.name = "encoder_scale/" + sideChoices()[side];
+      t.stage = Stage::kinematic;
+      t.coefficients = oneColumn(t.name);
+      t.plausible = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; };
+      t.coefficientOf = [side](const EffectSpec& e, const config::WheelchairConfig&) {
+        const auto p = EncoderScaleParams::of(e);
+        double b = 0;
+        for (int s : p.sides)
+          if (s == side) b = 1 / p.scale - 1;
+        return Eigen::VectorXd::Constant(1, b);
+      };
+      out.push_back(t);
+    }
+    return out;
+  }
+};
+
+}  // namespace
+
+const Effect& encoderScaleEffect() {
+  static const EncoderScale e;
+  return e;
+}
+
+}  // namespace wheelchair::effects

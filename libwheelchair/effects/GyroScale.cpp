@@ -1,0 +1,57 @@
+// gyro_scale(scale): scale-factor error of the gyro z reading.
+//   truth      gyro_z = scale omega
+//   inverse    gyro_z / scale
+//   residual   stage 1 window: y = (scale - 1) (dR - dL) / l_w  (column (dR - dL)/l_w,
+//              coefficient scale - 1)
+#include "libwheelchair/effects/Catalogue.h"
+
+namespace wheelchair::effects {
+namespace {
+
+struct GyroScaleParams {
+  double scale = 1;
+  static GyroScaleParams of(const EffectSpec& e) { return {e.number("scale")}; }
+};
+
+class GyroScale final : public Effect {
+ public:
+  const EffectInfo& info() const override {
+    static const EffectInfo i{
+        "gyro_scale",
+        "Scale-factor error of the gyro z reading.",
+        {{"scale", "-", "reported rate / true rate", "", {}, false, 0, 10, false}}};
+    return i;
+  }
+  void actOnTruth(const EffectSpec& e, TruthModel& t) const override {
+    t.sensors.gyro_scale *= GyroScaleParams::of(e).scale;
+  }
+  CorrectionPhase correctionPhase() const override { return CorrectionPhase::sensor; }
+  void correct(const EffectSpec& e, io::Recording& rec, const CorrectionContext&) const override {
+    const double g = GyroScaleParams::of(e).scale;
+    if (g > 0)
+      for (auto& s : rec.imu) s.gyro_z_rad_s /= g;
+  }
+  std::vector<KinematicColumn> kinematicColumns() const override {
+    return {{"gyro_scale", [](const KinematicWindow& w) { return (w.dR_m - w.dL_m) / w.track_m; }}};
+  }
+  std::vector<ResidualTerm> residualTerms(const TermOptions&) const override {
+    ResidualTerm t;
+    t.name = "gyro_scale";
+    t.stage = Stage::kinematic;
+    t.coefficients = oneColumn("gyro_scale");
+    t.plausible = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; };
+    t.coefficientOf = [](const EffectSpec& e, const config::WheelchairConfig&) {
+      return Eigen::VectorXd::Constant(1, GyroScaleParams::of(e).scale - 1);
+    };
+    return {t};
+  }
+};
+
+}  // namespace
+
+const Effect& gyroScaleEffect() {
+  static const GyroScale e;
+  return e;
+}
+
+}  // namespace wheelchair::effects
