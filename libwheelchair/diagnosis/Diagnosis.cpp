@@ -26,57 +26,20 @@ namespace {
 
 constexpr double kRad2Deg = 180.0 / M_PI;
 
-Eigen::MatrixXd unit(int n, std::initializer_list<int> cols) {
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(n, 1);
-  for (int c : cols) S(c, 0) = 1.0;
-  return S;
-}
-
+/// The catalogue terms of the two stages (effects/: registry order).
 std::vector<Candidate> kinematicCandidates(bool delay) {
-  std::vector<Candidate> c;
-  auto scaleOk = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; };
-  c.push_back({"gyro_bias", "gyro_bias", unit(5, {0}), {}, [](const Eigen::VectorXd& b) {
-                 return std::abs(b(0)) < 0.5;
-               }});
-  c.push_back({"gyro_scale", "gyro_scale", unit(5, {1}), {}, scaleOk});
-  c.push_back({"encoder_scale/right", "encoder_scale", unit(5, {2}), {}, scaleOk});
-  c.push_back({"encoder_scale/left", "encoder_scale", unit(5, {3}), {}, scaleOk});
-  if (delay)
-    c.push_back(
-        {"sensor_delay/imu", "sensor_delay", unit(5, {4}), {}, [](const Eigen::VectorXd& b) {
-           return std::abs(b(0)) < 0.5;
-         }});
-  return c;
+  return stageCandidates(effects::Stage::kinematic, {0.0, delay});
 }
 
 std::vector<Candidate> dynamicCandidates(double body_mass, bool delay) {
-  std::vector<Candidate> c;
-  auto ratioOk = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.1 && 1 + b(0) < 10; };
-  auto coulOk = [](const Eigen::VectorXd& b) { return b(0) > 0 && b(0) < 10; };
-  c.push_back({"motor_asymmetry/right", "motor_asymmetry", unit(8, {0}), {}, ratioOk});
-  c.push_back({"motor_asymmetry/left", "motor_asymmetry", unit(8, {1}), {}, ratioOk});
-  c.push_back({"coulomb_friction/both",
-               "coulomb_friction",
-               unit(8, {2, 3}),
-               {"coulomb_friction/right", "coulomb_friction/left"},
-               coulOk});
-  c.push_back({"coulomb_friction/right", "coulomb_friction", unit(8, {2}), {}, coulOk});
-  c.push_back({"coulomb_friction/left", "coulomb_friction", unit(8, {3}), {}, coulOk});
-  c.push_back(
-      {"payload_mass", "payload_mass", unit(8, {4}), {}, [body_mass](const Eigen::VectorXd& b) {
-         return body_mass + b(0) > 0.2 * body_mass && body_mass + b(0) < 5 * body_mass;
-       }});
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(8, 2);
-  S(5, 0) = 1, S(6, 1) = 1;
-  c.push_back({"ground_slope", "ground_slope", S, {}, [](const Eigen::VectorXd& b) {
-                 return std::hypot(b(0), b(1)) < std::sin(30.0 / kRad2Deg);
-               }});
-  if (delay)
-    c.push_back(
-        {"sensor_delay/motors", "sensor_delay", unit(8, {7}), {}, [](const Eigen::VectorXd& b) {
-           return std::abs(b(0)) < 0.5;
-         }});
-  return c;
+  return stageCandidates(effects::Stage::dynamic, {body_mass, delay});
+}
+
+/// Index of the candidate called `name` (-1: none).
+int candidateIndex(const std::vector<Candidate>& cands, const std::string& name) {
+  for (std::size_t i = 0; i < cands.size(); ++i)
+    if (cands[i].name == name) return static_cast<int>(i);
+  return -1;
 }
 
 /// Time segments where |contribution| exceeds 2 sigma, merged over gaps < 1 s.
@@ -169,9 +132,11 @@ std::string encoderScaleUndetectable(const KinRows& k, const std::vector<Candida
                                      const std::vector<int>& accepted, double alpha_b) {
   for (int a : accepted)
     if (cands[a].effect == "encoder_scale") return "";
-  if (k.X.rows() == 0 || k.X.cols() < 4) return "";
+  if (k.X.rows() == 0) return "";
   const auto [var_sum, turn_rad, dist_m, duration_s] = rowTotals(k);
-  const double x2 = std::min(k.X.col(2).squaredNorm(), k.X.col(3).squaredNorm());
+  const double x2 = std::min(
+      k.X.col(columnIndex(effects::Stage::kinematic, "encoder_scale/right")).squaredNorm(),
+      k.X.col(columnIndex(effects::Stage::kinematic, "encoder_scale/left")).squaredNorm());
   const double var = var_sum / k.X.rows();
   const double eps = x2 > 0 ? std::sqrt(stats::chi2Quantile(1 - alpha_b, 1) * var / x2)
                             : std::numeric_limits<double>::infinity();
@@ -643,7 +608,8 @@ bool describeKinematicFinding(Finding& f, const Candidate& c, int accepted_cand,
         std::abs(k.bg) * 100, k.bg > 0 ? "more" : "less", g, k.sbg);
   } else if (c.effect == "encoder_scale") {
     int s = c.name == "encoder_scale/right" ? 0 : 1;
-    const int other = c.name == "encoder_scale/right" ? 3 : 2;  // kinematicCandidates order
+    const int other =
+        candidateIndex(cands, s == 0 ? "encoder_scale/left" : "encoder_scale/right");
     if (const std::string why =
             encoderSideUndecided(kf2, cands, sel.accepted, accepted_cand, other, alpha_b, lags);
         !why.empty()) {

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
 
 namespace wheelchair::diagnosis {
 
@@ -141,8 +142,9 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
   KinRows k;
   const double lw = cfg.vehicle.geom.track_width_m;
-  std::vector<double> y;
-  std::vector<std::array<double, 5>> X;
+  const auto& cols = kinematicColumns();
+  const std::size_t ncol = cols.size();
+  std::vector<double> y, X;  // X row-major, ncol per row
   double gyro_dt_sum = 0;
   int gyro_dt_n = 0;
   for (const auto& s : recs) {
@@ -181,7 +183,8 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
       }
       double ig = G.integral(t0, t1);
       y.push_back(ig - dphi_enc);
-      X.push_back({t1 - t0, dphi_enc, dR / lw, -dL / lw, -(G.value(t1) - G.value(t0))});
+      const effects::KinematicWindow w{t1 - t0, dR, dL, lw, G.value(t1) - G.value(t0)};
+      for (const auto& c : cols) X.push_back(c.value(w));
       k.t0.push_back(t0), k.t1.push_back(t1);
       k.v.push_back(0.5 * (dR + dL) / (t1 - t0));
       k.omega.push_back(dphi_enc / (t1 - t0));
@@ -190,14 +193,62 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
     if (static_cast<int>(y.size()) > begin) k.groups.push_back({begin, static_cast<int>(y.size())});
   }
   k.y = Eigen::Map<Eigen::VectorXd>(y.data(), y.size());
-  k.X.resize(y.size(), 5);
-  for (size_t i = 0; i < X.size(); ++i)
-    for (int j = 0; j < 5; ++j) k.X(i, j) = X[i][j];
+  k.X.resize(y.size(), ncol);
+  for (size_t i = 0; i < y.size(); ++i)
+    for (size_t j = 0; j < ncol; ++j) k.X(i, j) = X[i * ncol + j];
   const double tick_m = cfg.vehicle.geom.wheel_radius_m * cfg.encoders.params.wheelRadPerTick();
   double dtg = gyro_dt_n ? gyro_dt_sum / gyro_dt_n : 0.01;
   k.noise_var_per_s = cfg.imu.gyro_noise_rad_s * cfg.imu.gyro_noise_rad_s * dtg;
   k.noise_var_const = 2.0 * tick_m * tick_m / 6.0 / (lw * lw);
   return k;
+}
+
+const std::vector<effects::KinematicColumn>& kinematicColumns() {
+  static const std::vector<effects::KinematicColumn> c = [] {
+    std::vector<effects::KinematicColumn> out;
+    for (const effects::Effect* e : effects::effectRegistry())
+      for (auto& col : e->kinematicColumns()) out.push_back(col);
+    return out;
+  }();
+  return c;
+}
+
+const std::vector<effects::DriveColumn>& driveColumns() {
+  static const std::vector<effects::DriveColumn> c = [] {
+    std::vector<effects::DriveColumn> out;
+    for (const effects::Effect* e : effects::effectRegistry())
+      for (auto& col : e->driveColumns()) out.push_back(col);
+    return out;
+  }();
+  return c;
+}
+
+int columnIndex(effects::Stage stage, const std::string& name) {
+  if (stage == effects::Stage::kinematic) {
+    const auto& c = kinematicColumns();
+    for (std::size_t j = 0; j < c.size(); ++j)
+      if (c[j].name == name) return static_cast<int>(j);
+  } else {
+    const auto& c = driveColumns();
+    for (std::size_t j = 0; j < c.size(); ++j)
+      if (c[j].name == name) return static_cast<int>(j);
+  }
+  throw std::logic_error("no diagnosis column '" + name + "'");
+}
+
+std::vector<Candidate> stageCandidates(effects::Stage stage, const effects::TermOptions& o) {
+  const int ncol = static_cast<int>(stage == effects::Stage::kinematic ? kinematicColumns().size()
+                                                                       : driveColumns().size());
+  std::vector<Candidate> out;
+  for (const effects::Effect* e : effects::effectRegistry())
+    for (const auto& term : e->residualTerms(o)) {
+      if (term.stage != stage) continue;
+      Eigen::MatrixXd S = Eigen::MatrixXd::Zero(ncol, term.coefficients.size());
+      for (std::size_t k = 0; k < term.coefficients.size(); ++k)
+        for (const auto& col : term.coefficients[k]) S(columnIndex(stage, col), k) = 1.0;
+      out.push_back({term.name, e->id(), S, term.conflicts, term.plausible});
+    }
+  return out;
 }
 
 const std::vector<std::string>& dynLibNames() {
@@ -219,14 +270,15 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   const double eps = dt.coulomb_smoothing_m_s > 0 ? dt.coulomb_smoothing_m_s : 0.01;
   const double Mg2 = (g.body_mass_kg + 2 * g.wheel_mass_kg) * 9.81 / 2.0;
   const double fs = opt.grid_rate_hz, fc = opt.cutoff_hz;
-  const int ncol = 8, nlib = static_cast<int>(dynLibNames().size());
+  const auto& cols = driveColumns();
+  const int ncol = static_cast<int>(cols.size()), nlib = static_cast<int>(dynLibNames().size());
   struct Row {
     double y, t, v, w, vd, wd, phi;
     int side;
-    std::array<double, 8> x;
     std::array<double, 14> l;
   };
   std::vector<Row> rowsR, rowsL;
+  std::vector<double> xR, xL;  // the rows' columns, row-major
   Groups gR, gL;
   for (const auto& s : recs) {
     if (!s.hasEncoders() || !s.hasMotors()) continue;
@@ -319,14 +371,11 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
           double im = sd == 0 ? iRf[i] : iLf[i];
           double io = sd == 0 ? iLf[i] : iRf[i];
           row.y = im - (sd == 0 ? predR[i] : predL[i]);
-          row.x.fill(0.0);
-          row.x[sd] = theta5 * (rG / r) * u;
-          row.x[2 + sd] = sd == 0 ? sgR[i] : sgL[i];
-          row.x[4] = alpha * (r / rG) * vd[i] / 2.0;
-          row.x[5] = -alpha * (r / rG) * Mg2 * cph[i];
-          row.x[6] = -alpha * (r / rG) * Mg2 * sph[i];
-          row.x[7] = -(sd == 0 ? dpR[i] : dpL[i]);
           double sg = sd == 0 ? sgR[i] : sgL[i];
+          const effects::DriveSample ds{sd,     u,     sg, vd[i], cph[i], sph[i],
+                                        sd == 0 ? dpR[i] : dpL[i],
+                                        theta5, alpha, r,  rG,    Mg2};
+          for (const auto& c : cols) (sd == 0 ? xR : xL).push_back(c.value(ds));
           row.l = {1.0,   v[i],        w[i],        vd[i],  wd[i],  sg, std::abs(u),
                    u * u, v[i] * w[i], w[i] * w[i], cph[i], sph[i], im, io};
           (sd == 0 ? rowsR : rowsL).push_back(row);
@@ -344,8 +393,9 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   d.lib.resize(N, nlib);
   for (int k = 0; k < N; ++k) {
     const Row& row = k < nR ? rowsR[k] : rowsL[k - nR];
+    const double* x = k < nR ? &xR[k * ncol] : &xL[(k - nR) * ncol];
     d.y(k) = row.y;
-    for (int j = 0; j < ncol; ++j) d.X(k, j) = row.x[j];
+    for (int j = 0; j < ncol; ++j) d.X(k, j) = x[j];
     for (int j = 0; j < nlib; ++j) d.lib(k, j) = row.l[j];
     d.t.push_back(row.t), d.v.push_back(row.v), d.omega.push_back(row.w);
     d.vdot.push_back(row.vd), d.omegadot.push_back(row.wd), d.phi.push_back(row.phi);

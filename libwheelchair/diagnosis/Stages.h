@@ -4,6 +4,7 @@
 #pragma once
 
 #include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/effects/Effect.h"
 #include "libwheelchair/io/Recording.h"
 #include "libwheelchair/stats/Selection.h"
 #include "libwheelchair/stats/Statistics.h"
@@ -62,10 +63,17 @@ struct Corrections {
   }
 };
 
+/// The regression columns of the stages: every effect's kinematicColumns() / driveColumns(), in
+/// registry order (effects/Effect.h).
+const std::vector<effects::KinematicColumn>& kinematicColumns();
+const std::vector<effects::DriveColumn>& driveColumns();
+/// Index of a column of a stage by name; throws std::logic_error when there is none.
+int columnIndex(effects::Stage stage, const std::string& name);
+
 /// Stage 1 rows: one per window of encoder samples, y = gyro integral - odometric heading
-/// change (rad). Columns: 0 T (gyro bias), 1 (dR - dL)/l_w (gyro scale), 2 dR/l_w (right
-/// encoder scale), 3 -dL/l_w (left encoder scale), 4 -(omega(t1) - omega(t0)) (gyro delay
-/// relative to the encoders).
+/// change (rad). Columns: kinematicColumns() (gyro_bias T, gyro_scale (dR - dL)/l_w,
+/// encoder_scale/right dR/l_w, encoder_scale/left -dL/l_w, sensor_delay/imu
+/// -(omega(t1) - omega(t0))).
 struct KinRows {
   Eigen::VectorXd y;
   Eigen::MatrixXd X;
@@ -78,8 +86,8 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
 
 /// Stage 2 rows: per grid sample the right and then the left motor equation error (A),
-/// y = filtered current - nominal model current. Columns: 0 asym right, 1 asym left,
-/// 2 Coulomb right, 3 Coulomb left, 4 payload (per kg), 5/6 slope cos/sin, 7 motor delay.
+/// y = filtered current - nominal model current. Columns: driveColumns() (asymmetry right/left,
+/// Coulomb right/left, payload per kg, slope cos/sin, motors delay).
 /// `lib` holds the unmodeled-term library (per row) with names in libNames().
 struct DynRows {
   Eigen::VectorXd y;
@@ -101,6 +109,10 @@ struct Candidate {
   std::vector<std::string> conflicts;  ///< names that cannot be accepted together with it
   std::function<bool(const Eigen::VectorXd& coef)> plausible;
 };
+
+/// The catalogue terms of a stage: every effect's residualTerms() of that stage, in registry
+/// order, with S selecting the stage's columns.
+std::vector<Candidate> stageCandidates(effects::Stage stage, const effects::TermOptions& o);
 
 struct SelectionStep {
   int candidate = -1;
