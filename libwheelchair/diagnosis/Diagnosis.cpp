@@ -134,9 +134,9 @@ std::string encoderScaleUndetectable(const KinRows& k, const std::vector<Candida
     if (cands[a].effect == "encoder_scale") return "";
   if (k.X.rows() == 0) return "";
   const auto [var_sum, turn_rad, dist_m, duration_s] = rowTotals(k);
-  const double x2 = std::min(
-      k.X.col(columnIndex(effects::Stage::kinematic, "encoder_scale/right")).squaredNorm(),
-      k.X.col(columnIndex(effects::Stage::kinematic, "encoder_scale/left")).squaredNorm());
+  const double x2 =
+      std::min(k.X.col(columnIndex(effects::Stage::kinematic, "encoder_scale/right")).squaredNorm(),
+               k.X.col(columnIndex(effects::Stage::kinematic, "encoder_scale/left")).squaredNorm());
   const double var = var_sum / k.X.rows();
   const double eps = x2 > 0 ? std::sqrt(stats::chi2Quantile(1 - alpha_b, 1) * var / x2)
                             : std::numeric_limits<double>::infinity();
@@ -608,8 +608,7 @@ bool describeKinematicFinding(Finding& f, const Candidate& c, int accepted_cand,
         std::abs(k.bg) * 100, k.bg > 0 ? "more" : "less", g, k.sbg);
   } else if (c.effect == "encoder_scale") {
     int s = c.name == "encoder_scale/right" ? 0 : 1;
-    const int other =
-        candidateIndex(cands, s == 0 ? "encoder_scale/left" : "encoder_scale/right");
+    const int other = candidateIndex(cands, s == 0 ? "encoder_scale/left" : "encoder_scale/right");
     if (const std::string why =
             encoderSideUndecided(kf2, cands, sel.accepted, accepted_cand, other, alpha_b, lags);
         !why.empty()) {
@@ -1097,8 +1096,7 @@ config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
   for (auto& f : rep.findings) {
     if (!isModelExtension(f)) continue;
     ++k;
-    out.set("model_extensions", fmt::format("effect_{}", k),
-            effects::formatEffect(effects[k - 1]));
+    out.set("model_extensions", fmt::format("effect_{}", k), effects::formatEffect(effects[k - 1]));
     std::string u;
     for (auto it = f.uncertainty.begin(); it != f.uncertainty.end(); ++it)
       if (it->is_number())

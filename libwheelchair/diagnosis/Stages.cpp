@@ -319,9 +319,9 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
           double io = sd == 0 ? iLf[i] : iRf[i];
           row.y = im - (sd == 0 ? predR[i] : predL[i]);
           double sg = sd == 0 ? sgR[i] : sgL[i];
-          const effects::DriveSample sample{sd,     u,     sg, vd[i], cph[i], sph[i],
-                                        sd == 0 ? dpR[i] : dpL[i],
-                                        theta5, alpha, r,  rG,    Mg2};
+          const effects::DriveSample sample{
+              sd,     u,     sg, vd[i], cph[i], sph[i], sd == 0 ? dpR[i] : dpL[i],
+              theta5, alpha, r,  rG,    Mg2};
           for (const auto& c : cols) (sd == 0 ? xR : xL).push_back(c.value(sample));
           row.l = {1.0,   v[i],        w[i],        vd[i],  wd[i],  sg, std::abs(u),
                    u * u, v[i] * w[i], w[i] * w[i], cph[i], sph[i], im, io};

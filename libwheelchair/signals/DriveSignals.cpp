@@ -32,8 +32,9 @@ DriveStreams driveStreams(const io::Recording& rec, const config::WheelchairConf
     }
   }
   std::vector<io::MotorSample> mot = rec.motors;
-  std::stable_sort(mot.begin(), mot.end(),
-                   [](const io::MotorSample& a, const io::MotorSample& b) { return a.t_s < b.t_s; });
+  std::stable_sort(mot.begin(), mot.end(), [](const io::MotorSample& a, const io::MotorSample& b) {
+    return a.t_s < b.t_s;
+  });
   double last = -INFINITY;
   for (const auto& m : mot) {
     if (!(m.t_s > last)) continue;  // repeated stamp: the first sample is kept
@@ -45,8 +46,7 @@ DriveStreams driveStreams(const io::Recording& rec, const config::WheelchairConf
   return s;
 }
 
-std::vector<std::pair<double, double>> splitAtGaps(const std::vector<double>& t,
-                                                   double max_gap_s) {
+std::vector<std::pair<double, double>> splitAtGaps(const std::vector<double>& t, double max_gap_s) {
   std::vector<std::pair<double, double>> out;
   if (t.empty()) return out;
   double a = t.front();

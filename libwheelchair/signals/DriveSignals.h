@@ -52,9 +52,9 @@ struct DriveSignalOptions {
 
 /// One continuous stretch on the grid (margin included: use rows [i0, i1)).
 struct DriveSegment {
-  double lo = 0, hi = 0;  ///< the segment (s), without the margin
-  int i0 = 0, i1 = 0;     ///< rows inside the segment
-  std::vector<double> t;  ///< grid (s)
+  double lo = 0, hi = 0;                   ///< the segment (s), without the margin
+  int i0 = 0, i1 = 0;                      ///< rows inside the segment
+  std::vector<double> t;                   ///< grid (s)
   std::array<std::vector<double>, 2> p;    ///< rim distance on the grid (m)
   std::array<std::vector<double>, 2> u;    ///< rim speed, unfiltered central difference (m/s)
   std::array<std::vector<double>, 2> u_f;  ///< rim speed, filtered (m/s)
