@@ -20,6 +20,12 @@
 
 namespace wheelchair::diagnosis {
 
+using stats::effectiveSampleSize;
+using stats::Evidence;
+using stats::fitLinear;
+using stats::Groups;
+using stats::LinearFit;
+
 using model::CommandKind;
 using model::CommandResponseParams;
 using model::CommandSignal;

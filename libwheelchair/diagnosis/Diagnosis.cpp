@@ -1,4 +1,5 @@
 #include "libwheelchair/diagnosis/Diagnosis.h"
+#include "libwheelchair/stats/Statistics.h"
 
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/diagnosis/SensorFaults.h"
@@ -21,6 +22,18 @@
 #include <stdexcept>
 
 namespace wheelchair::diagnosis {
+
+using stats::BiasTest;
+using stats::biasTest;
+using stats::compareNested;
+using stats::effectiveSampleSize;
+using stats::Evidence;
+using stats::fitLinear;
+using stats::Groups;
+using stats::LinearFit;
+using stats::ljungBox;
+using stats::singleGroup;
+using stats::Whiteness;
 
 namespace {
 

@@ -1,4 +1,6 @@
 #include "libwheelchair/diagnosis/Stages.h"
+#include "libwheelchair/stats/Selection.h"
+#include "libwheelchair/stats/Statistics.h"
 
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/model/DriveDynamics.h"
@@ -12,6 +14,12 @@
 #include <stdexcept>
 
 namespace wheelchair::diagnosis {
+
+using stats::compareNested;
+using stats::effectiveSampleSize;
+using stats::fitLinear;
+using stats::Groups;
+using stats::LinearFit;
 
 namespace {
 
@@ -183,37 +191,39 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
   return k;
 }
 
+namespace {
+
+/// Every effect's columns of one stage, in registry order.
+template <class Column>
+std::vector<Column> registryColumns(std::vector<Column> (effects::Effect::*of)() const) {
+  std::vector<Column> out;
+  for (const effects::Effect* e : effects::effectRegistry())
+    for (auto& col : (e->*of)()) out.push_back(col);
+  return out;
+}
+
+template <class Column>
+int indexOf(const std::vector<Column>& cols, const std::string& name) {
+  for (std::size_t j = 0; j < cols.size(); ++j)
+    if (cols[j].name == name) return static_cast<int>(j);
+  throw std::logic_error("no diagnosis column '" + name + "'");
+}
+
+}  // namespace
+
 const std::vector<effects::KinematicColumn>& kinematicColumns() {
-  static const std::vector<effects::KinematicColumn> c = [] {
-    std::vector<effects::KinematicColumn> out;
-    for (const effects::Effect* e : effects::effectRegistry())
-      for (auto& col : e->kinematicColumns()) out.push_back(col);
-    return out;
-  }();
+  static const auto c = registryColumns(&effects::Effect::kinematicColumns);
   return c;
 }
 
 const std::vector<effects::DriveColumn>& driveColumns() {
-  static const std::vector<effects::DriveColumn> c = [] {
-    std::vector<effects::DriveColumn> out;
-    for (const effects::Effect* e : effects::effectRegistry())
-      for (auto& col : e->driveColumns()) out.push_back(col);
-    return out;
-  }();
+  static const auto c = registryColumns(&effects::Effect::driveColumns);
   return c;
 }
 
 int columnIndex(effects::Stage stage, const std::string& name) {
-  if (stage == effects::Stage::kinematic) {
-    const auto& c = kinematicColumns();
-    for (std::size_t j = 0; j < c.size(); ++j)
-      if (c[j].name == name) return static_cast<int>(j);
-  } else {
-    const auto& c = driveColumns();
-    for (std::size_t j = 0; j < c.size(); ++j)
-      if (c[j].name == name) return static_cast<int>(j);
-  }
-  throw std::logic_error("no diagnosis column '" + name + "'");
+  return stage == effects::Stage::kinematic ? indexOf(kinematicColumns(), name)
+                                            : indexOf(driveColumns(), name);
 }
 
 std::vector<Candidate> stageCandidates(effects::Stage stage, const effects::TermOptions& o) {

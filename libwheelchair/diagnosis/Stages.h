@@ -17,19 +17,6 @@
 
 namespace wheelchair::diagnosis {
 
-// The statistics of the stages are those of libwheelchair/stats.
-using stats::BiasTest;
-using stats::biasTest;
-using stats::compareNested;
-using stats::effectiveSampleSize;
-using stats::Evidence;
-using stats::fitLinear;
-using stats::Groups;
-using stats::LinearFit;
-using stats::ljungBox;
-using stats::singleGroup;
-using stats::Whiteness;
-
 struct DiagnosisOptions;
 
 /// One recording's streams, sorted by time, duplicates dropped, ticks unwrapped and turned
@@ -78,7 +65,7 @@ struct KinRows {
   Eigen::VectorXd y;
   Eigen::MatrixXd X;
   std::vector<double> t0, t1, v, omega, phi;
-  Groups groups;
+  stats::Groups groups;
   double noise_var_per_s = 0;  ///< predicted variance of y: gyro white noise part (per second)
   double noise_var_const = 0;  ///< ... tick quantisation part (per window)
 };
@@ -94,7 +81,7 @@ struct DynRows {
   Eigen::MatrixXd X, lib;
   std::vector<double> t, v, omega, vdot, omegadot, phi;
   std::vector<int> side;  ///< 0 right, 1 left
-  Groups groups;
+  stats::Groups groups;
   double noise_var = 0;  ///< predicted variance of y from the current-sensor noise
 };
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
@@ -116,7 +103,7 @@ std::vector<Candidate> stageCandidates(effects::Stage stage, const effects::Term
 
 struct SelectionStep {
   int candidate = -1;
-  Evidence evidence;
+  stats::Evidence evidence;
   double rss0_fit = 0, rss1_fit = 0, rss0_val = 0, rss1_val = 0;
   double lr_val = 0, lr_val_expected = 0, n_eff_val = 0;
   bool val_tested = false;
@@ -126,7 +113,7 @@ struct SelectionStep {
 struct Selection {
   std::vector<int> accepted;
   std::vector<SelectionStep> steps;         ///< one per accepted candidate
-  LinearFit fit;                            ///< final joint fit (columns: accepted in order)
+  stats::LinearFit fit;                            ///< final joint fit (columns: accepted in order)
   std::vector<std::pair<int, int>> ranges;  ///< coefficient range of each accepted candidate
   std::vector<std::string> log;             ///< why candidates were rejected (last round)
 };
@@ -135,7 +122,7 @@ struct Selection {
 struct SelectionData {
   const Eigen::VectorXd &y_fit, &y_val;
   const Eigen::MatrixXd &X_fit, &X_val;
-  const Groups &g_fit, &g_val;
+  const stats::Groups &g_fit, &g_val;
   int lags = 5;
   /// Relevance: the RMS of a term's contribution over the fit rows must reach this (units of
   /// y), i.e. min_relevance x the configured noise of one sensor sample; below it a term is

@@ -22,4 +22,36 @@ inline std::vector<std::vector<std::string>> oneColumn(const std::string& name) 
   return {{name}};
 }
 
+/// A term with one coefficient on the column of its own name.
+inline ResidualTerm oneColumnTerm(
+    const std::string& name, Stage stage, std::function<bool(const Eigen::VectorXd&)> plausible,
+    std::function<double(const EffectSpec&, const config::WheelchairConfig&)> coefficient) {
+  ResidualTerm t;
+  t.name = name;
+  t.stage = stage;
+  t.coefficients = oneColumn(name);
+  t.plausible = std::move(plausible);
+  t.coefficientOf = [coefficient](const EffectSpec& e, const config::WheelchairConfig& c) {
+    return Eigen::VectorXd::Constant(1, coefficient(e, c));
+  };
+  return t;
+}
+
+/// The terms `prefix/right` and `prefix/left` of a sided effect (parameter `side`): one
+/// coefficient each, coefficient(e) on the sides the spec names and 0 on the other.
+inline std::vector<ResidualTerm> sidedTerms(const std::string& prefix, Stage stage,
+                                            std::function<bool(const Eigen::VectorXd&)> plausible,
+                                            std::function<double(const EffectSpec&)> coefficient) {
+  std::vector<ResidualTerm> out;
+  for (int side = 0; side < 2; ++side)
+    out.push_back(
+        oneColumnTerm(prefix + "/" + sideChoices()[side], stage, plausible,
+                      [side, coefficient](const EffectSpec& e, const config::WheelchairConfig&) {
+                        for (int s : effectSides(e))
+                          if (s == side) return coefficient(e);
+                        return 0.0;
+                      }));
+  return out;
+}
+
 }  // namespace wheelchair::effects

@@ -50,23 +50,10 @@ class EncoderScale final : public Effect {
             {"encoder_scale/left", [](const KinematicWindow& w) { return -w.dL_m / w.track_m; }}};
   }
   std::vector<ResidualTerm> residualTerms(const TermOptions&) const override {
-    std::vector<ResidualTerm> out;
-    for (int side = 0; side < 2; ++side) {
-      ResidualTerm t;
-      t.name = "encoder_scale/" + sideChoices()[side];
-      t.stage = Stage::kinematic;
-      t.coefficients = oneColumn(t.name);
-      t.plausible = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; };
-      t.coefficientOf = [side](const EffectSpec& e, const config::WheelchairConfig&) {
-        const auto p = EncoderScaleParams::of(e);
-        double b = 0;
-        for (int s : p.sides)
-          if (s == side) b = 1 / p.scale - 1;
-        return Eigen::VectorXd::Constant(1, b);
-      };
-      out.push_back(t);
-    }
-    return out;
+    return sidedTerms(
+        "encoder_scale", Stage::kinematic,
+        [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; },
+        [](const EffectSpec& e) { return 1 / EncoderScaleParams::of(e).scale - 1; });
   }
 };
 

@@ -35,15 +35,12 @@ class GyroBias final : public Effect {
     return {{"gyro_bias", [](const KinematicWindow& w) { return w.T_s; }}};
   }
   std::vector<ResidualTerm> residualTerms(const TermOptions&) const override {
-    ResidualTerm t;
-    t.name = "gyro_bias";
-    t.stage = Stage::kinematic;
-    t.coefficients = oneColumn("gyro_bias");
-    t.plausible = [](const Eigen::VectorXd& b) { return std::abs(b(0)) < 0.5; };
-    t.coefficientOf = [](const EffectSpec& e, const config::WheelchairConfig&) {
-      return Eigen::VectorXd::Constant(1, GyroBiasParams::of(e).bias_rad_s);
-    };
-    return {t};
+    return {oneColumnTerm(
+        "gyro_bias", Stage::kinematic,
+        [](const Eigen::VectorXd& b) { return std::abs(b(0)) < 0.5; },
+        [](const EffectSpec& e, const config::WheelchairConfig&) {
+          return GyroBiasParams::of(e).bias_rad_s;
+        })};
   }
 };
 

@@ -35,15 +35,12 @@ class GyroScale final : public Effect {
     return {{"gyro_scale", [](const KinematicWindow& w) { return (w.dR_m - w.dL_m) / w.track_m; }}};
   }
   std::vector<ResidualTerm> residualTerms(const TermOptions&) const override {
-    ResidualTerm t;
-    t.name = "gyro_scale";
-    t.stage = Stage::kinematic;
-    t.coefficients = oneColumn("gyro_scale");
-    t.plausible = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; };
-    t.coefficientOf = [](const EffectSpec& e, const config::WheelchairConfig&) {
-      return Eigen::VectorXd::Constant(1, GyroScaleParams::of(e).scale - 1);
-    };
-    return {t};
+    return {oneColumnTerm(
+        "gyro_scale", Stage::kinematic,
+        [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; },
+        [](const EffectSpec& e, const config::WheelchairConfig&) {
+          return GyroScaleParams::of(e).scale - 1;
+        })};
   }
 };
 

@@ -74,23 +74,10 @@ class MotorAsymmetry final : public Effect {
     return c;
   }
   std::vector<ResidualTerm> residualTerms(const TermOptions&) const override {
-    std::vector<ResidualTerm> out;
-    for (int side = 0; side < 2; ++side) {
-      ResidualTerm t;
-      t.name = "motor_asymmetry/" + sideChoices()[side];
-      t.stage = Stage::dynamic;
-      t.coefficients = oneColumn(t.name);
-      t.plausible = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.1 && 1 + b(0) < 10; };
-      t.coefficientOf = [side](const EffectSpec& e, const config::WheelchairConfig&) {
-        const auto p = MotorAsymmetryParams::of(e);
-        double b = 0;
-        for (int s : p.sides)
-          if (s == side) b = p.friction_ratio - 1;
-        return Eigen::VectorXd::Constant(1, b);
-      };
-      out.push_back(t);
-    }
-    return out;
+    return sidedTerms(
+        "motor_asymmetry", Stage::dynamic,
+        [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.1 && 1 + b(0) < 10; },
+        [](const EffectSpec& e) { return MotorAsymmetryParams::of(e).friction_ratio - 1; });
   }
 };
 

@@ -42,17 +42,13 @@ class PayloadMass final : public Effect {
              [](const DriveSample& s) { return s.alpha * (s.r_m / s.rG) * s.vdot_m_s2 / 2.0; }}};
   }
   std::vector<ResidualTerm> residualTerms(const TermOptions& o) const override {
-    ResidualTerm t;
-    t.name = "payload_mass";
-    t.stage = Stage::dynamic;
-    t.coefficients = oneColumn("payload_mass");
     const double m = o.body_mass_kg;
-    t.plausible = [m](const Eigen::VectorXd& b) { return m + b(0) > 0.2 * m && m + b(0) < 5 * m; };
-    t.coefficientOf = [](const EffectSpec& e, const config::WheelchairConfig& cfg) {
-      return Eigen::VectorXd::Constant(
-          1, PayloadMassParams::of(e).body_mass_kg - cfg.vehicle.geom.body_mass_kg);
-    };
-    return {t};
+    return {oneColumnTerm(
+        "payload_mass", Stage::dynamic,
+        [m](const Eigen::VectorXd& b) { return m + b(0) > 0.2 * m && m + b(0) < 5 * m; },
+        [](const EffectSpec& e, const config::WheelchairConfig& cfg) {
+          return PayloadMassParams::of(e).body_mass_kg - cfg.vehicle.geom.body_mass_kg;
+        })};
   }
 };
 

@@ -66,23 +66,17 @@ class SensorDelay final : public Effect {
   }
   std::vector<ResidualTerm> residualTerms(const TermOptions& o) const override {
     if (!o.enable_delay) return {};
-    std::vector<ResidualTerm> out;
-    for (const auto& [name, stage, stream] :
-         {std::tuple{"sensor_delay/imu", Stage::kinematic, 1},
-          std::tuple{"sensor_delay/motors", Stage::dynamic, 2}}) {
-      ResidualTerm t;
-      t.name = name;
-      t.stage = stage;
-      t.coefficients = oneColumn(name);
-      t.plausible = [](const Eigen::VectorXd& b) { return std::abs(b(0)) < 0.5; };
-      t.coefficientOf = [stream = stream](const EffectSpec& e, const config::WheelchairConfig&) {
-        const auto p = SensorDelayParams::of(e);
-        const double d = p.stream == stream ? p.delay_s : p.stream == 0 ? -p.delay_s : 0.0;
-        return Eigen::VectorXd::Constant(1, d);
-      };
-      out.push_back(t);
-    }
-    return out;
+    // coefficient +d when the named stream lags, -d when the encoders lag instead
+    auto term = [](const char* name, Stage stage, int stream) {
+      return oneColumnTerm(
+          name, stage, [](const Eigen::VectorXd& b) { return std::abs(b(0)) < 0.5; },
+          [stream](const EffectSpec& e, const config::WheelchairConfig&) {
+            const auto p = SensorDelayParams::of(e);
+            return p.stream == stream ? p.delay_s : p.stream == 0 ? -p.delay_s : 0.0;
+          });
+    };
+    return {term("sensor_delay/imu", Stage::kinematic, 1),
+            term("sensor_delay/motors", Stage::dynamic, 2)};
   }
 };
 

@@ -1,5 +1,6 @@
 #include "libwheelchair/identification/Identification.h"
 #include "libwheelchair/stats/Distributions.h"
+#include "libwheelchair/stats/LeastSquares.h"
 
 #include "libwheelchair/model/VehicleParams.h"
 #include "libwheelchair/sensors/Encoders.h"
@@ -15,6 +16,12 @@
 #include <stdexcept>
 
 namespace wheelchair::identification {
+
+using stats::LsInput;
+using stats::LsOptions;
+using stats::LsSolution;
+using stats::ResidualStats;
+using stats::solveLeastSquares;
 
 namespace {
 
@@ -301,53 +308,124 @@ Eigen::Matrix<double, 5, 1> d2Weights(const model::Geometry& g) {
 
 // ---------------------------------------------------------------------------------------
 
+namespace {
+
+/// One recording's streams for the identification: encoder interval speeds, motor currents
+/// and V_RC voltages (with the motor voltage U per side from the V_RC inverse), gyro.
+struct RecordingStreams {
+  EncoderStream enc;
+  Stream mot, imu;
+  std::array<std::vector<double>, 2> U;  ///< motor voltage at the motor samples (V)
+  bool any_voltage = false;
+};
+
+RecordingStreams recordingStreams(const io::Recording& rec, const config::WheelchairConfig& cfg) {
+  RecordingStreams r;
+  r.enc = encoderStream(rec, cfg);
+  Stream& mot = r.mot;
+  mot.x.resize(4);
+  for (const auto& m : rec.motors) {
+    mot.t.push_back(m.t_s);
+    mot.x[0].push_back(m.current_right_A);
+    mot.x[1].push_back(m.current_left_A);
+    mot.x[2].push_back(m.vrc_right_V);
+    mot.x[3].push_back(m.vrc_left_V);
+  }
+  sanitize(mot);
+  r.imu.x.resize(1);
+  for (const auto& s : rec.imu) {
+    r.imu.t.push_back(s.t_s);
+    r.imu.x[0].push_back(s.gyro_z_rad_s);
+  }
+  sanitize(r.imu);
+  // Motor voltage U per side from the V_RC inverse, at the motor samples.
+  for (int side = 0; side < 2 && mot.t.size() >= 4; ++side) {
+    const auto& vrc = mot.x[2 + side];
+    r.U[side].resize(vrc.size());
+    for (std::size_t k = 0; k < vrc.size(); ++k) {
+      const std::size_t a = k == 0 ? 0 : k - 1, b = std::min(k + 1, vrc.size() - 1);
+      const double rate = (vrc[b] - vrc[a]) / (mot.t[b] - mot.t[a]);
+      // Differential V_RC of one motor -> U = V_w1 - V_w2 (inverse of (11) with the knee).
+      r.U[side][k] = sensors::motorVoltageFromVrc(vrc[k], rate, cfg.motors.circuit);
+      r.any_voltage = r.any_voltage || vrc[k] != 0.0;
+    }
+  }
+  return r;
+}
+
+/// Raw-minus-filtered sums of squares of v and omega (the noise floor estimate).
+struct NoiseSums {
+  double ss_v = 0, ss_w = 0;
+  std::size_t n = 0;
+};
+
+/// The grid samples [k0, k1) of one recording as a filtered segment.
+PreparedSegment conditionSegment(const RecordingStreams& r, int recording, double t_lo, long k0,
+                                 long k1, double lw, const IdentificationOptions& o,
+                                 NoiseSums& noise) {
+  const double dt = 1.0 / o.rate_hz;
+  const bool gyro = o.omega_source == "gyro";
+  const EncoderStream& enc = r.enc;
+  PreparedSegment s;
+  s.recording = recording;
+  for (long k = k0; k < k1; ++k) s.t.push_back(t_lo + k * dt);
+  const auto ur_raw = resample(enc.t, enc.u_r, s.t);
+  const auto ul_raw = resample(enc.t, enc.u_l, s.t);
+  // Currents, voltages, gyro: interval means over the encoder intervals first.
+  auto viaEnc = [&](const Stream& st, const std::vector<double>& x) {
+    return resample(enc.t, intervalMeans(st.t, x, enc.t0, enc.t1), s.t);
+  };
+  s.u_r = filt(ur_raw, o);
+  s.u_l = filt(ul_raw, o);
+  s.i_r = filt(viaEnc(r.mot, r.mot.x[0]), o);
+  s.i_l = filt(viaEnc(r.mot, r.mot.x[1]), o);
+  s.U_r = filt(viaEnc(r.mot, r.U[0]), o);
+  s.U_l = filt(viaEnc(r.mot, r.U[1]), o);
+  const std::size_t n = s.t.size();
+  std::vector<double> v_raw(n), w_raw(n);
+  s.v.resize(n);
+  s.omega.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    v_raw[k] = 0.5 * (ur_raw[k] + ul_raw[k]);
+    w_raw[k] = (ur_raw[k] - ul_raw[k]) / lw;
+    s.v[k] = 0.5 * (s.u_r[k] + s.u_l[k]);
+    s.omega[k] = (s.u_r[k] - s.u_l[k]) / lw;
+  }
+  if (gyro) {
+    w_raw = viaEnc(r.imu, r.imu.x[0]);
+    s.omega = filt(w_raw, o);
+  }
+  s.vdot = centralDiff(s.v, dt);
+  s.omegadot = centralDiff(s.omega, dt);
+  s.interior.assign(n, 0);
+  s.moving.assign(n, 0);
+  const long trim = static_cast<long>(std::ceil(o.edge_trim_s / dt));
+  for (std::size_t k = 0; k < n; ++k) {
+    s.interior[k] = long(k) >= trim && long(k) < long(n) - trim;
+    s.moving[k] = std::max(std::abs(s.u_r[k]), std::abs(s.u_l[k])) >= o.standstill_speed_m_s;
+    if (s.interior[k]) {
+      noise.ss_v += std::pow(v_raw[k] - s.v[k], 2);
+      noise.ss_w += std::pow(w_raw[k] - s.omega[k], 2);
+      ++noise.n;
+    }
+  }
+  return s;
+}
+
+}  // namespace
+
 PreparedData prepareSignals(const std::vector<io::Recording>& recs,
                             const config::WheelchairConfig& cfg, const IdentificationOptions& o) {
-  const auto& g = cfg.vehicle.geom;
-  const double dt = 1.0 / o.rate_hz, lw = g.track_width_m;
+  const double dt = 1.0 / o.rate_hz, lw = cfg.vehicle.geom.track_width_m;
   const bool gyro = o.omega_source == "gyro";
   PreparedData out;
-  double ss_v = 0, ss_w = 0;
-  std::size_t n_noise = 0;
-
+  NoiseSums noise;
   for (std::size_t ri = 0; ri < recs.size(); ++ri) {
-    const auto& rec = recs[ri];
-    const EncoderStream enc = encoderStream(rec, cfg);
-    Stream mot;
-    mot.x.resize(4);
-    for (const auto& m : rec.motors) {
-      mot.t.push_back(m.t_s);
-      mot.x[0].push_back(m.current_right_A);
-      mot.x[1].push_back(m.current_left_A);
-      mot.x[2].push_back(m.vrc_right_V);
-      mot.x[3].push_back(m.vrc_left_V);
-    }
-    sanitize(mot);
-    Stream imu;
-    imu.x.resize(1);
-    for (const auto& s : rec.imu) {
-      imu.t.push_back(s.t_s);
-      imu.x[0].push_back(s.gyro_z_rad_s);
-    }
-    sanitize(imu);
+    const RecordingStreams r = recordingStreams(recs[ri], cfg);
+    const EncoderStream& enc = r.enc;
+    const Stream &mot = r.mot, &imu = r.imu;
     if (enc.t.size() < 4 || mot.t.size() < 4 || (gyro && imu.t.size() < 4)) continue;
-
-    // Motor voltage U per side from the V_RC inverse, at the motor samples.
-    std::array<std::vector<double>, 2> U;
-    bool any_voltage = false;
-    for (int side = 0; side < 2; ++side) {
-      const auto& vrc = mot.x[2 + side];
-      U[side].resize(vrc.size());
-      for (std::size_t k = 0; k < vrc.size(); ++k) {
-        const std::size_t a = k == 0 ? 0 : k - 1, b = std::min(k + 1, vrc.size() - 1);
-        const double rate = (vrc[b] - vrc[a]) / (mot.t[b] - mot.t[a]);
-        // Differential V_RC of one motor -> U = V_w1 - V_w2 (inverse of (11) with the knee).
-        U[side][k] = sensors::motorVoltageFromVrc(vrc[k], rate, cfg.motors.circuit);
-        any_voltage = any_voltage || vrc[k] != 0.0;
-      }
-    }
-    out.has_voltage = out.has_voltage || any_voltage;
-
+    out.has_voltage = out.has_voltage || r.any_voltage;
     double t_lo = std::max(enc.t.front(), mot.t.front());
     double t_hi = std::min(enc.t.back(), mot.t.back());
     if (gyro) t_lo = std::max(t_lo, imu.t.front()), t_hi = std::min(t_hi, imu.t.back());
@@ -367,55 +445,14 @@ PreparedData prepareSignals(const std::vector<io::Recording>& recs,
       }
       long k1 = k0;
       while (k1 < n_grid && ok[k1]) ++k1;
-      if (k1 - k0 >= min_len) {
-        PreparedSegment s;
-        s.recording = static_cast<int>(ri);
-        for (long k = k0; k < k1; ++k) s.t.push_back(t_lo + k * dt);
-        const auto ur_raw = resample(enc.t, enc.u_r, s.t);
-        const auto ul_raw = resample(enc.t, enc.u_l, s.t);
-        // Currents, voltages, gyro: interval means over the encoder intervals first.
-        auto viaEnc = [&](const Stream& st, const std::vector<double>& x) {
-          return resample(enc.t, intervalMeans(st.t, x, enc.t0, enc.t1), s.t);
-        };
-        s.u_r = filt(ur_raw, o);
-        s.u_l = filt(ul_raw, o);
-        s.i_r = filt(viaEnc(mot, mot.x[0]), o);
-        s.i_l = filt(viaEnc(mot, mot.x[1]), o);
-        s.U_r = filt(viaEnc(mot, U[0]), o);
-        s.U_l = filt(viaEnc(mot, U[1]), o);
-        const std::size_t n = s.t.size();
-        std::vector<double> v_raw(n), w_raw(n);
-        s.v.resize(n);
-        s.omega.resize(n);
-        for (std::size_t k = 0; k < n; ++k) {
-          v_raw[k] = 0.5 * (ur_raw[k] + ul_raw[k]);
-          w_raw[k] = (ur_raw[k] - ul_raw[k]) / lw;
-          s.v[k] = 0.5 * (s.u_r[k] + s.u_l[k]);
-          s.omega[k] = (s.u_r[k] - s.u_l[k]) / lw;
-        }
-        if (gyro) {
-          w_raw = viaEnc(imu, imu.x[0]);
-          s.omega = filt(w_raw, o);
-        }
-        s.vdot = centralDiff(s.v, dt);
-        s.omegadot = centralDiff(s.omega, dt);
-        s.interior.assign(n, 0);
-        s.moving.assign(n, 0);
-        const long trim = static_cast<long>(std::ceil(o.edge_trim_s / dt));
-        for (std::size_t k = 0; k < n; ++k) {
-          s.interior[k] = long(k) >= trim && long(k) < long(n) - trim;
-          s.moving[k] = std::max(std::abs(s.u_r[k]), std::abs(s.u_l[k])) >= o.standstill_speed_m_s;
-          if (s.interior[k]) {
-            ss_v += std::pow(v_raw[k] - s.v[k], 2);
-            ss_w += std::pow(w_raw[k] - s.omega[k], 2);
-            ++n_noise;
-          }
-        }
-        out.segments.push_back(std::move(s));
-      }
+      if (k1 - k0 >= min_len)
+        out.segments.push_back(
+            conditionSegment(r, static_cast<int>(ri), t_lo, k0, k1, lw, o, noise));
       k0 = k1;
     }
   }
+  double ss_v = noise.ss_v, ss_w = noise.ss_w;
+  std::size_t n_noise = noise.n;
   // Noise floors: raw-minus-filtered rms (the noise above the cut-off) times the noise gain
   // of the filter (and of filter + central difference) for white noise.
   if (n_noise > 0) {
