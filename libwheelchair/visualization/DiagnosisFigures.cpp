@@ -391,6 +391,43 @@ evaluation::Metrics trajMetrics(const evaluation::Trajectory& t,
   return evaluation::computeMetrics(t, gt, mo);
 }
 
+/// The trajectory figures of one recording (and the metrics against its ground truth).
+void trajectoryFigures(const DriveData& before, const DriveData& after, double t0,
+                       const std::string& name, const std::string& suffix,
+                       const DiagnosisFigureOptions& o, RecordingFigures& rf) {
+  auto file = [&](const std::string& stem) { return stem + suffix + ".png"; };
+  auto out = [&](const std::string& f) { return (fs::path(o.out_dir) / f).string(); };
+  Eigen::Vector2d lever;
+  const auto gt = groundTruthInStartFrame(after, o, lever, rf.gt_note);
+  const bool gt_truth = after.truth && !after.truth->t_s.empty();
+  trajectoryFigure(before, after, gt, gt_truth, out(file("trajectories")), o.width, o.height);
+  rf.figures.push_back(
+      {file("trajectories"),
+       "Trajectories of " + name +
+           ": encoder odometry (blue), encoder v + gyro omega (green) and the EKF (black), each "
+           "with the nominal model (dashed, light) and the corrected one (solid); " +
+           (gt.empty() ? std::string("no ground truth in this recording")
+                       : "ground truth: " + rf.gt_note) +
+           "."});
+  if (!gt.empty()) {
+    for (const std::string v : {"encoders", "encoders_gyro", "ekf"})
+      if (before.trajectories.count(v) && after.trajectories.count(v))
+        rf.traj.push_back({v, trajMetrics(before.trajectories.at(v), gt, lever),
+                           trajMetrics(after.trajectories.at(v), gt, lever)});
+    trajectoryErrorFigure(before, after, gt, gt_truth, lever, t0, out(file("trajectory_error")),
+                          o.width, o.height);
+    rf.figures.push_back(
+        {file("trajectory_error"),
+         "Position error of each trajectory of " + name +
+             " against the ground truth over time (same colours and dashes as the trajectory "
+             "figure); " +
+             (gt_truth ? std::string("exact errors to the simulator's true path")
+                       : "errors to the noisy tag positions, centred 1 s mean") +
+             ". Curves far above the corrected ones leave the plot at the top (their maximum "
+             "is in the legend)."});
+  }
+}
+
 RecordingFigures recordingFigures(const std::string& path, const std::string& suffix,
                                   const config::WheelchairConfig& input_cfg,
                                   const config::WheelchairConfig& corrected_cfg, bool heldout,
@@ -489,36 +526,7 @@ RecordingFigures recordingFigures(const std::string& path, const std::string& su
                                                        statsIn(ca[s], f.val0, f.val1)};
     }
   }
-  // Trajectories.
-  Eigen::Vector2d lever;
-  const auto gt = groundTruthInStartFrame(after, o, lever, rf.gt_note);
-  const bool gt_truth = after.truth && !after.truth->t_s.empty();
-  trajectoryFigure(before, after, gt, gt_truth, out(file("trajectories")), o.width, o.height);
-  rf.figures.push_back(
-      {file("trajectories"),
-       "Trajectories of " + name +
-           ": encoder odometry (blue), encoder v + gyro omega (green) and the EKF (black), each "
-           "with the nominal model (dashed, light) and the corrected one (solid); " +
-           (gt.empty() ? std::string("no ground truth in this recording")
-                       : "ground truth: " + rf.gt_note) +
-           "."});
-  if (!gt.empty()) {
-    for (const std::string v : {"encoders", "encoders_gyro", "ekf"})
-      if (before.trajectories.count(v) && after.trajectories.count(v))
-        rf.traj.push_back({v, trajMetrics(before.trajectories.at(v), gt, lever),
-                           trajMetrics(after.trajectories.at(v), gt, lever)});
-    trajectoryErrorFigure(before, after, gt, gt_truth, lever, t0, out(file("trajectory_error")),
-                          o.width, o.height);
-    rf.figures.push_back(
-        {file("trajectory_error"),
-         "Position error of each trajectory of " + name +
-             " against the ground truth over time (same colours and dashes as the trajectory "
-             "figure); " +
-             (gt_truth ? std::string("exact errors to the simulator's true path")
-                       : "errors to the noisy tag positions, centred 1 s mean") +
-             ". Curves far above the corrected ones leave the plot at the top (their maximum "
-             "is in the legend)."});
-  }
+  trajectoryFigures(before, after, t0, name, suffix, o, rf);
   return rf;
 }
 
@@ -799,6 +807,46 @@ std::array<ResidualSeries, 2> currentResiduals(const io::Recording& rec,
   return out;
 }
 
+namespace {
+
+/// "Residuals and trajectories in the figures": the statistics of each recording's figures.
+std::string figureStatsMarkdown(const std::vector<RecordingFigures>& recs, bool heldout) {
+  std::string md;
+  bool any_traj = false;
+  for (const auto& r : recs) any_traj |= !r.traj.empty() || !r.residual_stats.empty();
+  if (any_traj) {
+    md += "## Residuals and trajectories in the figures\n\n";
+    for (const auto& r : recs) {
+      if (!r.drawn) continue;
+      md += "**" + fs::path(r.path).filename().string() + "**" +
+            (heldout ? " (statistics over the held-out part)" : "") + "\n\n";
+      if (!r.residual_stats.empty()) {
+        md +=
+            "| residual | mean before | mean after | RMS before | RMS after |\n"
+            "|---|---:|---:|---:|---:|\n";
+        for (const auto& [ch, st] : r.residual_stats)
+          md += fmt::format("| {} | {} | {} | {} | {} |\n", ch, num(st.first.mean, 4),
+                            num(st.second.mean, 4), num(st.first.rms, 4), num(st.second.rms, 4));
+        md += "\n";
+      }
+      if (!r.traj.empty()) {
+        md += "Against the ground truth (" + r.gt_note +
+              "), whole recording:\n\n"
+              "| variant | ATE RMSE (m) before | after | terminal error (m) before | after |\n"
+              "|---|---:|---:|---:|---:|\n";
+        for (const auto& t : r.traj)
+          md += fmt::format("| {} | {} | {} | {} | {} |\n", t.variant, num(t.before.ate_rmse_m),
+                            num(t.after.ate_rmse_m), num(t.before.terminal_error_m),
+                            num(t.after.terminal_error_m));
+        md += "\n";
+      }
+    }
+  }
+  return md;
+}
+
+}  // namespace
+
 DiagnosisFigureResult writeDiagnosisFigures(const json& report,
                                             const config::WheelchairConfig& input_cfg,
                                             const config::WheelchairConfig& corrected_cfg,
@@ -890,36 +938,7 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
   if (!val.empty()) md += "## Validation\n\n" + val;
   for (const auto* s : stages) md += commandResponseMarkdown(*s, !top_drift);
 
-  bool any_traj = false;
-  for (const auto& r : recs) any_traj |= !r.traj.empty() || !r.residual_stats.empty();
-  if (any_traj) {
-    md += "## Residuals and trajectories in the figures\n\n";
-    for (const auto& r : recs) {
-      if (!r.drawn) continue;
-      md += "**" + fs::path(r.path).filename().string() + "**" +
-            (heldout ? " (statistics over the held-out part)" : "") + "\n\n";
-      if (!r.residual_stats.empty()) {
-        md +=
-            "| residual | mean before | mean after | RMS before | RMS after |\n"
-            "|---|---:|---:|---:|---:|\n";
-        for (const auto& [ch, st] : r.residual_stats)
-          md += fmt::format("| {} | {} | {} | {} | {} |\n", ch, num(st.first.mean, 4),
-                            num(st.second.mean, 4), num(st.first.rms, 4), num(st.second.rms, 4));
-        md += "\n";
-      }
-      if (!r.traj.empty()) {
-        md += "Against the ground truth (" + r.gt_note +
-              "), whole recording:\n\n"
-              "| variant | ATE RMSE (m) before | after | terminal error (m) before | after |\n"
-              "|---|---:|---:|---:|---:|\n";
-        for (const auto& t : r.traj)
-          md += fmt::format("| {} | {} | {} | {} | {} |\n", t.variant, num(t.before.ate_rmse_m),
-                            num(t.after.ate_rmse_m), num(t.before.terminal_error_m),
-                            num(t.after.terminal_error_m));
-        md += "\n";
-      }
-    }
-  }
+  md += figureStatsMarkdown(recs, heldout);
   md += "## Figures\n\n";
   for (const auto& r : recs)
     for (const auto& [f, caption] : r.figures)
