@@ -231,10 +231,6 @@ std::vector<std::string> biasedRegimes(const nlohmann::json& reg) {
   return out;
 }
 
-std::string sideName(int s) {
-  return s == 0 ? "right" : "left";
-}
-
 // ---------- trajectory check (dead reckoning against ground truth) ----------
 
 struct TrajMetrics {
@@ -567,96 +563,31 @@ Finding unmodeledFinding(const SparseResult& sr, const std::vector<std::string>&
 
 // ---------------- stage 1: kinematic consistency ----------------
 
-/// Stage 1 coefficients of the accepted terms (0 when not accepted) and their 1-sigma.
-struct KinCoefficients {
-  double b0 = 0, bg = 0, bR = 0, bL = 0;
-  double sb0 = 0, sbg = 0, sbR = 0, sbL = 0, sdel = 0;
-  double delay = 0;  ///< > 0: the gyro lags the encoders (s)
-};
-
-KinCoefficients kinematicCoefficients(const Selection& sel, const std::vector<Candidate>& cands,
-                                      double delay) {
-  KinCoefficients k;
-  k.delay = delay;
+/// The accepted terms of a selection by name: first coefficient and its 1-sigma.
+effects::TermFit termFit(const Selection& sel, const std::vector<Candidate>& cands,
+                         const config::WheelchairConfig& cfg, double delay_s) {
+  effects::TermFit fit;
+  fit.cfg = &cfg;
+  fit.delay_s = delay_s;
   for (size_t a = 0; a < sel.accepted.size(); ++a) {
-    int i = sel.ranges[a].first;
-    double val = sel.fit.beta(i), se = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
+    const int i = sel.ranges[a].first;
     const auto& n = cands[sel.accepted[a]].name;
-    if (n == "gyro_bias") k.b0 = val, k.sb0 = se;
-    if (n == "gyro_scale") k.bg = val, k.sbg = se;
-    if (n == "encoder_scale/right") k.bR = val, k.sbR = se;
-    if (n == "encoder_scale/left") k.bL = val, k.sbL = se;
-    if (n == "sensor_delay/imu") k.sdel = se;
+    fit.coef[n] = sel.fit.beta(i);
+    fit.sigma[n] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
   }
-  return k;
+  return fit;
 }
 
-/// Parameters and words of one stage 1 finding; false when the term is not reported (the
-/// side of an encoder scale undecided: said in insufficient_data, corrections reset).
-bool describeKinematicFinding(Finding& f, const Candidate& c, int accepted_cand,
-                              const KinCoefficients& k, const KinRows& kf2,
-                              const std::vector<Candidate>& cands, const Selection& sel,
-                              double alpha_b, int lags, const config::WheelchairConfig& cfg,
-                              Corrections& corr, DiagnosisReport& rep) {
-  const double lw = cfg.vehicle.geom.track_width_m;
-  const double g = 1 + k.bg;
-  if (c.name == "gyro_bias") {
-    f.parameters = {{"bias_rad_s", k.b0}};
-    f.uncertainty = {{"bias_rad_s", k.sb0}};
-    f.channels = {"gyro"};
-    f.description = fmt::format(
-        "the gyro reads {:+.4f} rad/s ({:+.2f} deg/s) when the encoders say the chair does not "
-        "turn: a "
-        "constant gyro bias (+-{:.4f} rad/s); uncorrected it adds {:.1f} deg of heading per "
-        "minute",
-        k.b0, k.b0 * kRad2Deg, k.sb0, k.b0 * kRad2Deg * 60);
-  } else if (c.name == "gyro_scale") {
-    f.parameters = {{"scale", g}};
-    f.uncertainty = {{"scale", k.sbg}};
-    f.channels = {"gyro"};
-    f.description = fmt::format(
-        "the gyro reports {:.2f}% {} turn than both encoders agree on (scale {:.4f} +- "
-        "{:.4f}): a gyro "
-        "scale-factor error (symmetric in both wheels, so not an encoder fault)",
-        std::abs(k.bg) * 100, k.bg > 0 ? "more" : "less", g, k.sbg);
-  } else if (c.effect == "encoder_scale") {
-    int s = c.name == "encoder_scale/right" ? 0 : 1;
-    const int other = candidateIndex(cands, s == 0 ? "encoder_scale/left" : "encoder_scale/right");
-    if (const std::string why =
-            encoderSideUndecided(kf2, cands, sel.accepted, accepted_cand, other, alpha_b, lags);
-        !why.empty()) {
-      rep.info["insufficient_data"].push_back(why);
-      rep.mismatch = true;  // the encoders disagree, only the side is undecided
-      corr.enc_scale[0] = corr.enc_scale[1] = 1.0;  // none written, so none applied after
-      return false;
-    }
-    double ks = corr.enc_scale[s];
-    double b = s == 0 ? k.bR : k.bL, sb = s == 0 ? k.sbR : k.sbL;
-    double sk = sb * std::abs(g) / std::pow(1 + k.bg + b, 2);
-    f.parameters = {{"side", sideName(s)}, {"scale", ks}};
-    f.uncertainty = {{"scale", sk}};
-    f.channels = {"encoders"};
-    f.description = fmt::format(
-        "the {} encoder reports {:.4f} x the distance its wheel rolls (+- {:.4f}; the gyro and "
-        "the other "
-        "encoder agree): a wrong pulley ratio on that side; uncorrected, odometry drifts to "
-        "the {} by "
-        "{:.1f} deg per 10 m driven straight",
-        sideName(s), ks, sk, (s == 0) == (ks < 1) ? "right" : "left",
-        std::abs(10.0 * (1 - ks) / lw) * kRad2Deg);
-  } else if (c.effect == "sensor_delay") {
-    std::string sensor = k.delay >= 0 ? "imu" : "encoders";
-    f.parameters = {{"sensor", sensor}, {"delay_s", std::abs(k.delay)}};
-    f.uncertainty = {{"delay_s", k.sdel}};
-    f.channels = {sensor == "imu" ? "gyro" : "encoders"};
-    f.description = fmt::format(
-        "the {} stream is time-stamped {:.1f} ms late relative to the {} (+- {:.1f} ms): the "
-        "gyro integral "
-        "lags the odometric heading change whenever the turn rate changes",
-        sensor == "imu" ? "gyro" : "encoder", 1000 * std::abs(k.delay),
-        sensor == "imu" ? "encoders" : "gyro", 1000 * k.sdel);
-  }
-  return true;
+/// The effect's parameters, words and channels (the stage's when it names none) in a finding.
+void describeFinding(Finding& f, const Candidate& c, const Selection& sel, std::size_t a,
+                     const effects::TermFit& fit) {
+  const int i = sel.ranges[a].first, k = sel.ranges[a].second;
+  const effects::FindingText t = effects::findEffect(c.effect)->describe(
+      c.name, sel.fit.beta.segment(i, k), sel.fit.cov.block(i, i, k, k), fit);
+  f.parameters = t.parameters;
+  f.uncertainty = t.uncertainty;
+  f.description = t.description;
+  if (!t.channels.empty()) f.channels = t.channels;
 }
 
 /// Stage 1 terms outside the catalogue: STLSQ over a library of window integrals.
@@ -712,16 +643,16 @@ void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
   }
   const KinRows& kf2 = *pkf2;
   const KinRows& kv2 = *pkv2;
-  const KinCoefficients k = kinematicCoefficients(sel, cands, refit.delay);
-  double g = 1 + k.bg;
+  const effects::TermFit fit = termFit(sel, cands, cfg, refit.delay);
+  const double bg = fit.value("gyro_scale"), g = 1 + bg;
   corr.gyro_scale = g;
-  corr.gyro_bias = k.b0;
-  corr.enc_scale[0] = g / (1 + k.bg + k.bR);
-  corr.enc_scale[1] = g / (1 + k.bg + k.bL);
-  if (k.delay > 0)
-    corr.delay_imu = k.delay;
+  corr.gyro_bias = fit.value("gyro_bias");
+  corr.enc_scale[0] = g / (1 + bg + fit.value("encoder_scale/right"));
+  corr.enc_scale[1] = g / (1 + bg + fit.value("encoder_scale/left"));
+  if (refit.delay > 0)
+    corr.delay_imu = refit.delay;
   else
-    corr.delay_enc = -k.delay;
+    corr.delay_enc = -refit.delay;
   // residuals before/after on validation
   Eigen::VectorXd rv_after = kv2.y - acceptedDesign(kv2.X, cands, sel.accepted) * sel.fit.beta;
   double nv_per = 0;
@@ -753,9 +684,21 @@ void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
     for (int i = 0; i < contrib.size(); ++i)
       tc.push_back({0.5 * (kf2.t0[i] + kf2.t1[i]), contrib(i)});
     f.segments = activeSegments(tc, sigma);
-    if (describeKinematicFinding(f, c, sel.accepted[a], k, kf2, cands, sel, alpha_b, lags, cfg,
-                                 corr, rep))
-      rep.addFinding(f);
+    if (c.effect == "encoder_scale") {
+      // Which side: the data must tell a short one from a long other one.
+      const int other = candidateIndex(
+          cands, c.name == "encoder_scale/right" ? "encoder_scale/left" : "encoder_scale/right");
+      if (const std::string why =
+              encoderSideUndecided(kf2, cands, sel.accepted, sel.accepted[a], other, alpha_b, lags);
+          !why.empty()) {
+        rep.info["insufficient_data"].push_back(why);
+        rep.mismatch = true;  // the encoders disagree, only the side is undecided
+        corr.enc_scale[0] = corr.enc_scale[1] = 1.0;  // none written, so none applied after
+        continue;
+      }
+    }
+    describeFinding(f, c, sel, a, fit);
+    rep.addFinding(f);
   }
   if (opt.enable_unmodeled) kinematicUnmodeled(sel, kf2, kv2, rv_after, lags, cfg, opt, rep);
 }
@@ -796,122 +739,6 @@ void dynamicChannels(const DynRows& df, const DynRows& dv, const DynRows& dv2, c
         {"regimes_before",
          regimeStats(df.y.segment(sd2 * nRf, nRf), v, w, vd, ph, lags, opt.alpha)},
         {"rejected_candidates", sel.log}};
-  }
-}
-
-/// What the stage 2 findings need besides their own coefficients.
-struct DynContext {
-  double asym[2] = {0, 0}, sasym[2] = {0, 0};
-  bool has_asym[2] = {false, false};
-  double slope_mass_scale = 1;
-  double delay = 0;  ///< > 0: the currents lag the encoders (s)
-};
-
-DynContext dynamicContext(const Selection& sel, const std::vector<Candidate>& cands,
-                          const config::WheelchairConfig& cfg, double delay) {
-  DynContext x;
-  x.delay = delay;
-  double payload_dm_kg = 0;
-  for (size_t a = 0; a < sel.accepted.size(); ++a) {
-    const Candidate& c = cands[sel.accepted[a]];
-    int i = sel.ranges[a].first;
-    if (c.effect == "motor_asymmetry") {
-      int s = c.name == "motor_asymmetry/right" ? 0 : 1;
-      x.has_asym[s] = true;
-      x.asym[s] = sel.fit.beta(i);
-      x.sasym[s] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
-    }
-    if (c.effect == "payload_mass") payload_dm_kg = sel.fit.beta(i);
-  }
-  // The slope regressor is scaled with the configured mass; when the payload is found too,
-  // the same current means a smaller angle on the heavier chair (sin a = s M_nominal / M).
-  const double mb = cfg.vehicle.geom.body_mass_kg, mw = cfg.vehicle.geom.wheel_mass_kg;
-  x.slope_mass_scale = (mb + 2 * mw) / (mb + payload_dm_kg + 2 * mw);
-  return x;
-}
-
-/// Parameters and words of one stage 2 finding (coefficients b, covariance C).
-void describeDynamicFinding(Finding& f, const Candidate& c, Eigen::VectorXd b, Eigen::MatrixXd C,
-                            const DynContext& x, const config::WheelchairConfig& cfg) {
-  const double mb = cfg.vehicle.geom.body_mass_kg;
-  if (c.effect == "motor_asymmetry") {
-    const double theta5 = cfg.vehicle.motor_viscous_Nm_s_rad / cfg.vehicle.torque_constant_Nm_A;
-    const double rGr = cfg.vehicle.geom.gear_ratio / cfg.vehicle.geom.wheel_radius_m;
-    // the side with more viscous friction and the ratio of the two sides
-    double fr = 1 + x.asym[0], fl = 1 + x.asym[1];
-    int side = fr >= fl ? 0 : 1;
-    double ratio = side == 0 ? fr / fl : fl / fr;
-    double sr = ratio * std::hypot(x.sasym[0] / fr, x.sasym[1] / fl);
-    f.parameters = {{"side", sideName(side)}, {"friction_ratio", ratio}};
-    f.uncertainty = {{"friction_ratio", sr}};
-    f.channels = {side == 0 ? "current_right" : "current_left"};
-    if (x.has_asym[0] && x.has_asym[1]) f.channels = {"current_right", "current_left"};
-    double dI = std::abs(x.asym[0] - x.asym[1]) * theta5 * rGr * 0.8;
-    f.description = fmt::format(
-        "the {} drive needs {:.2f} A more than the {} to go straight at 0.8 m/s: unequal "
-        "gearbox "
-        "(viscous) friction, {:.0f}% more on the {} (friction ratio {:.3f} +- {:.3f}); the "
-        "symmetric "
-        "model (6) reads the current difference as a turn",
-        sideName(side), dI, sideName(1 - side), (ratio - 1) * 100, sideName(side), ratio, sr);
-    if (x.has_asym[0] && x.has_asym[1]) f.parameters["friction_ratio_right_left"] = {fr, fl};
-  } else if (c.effect == "coulomb_friction") {
-    std::string side = c.name.substr(c.name.find('/') + 1);
-    f.parameters = {{"current_A", b(0)}, {"side", side}};
-    f.uncertainty = {{"current_A", std::sqrt(C(0, 0))}};
-    if (side != "both") f.channels = {"current_" + side};
-    f.description = fmt::format(
-        "{} needs {:.3f} A (+- {:.3f}) more current at any speed, in the direction of "
-        "motion: dry "
-        "(Coulomb) friction in the drive, not modelled by the viscous term of (6)",
-        side == "both" ? "each motor" : "the " + side + " motor", b(0), std::sqrt(C(0, 0)));
-  } else if (c.effect == "payload_mass") {
-    double m = mb + b(0);
-    f.parameters = {{"body_mass_kg", m}};
-    f.uncertainty = {{"body_mass_kg", std::sqrt(C(0, 0))}};
-    f.description = fmt::format(
-        "accelerating takes {:.0f}% {} current than the model predicts with the same cruise "
-        "current: "
-        "the mass of chair and user is {:.1f} kg (+- {:.1f}), not the configured {:.1f} kg",
-        std::abs(b(0)) / (mb + 2 * cfg.vehicle.geom.wheel_mass_kg + 17.1) * 100,
-        b(0) > 0 ? "more" : "less", m, std::sqrt(C(0, 0)), mb);
-  } else if (c.effect == "ground_slope") {
-    const double s_current = std::hypot(b(0), b(1));  // in units of the nominal M g / 2
-    b *= x.slope_mass_scale;
-    C *= x.slope_mass_scale * x.slope_mass_scale;
-    double s = std::hypot(b(0), b(1));
-    double ang = std::asin(std::min(1.0, s)) * kRad2Deg;
-    double head = std::atan2(b(1), b(0)) * kRad2Deg;
-    // delta method
-    Eigen::RowVector2d ja = Eigen::RowVector2d(b(0), b(1)) / std::max(1e-12, s) /
-                            std::sqrt(std::max(1e-12, 1 - s * s)) * kRad2Deg;
-    Eigen::RowVector2d jh = Eigen::RowVector2d(-b(1), b(0)) / std::max(1e-24, s * s) * kRad2Deg;
-    double sa = std::sqrt(std::max(0.0, (ja * C * ja.transpose())(0)));
-    double sh = std::sqrt(std::max(0.0, (jh * C * jh.transpose())(0)));
-    f.parameters = {{"angle_deg", ang}, {"downhill_heading_deg", head}};
-    f.uncertainty = {{"angle_deg", sa}, {"downhill_heading_deg", sh}};
-    f.description = fmt::format(
-        "both motors need less current heading {:.0f} deg and more heading {:.0f} deg (start "
-        "frame), "
-        "{:.2f} A each at the extremes: the floor slopes by {:.2f} deg (+- {:.2f}) downhill "
-        "towards "
-        "{:.0f} deg (+- {:.0f})",
-        head, head + 180,
-        s_current * (cfg.vehicle.geom.body_mass_kg + 2 * cfg.vehicle.geom.wheel_mass_kg) * 9.81 /
-            2 * cfg.vehicle.geom.wheel_radius_m / cfg.vehicle.geom.gear_ratio /
-            (cfg.vehicle.gearbox_efficiency * cfg.vehicle.torque_constant_Nm_A),
-        ang, sa, head, sh);
-  } else if (c.effect == "sensor_delay") {
-    std::string sensor = x.delay >= 0 ? "motors" : "encoders";
-    f.parameters = {{"sensor", sensor}, {"delay_s", std::abs(x.delay)}};
-    f.uncertainty = {{"delay_s", std::sqrt(C(0, 0))}};
-    f.channels = {sensor == "motors" ? "currents" : "encoders"};
-    f.description = fmt::format(
-        "the {} are time-stamped {:.1f} ms (+- {:.1f}) late relative to the {}: {}",
-        sensor == "motors" ? "motor currents" : "encoder counts", 1000 * std::abs(x.delay),
-        1000 * std::sqrt(C(0, 0)), sensor == "motors" ? "encoders" : "motor currents",
-        sensor == "motors" ? "the current leads the acceleration it causes"
-                           : "the motion lags the current that causes it");
   }
 }
 
@@ -981,7 +808,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     for (auto& r : biasedRegimes(rep.channels[ch]["regimes_before"]))
       regimes.push_back(std::string(ch) + ":" + r);
   double sigma = std::sqrt(sel.fit.rss / std::max<Eigen::Index>(1, df2.y.size()));
-  const DynContext x = dynamicContext(sel, cands, cfg, refit.delay);
+  const effects::TermFit fit = termFit(sel, cands, cfg, refit.delay);
   bool asym_done = false;
   for (size_t a = 0; a < sel.accepted.size(); ++a) {
     const Candidate& c = cands[sel.accepted[a]];
@@ -999,7 +826,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     for (int q = 0; q < contrib.size(); ++q) tc.push_back({df2.t[q], contrib(q)});
     f.segments = activeSegments(tc, sigma);
     f.channels = {"current_right", "current_left"};
-    describeDynamicFinding(f, c, b, sel.fit.cov.block(i, i, k, k), x, cfg);
+    describeFinding(f, c, sel, a, fit);
     rep.addFinding(f);
   }
   if (opt.enable_unmodeled) dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, rep);

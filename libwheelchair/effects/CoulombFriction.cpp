@@ -6,6 +6,8 @@
 //              coefficient c); `both` is one coefficient over both sides' columns
 #include "libwheelchair/effects/Catalogue.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 
 namespace wheelchair::effects {
@@ -71,6 +73,20 @@ class CoulombFriction final : public Effect {
       out.push_back(t);
     }
     return out;
+  }
+  FindingText describe(const std::string& term, const Eigen::VectorXd& b, const Eigen::MatrixXd& C,
+                       const TermFit&) const override {
+    const std::string side = term.substr(term.find('/') + 1);
+    FindingText t;
+    t.parameters = {{"current_A", b(0)}, {"side", side}};
+    t.uncertainty = {{"current_A", std::sqrt(C(0, 0))}};
+    if (side != "both") t.channels = {"current_" + side};
+    t.description = fmt::format(
+        "{} needs {:.3f} A (+- {:.3f}) more current at any speed, in the direction of "
+        "motion: dry "
+        "(Coulomb) friction in the drive, not modelled by the viscous term of (6)",
+        side == "both" ? "each motor" : "the " + side + " motor", b(0), std::sqrt(C(0, 0)));
+    return t;
   }
 };
 

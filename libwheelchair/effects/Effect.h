@@ -152,6 +152,32 @@ struct ResidualTerm {
   std::function<Eigen::VectorXd(const EffectSpec&, const config::WheelchairConfig&)> coefficientOf;
 };
 
+/// The accepted terms of one diagnosis stage, as an effect's words need them: the first
+/// coefficient of every accepted term and its 1-sigma, by term name.
+struct TermFit {
+  const config::WheelchairConfig* cfg = nullptr;
+  std::map<std::string, double> coef, sigma;
+  double delay_s = 0;  ///< refined stream delay (> 0: the stream of the term lags the encoders)
+  bool has(const std::string& term) const { return coef.count(term) > 0; }
+  double value(const std::string& term) const {
+    auto it = coef.find(term);
+    return it == coef.end() ? 0.0 : it->second;
+  }
+  double sd(const std::string& term) const {
+    auto it = sigma.find(term);
+    return it == sigma.end() ? 0.0 : it->second;
+  }
+};
+
+/// What a finding of an accepted term says: the effect's parameters (the names of info()),
+/// their 1-sigma, where it shows (empty: the stage's channels) and words with numbers.
+struct FindingText {
+  nlohmann::json parameters = nlohmann::json::object();
+  nlohmann::json uncertainty = nlohmann::json::object();
+  std::vector<std::string> channels;
+  std::string description;
+};
+
 /// What the terms depend on.
 struct TermOptions {
   double body_mass_kg = 0;   ///< the configured m_b (payload plausibility)
@@ -179,6 +205,12 @@ class Effect {
   virtual std::vector<DriveColumn> driveColumns() const { return {}; }
   /// Terms the diagnosis tests.
   virtual std::vector<ResidualTerm> residualTerms(const TermOptions&) const { return {}; }
+  /// An accepted term as the effect's parameters and words: `term` its name, b and C its
+  /// coefficients and their covariance, `fit` the stage's other accepted terms.
+  virtual FindingText describe(const std::string& /*term*/, const Eigen::VectorXd& /*b*/,
+                               const Eigen::MatrixXd& /*C*/, const TermFit& /*fit*/) const {
+    return {};
+  }
 };
 
 /// All effects, in the order the diagnosis tries their terms: sensor effects of the kinematic

@@ -5,12 +5,16 @@
 //              dR = scale dR_true: column dR/l_w (right) or -dL/l_w (left), coefficient
 //              1/scale - 1 (the diagnosis reports scale = g / (1 + b_g + b))
 #include "libwheelchair/effects/Catalogue.h"
+
+#include <fmt/format.h>
 #include "libwheelchair/sensors/Encoders.h"
 
 #include <cmath>
 
 namespace wheelchair::effects {
 namespace {
+
+constexpr double kRad2Deg = 180.0 / M_PI;
 
 struct EncoderScaleParams {
   std::vector<int> sides;
@@ -54,6 +58,30 @@ class EncoderScale final : public Effect {
         "encoder_scale", Stage::kinematic,
         [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; },
         [](const EffectSpec& e) { return 1 / EncoderScaleParams::of(e).scale - 1; });
+  }
+  /// The diagnosis fits gyro scale b_g and the side's b together: scale = g / (1 + b_g + b).
+  FindingText describe(const std::string& term, const Eigen::VectorXd&, const Eigen::MatrixXd&,
+                       const TermFit& fit) const override {
+    const int s = term == "encoder_scale/right" ? 0 : 1;
+    const double lw = fit.cfg->vehicle.geom.track_width_m;
+    const double bg = fit.value("gyro_scale"), g = 1 + bg;
+    const double b = fit.value(term), sb = fit.sd(term);
+    const double ks = g / (1 + bg + b);
+    const double sk = sb * std::abs(g) / std::pow(1 + bg + b, 2);
+    const std::string side = sideChoices()[s];
+    FindingText t;
+    t.parameters = {{"side", side}, {"scale", ks}};
+    t.uncertainty = {{"scale", sk}};
+    t.channels = {"encoders"};
+    t.description = fmt::format(
+        "the {} encoder reports {:.4f} x the distance its wheel rolls (+- {:.4f}; the gyro and "
+        "the other "
+        "encoder agree): a wrong pulley ratio on that side; uncorrected, odometry drifts to "
+        "the {} by "
+        "{:.1f} deg per 10 m driven straight",
+        side, ks, sk, (s == 0) == (ks < 1) ? "right" : "left",
+        std::abs(10.0 * (1 - ks) / lw) * kRad2Deg);
+    return t;
   }
 };
 

@@ -6,6 +6,10 @@
 //              (s_c, s_s) = sin(a) (cos h, sin h) (two columns, two coefficients)
 #include "libwheelchair/effects/Catalogue.h"
 
+#include <Eigen/Core>
+
+#include <fmt/format.h>
+
 #include <cmath>
 
 namespace wheelchair::effects {
@@ -65,6 +69,43 @@ class GroundSlope final : public Effect {
       return Eigen::Vector2d(s * std::cos(h), s * std::sin(h)).eval();
     };
     return {t};
+  }
+  /// The slope columns are scaled with the configured mass; when the payload is found too, the
+  /// same current means a smaller angle on the heavier chair (sin a = s M_nominal / M).
+  FindingText describe(const std::string&, const Eigen::VectorXd& b_in, const Eigen::MatrixXd& C_in,
+                       const TermFit& fit) const override {
+    const auto& v = fit.cfg->vehicle;
+    const double mb = v.geom.body_mass_kg, mw = v.geom.wheel_mass_kg;
+    const double slope_mass_scale = (mb + 2 * mw) / (mb + fit.value("payload_mass") + 2 * mw);
+    Eigen::VectorXd b = b_in;
+    Eigen::MatrixXd C = C_in;
+    const double s_current = std::hypot(b(0), b(1));  // in units of the nominal M g / 2
+    b *= slope_mass_scale;
+    C *= slope_mass_scale * slope_mass_scale;
+    const double s = std::hypot(b(0), b(1));
+    const double ang = std::asin(std::min(1.0, s)) * kRad2Deg;
+    const double head = std::atan2(b(1), b(0)) * kRad2Deg;
+    // delta method
+    Eigen::RowVector2d ja = Eigen::RowVector2d(b(0), b(1)) / std::max(1e-12, s) /
+                            std::sqrt(std::max(1e-12, 1 - s * s)) * kRad2Deg;
+    Eigen::RowVector2d jh = Eigen::RowVector2d(-b(1), b(0)) / std::max(1e-24, s * s) * kRad2Deg;
+    const double sa = std::sqrt(std::max(0.0, (ja * C * ja.transpose())(0)));
+    const double sh = std::sqrt(std::max(0.0, (jh * C * jh.transpose())(0)));
+    FindingText t;
+    t.parameters = {{"angle_deg", ang}, {"downhill_heading_deg", head}};
+    t.uncertainty = {{"angle_deg", sa}, {"downhill_heading_deg", sh}};
+    t.description = fmt::format(
+        "both motors need less current heading {:.0f} deg and more heading {:.0f} deg (start "
+        "frame), "
+        "{:.2f} A each at the extremes: the floor slopes by {:.2f} deg (+- {:.2f}) downhill "
+        "towards "
+        "{:.0f} deg (+- {:.0f})",
+        head, head + 180,
+        s_current * (v.geom.body_mass_kg + 2 * v.geom.wheel_mass_kg) * 9.81 / 2 *
+            v.geom.wheel_radius_m / v.geom.gear_ratio /
+            (v.gearbox_efficiency * v.torque_constant_Nm_A),
+        ang, sa, head, sh);
+    return t;
   }
 };
 

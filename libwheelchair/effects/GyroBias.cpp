@@ -4,10 +4,14 @@
 //   residual   stage 1 window: y = int(gyro) - odometric turn = b T  (column T, coefficient b)
 #include "libwheelchair/effects/Catalogue.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 
 namespace wheelchair::effects {
 namespace {
+
+constexpr double kRad2Deg = 180.0 / M_PI;
 
 struct GyroBiasParams {
   double bias_rad_s = 0;
@@ -41,6 +45,21 @@ class GyroBias final : public Effect {
         [](const EffectSpec& e, const config::WheelchairConfig&) {
           return GyroBiasParams::of(e).bias_rad_s;
         })};
+  }
+  FindingText describe(const std::string&, const Eigen::VectorXd&, const Eigen::MatrixXd&,
+                       const TermFit& fit) const override {
+    const double b0 = fit.value("gyro_bias"), sb0 = fit.sd("gyro_bias");
+    FindingText t;
+    t.parameters = {{"bias_rad_s", b0}};
+    t.uncertainty = {{"bias_rad_s", sb0}};
+    t.channels = {"gyro"};
+    t.description = fmt::format(
+        "the gyro reads {:+.4f} rad/s ({:+.2f} deg/s) when the encoders say the chair does not "
+        "turn: a "
+        "constant gyro bias (+-{:.4f} rad/s); uncorrected it adds {:.1f} deg of heading per "
+        "minute",
+        b0, b0 * kRad2Deg, sb0, b0 * kRad2Deg * 60);
+    return t;
   }
 };
 

@@ -5,6 +5,10 @@
 //              coefficient scale - 1)
 #include "libwheelchair/effects/Catalogue.h"
 
+#include <cmath>
+
+#include <fmt/format.h>
+
 namespace wheelchair::effects {
 namespace {
 
@@ -41,6 +45,21 @@ class GyroScale final : public Effect {
         [](const EffectSpec& e, const config::WheelchairConfig&) {
           return GyroScaleParams::of(e).scale - 1;
         })};
+  }
+  FindingText describe(const std::string&, const Eigen::VectorXd&, const Eigen::MatrixXd&,
+                       const TermFit& fit) const override {
+    const double bg = fit.value("gyro_scale"), sbg = fit.sd("gyro_scale");
+    const double g = 1 + bg;
+    FindingText t;
+    t.parameters = {{"scale", g}};
+    t.uncertainty = {{"scale", sbg}};
+    t.channels = {"gyro"};
+    t.description = fmt::format(
+        "the gyro reports {:.2f}% {} turn than both encoders agree on (scale {:.4f} +- "
+        "{:.4f}): a gyro "
+        "scale-factor error (symmetric in both wheels, so not an encoder fault)",
+        std::abs(bg) * 100, bg > 0 ? "more" : "less", g, sbg);
+    return t;
   }
 };
 

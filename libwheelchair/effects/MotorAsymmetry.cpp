@@ -6,6 +6,10 @@
 //              (column theta5 (r_G/r) u on that side's rows, coefficient friction_ratio - 1)
 #include "libwheelchair/effects/Catalogue.h"
 
+#include <cmath>
+
+#include <fmt/format.h>
+
 namespace wheelchair::effects {
 namespace {
 
@@ -78,6 +82,36 @@ class MotorAsymmetry final : public Effect {
         "motor_asymmetry", Stage::dynamic,
         [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.1 && 1 + b(0) < 10; },
         [](const EffectSpec& e) { return MotorAsymmetryParams::of(e).friction_ratio - 1; });
+  }
+  /// Both sides' terms make one finding: the side with more viscous friction and the ratio.
+  FindingText describe(const std::string&, const Eigen::VectorXd&, const Eigen::MatrixXd&,
+                       const TermFit& fit) const override {
+    const auto& v = fit.cfg->vehicle;
+    const double theta5 = v.motor_viscous_Nm_s_rad / v.torque_constant_Nm_A;
+    const double rGr = v.geom.gear_ratio / v.geom.wheel_radius_m;
+    const double asym[2] = {fit.value("motor_asymmetry/right"), fit.value("motor_asymmetry/left")};
+    const double sasym[2] = {fit.sd("motor_asymmetry/right"), fit.sd("motor_asymmetry/left")};
+    const bool both = fit.has("motor_asymmetry/right") && fit.has("motor_asymmetry/left");
+    const double fr = 1 + asym[0], fl = 1 + asym[1];
+    const int side = fr >= fl ? 0 : 1;
+    const double ratio = side == 0 ? fr / fl : fl / fr;
+    const double sr = ratio * std::hypot(sasym[0] / fr, sasym[1] / fl);
+    const std::string& name = sideChoices()[side];
+    FindingText t;
+    t.parameters = {{"side", name}, {"friction_ratio", ratio}};
+    t.uncertainty = {{"friction_ratio", sr}};
+    t.channels = {side == 0 ? "current_right" : "current_left"};
+    if (both) t.channels = {"current_right", "current_left"};
+    const double dI = std::abs(asym[0] - asym[1]) * theta5 * rGr * 0.8;
+    t.description = fmt::format(
+        "the {} drive needs {:.2f} A more than the {} to go straight at 0.8 m/s: unequal "
+        "gearbox "
+        "(viscous) friction, {:.0f}% more on the {} (friction ratio {:.3f} +- {:.3f}); the "
+        "symmetric "
+        "model (6) reads the current difference as a turn",
+        name, dI, sideChoices()[1 - side], (ratio - 1) * 100, name, ratio, sr);
+    if (both) t.parameters["friction_ratio_right_left"] = {fr, fl};
+    return t;
   }
 };
 

@@ -6,6 +6,10 @@
 //              coefficient body_mass_kg - configured m_b)
 #include "libwheelchair/effects/Catalogue.h"
 
+#include <cmath>
+
+#include <fmt/format.h>
+
 namespace wheelchair::effects {
 namespace {
 
@@ -49,6 +53,21 @@ class PayloadMass final : public Effect {
         [](const EffectSpec& e, const config::WheelchairConfig& cfg) {
           return PayloadMassParams::of(e).body_mass_kg - cfg.vehicle.geom.body_mass_kg;
         })};
+  }
+  FindingText describe(const std::string&, const Eigen::VectorXd& b, const Eigen::MatrixXd& C,
+                       const TermFit& fit) const override {
+    const auto& g = fit.cfg->vehicle.geom;
+    const double mb = g.body_mass_kg, m = mb + b(0);
+    FindingText t;
+    t.parameters = {{"body_mass_kg", m}};
+    t.uncertainty = {{"body_mass_kg", std::sqrt(C(0, 0))}};
+    t.description = fmt::format(
+        "accelerating takes {:.0f}% {} current than the model predicts with the same cruise "
+        "current: "
+        "the mass of chair and user is {:.1f} kg (+- {:.1f}), not the configured {:.1f} kg",
+        std::abs(b(0)) / (mb + 2 * g.wheel_mass_kg + 17.1) * 100, b(0) > 0 ? "more" : "less", m,
+        std::sqrt(C(0, 0)), mb);
+    return t;
   }
 };
 

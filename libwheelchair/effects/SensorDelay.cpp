@@ -8,6 +8,8 @@
 //              encoders lag instead (the diagnosis refines it by re-stamping)
 #include "libwheelchair/effects/Catalogue.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
 
 namespace wheelchair::effects {
@@ -77,6 +79,38 @@ class SensorDelay final : public Effect {
     };
     return {term("sensor_delay/imu", Stage::kinematic, 1),
             term("sensor_delay/motors", Stage::dynamic, 2)};
+  }
+  /// The refined delay: sensor_delay/imu (gyro against encoders) or sensor_delay/motors
+  /// (currents against encoders); a negative delay means the encoders lag instead.
+  FindingText describe(const std::string& term, const Eigen::VectorXd&, const Eigen::MatrixXd& C,
+                       const TermFit& fit) const override {
+    const double delay = fit.delay_s;
+    FindingText t;
+    if (term == "sensor_delay/imu") {
+      const std::string sensor = delay >= 0 ? "imu" : "encoders";
+      const double sdel = fit.sd(term);
+      t.parameters = {{"sensor", sensor}, {"delay_s", std::abs(delay)}};
+      t.uncertainty = {{"delay_s", sdel}};
+      t.channels = {sensor == "imu" ? "gyro" : "encoders"};
+      t.description = fmt::format(
+          "the {} stream is time-stamped {:.1f} ms late relative to the {} (+- {:.1f} ms): the "
+          "gyro integral "
+          "lags the odometric heading change whenever the turn rate changes",
+          sensor == "imu" ? "gyro" : "encoder", 1000 * std::abs(delay),
+          sensor == "imu" ? "encoders" : "gyro", 1000 * sdel);
+      return t;
+    }
+    const std::string sensor = delay >= 0 ? "motors" : "encoders";
+    t.parameters = {{"sensor", sensor}, {"delay_s", std::abs(delay)}};
+    t.uncertainty = {{"delay_s", std::sqrt(C(0, 0))}};
+    t.channels = {sensor == "motors" ? "currents" : "encoders"};
+    t.description = fmt::format(
+        "the {} are time-stamped {:.1f} ms (+- {:.1f}) late relative to the {}: {}",
+        sensor == "motors" ? "motor currents" : "encoder counts", 1000 * std::abs(delay),
+        1000 * std::sqrt(C(0, 0)), sensor == "motors" ? "encoders" : "motor currents",
+        sensor == "motors" ? "the current leads the acceleration it causes"
+                           : "the motion lags the current that causes it");
+    return t;
   }
 };
 
