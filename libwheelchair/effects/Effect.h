@@ -11,7 +11,8 @@
 //   residual     the columns and terms the diagnosis fits (kinematicColumns / driveColumns:
 //                the derivative of the residual of a stage with respect to the term's
 //                coefficient; terms: which columns, plausibility, coefficient <-> parameter)
-//   words        its description (EffectInfo::description)
+//   words        its description (EffectInfo::description) and a fitted finding's parameters
+//                and words (describe)
 //
 // The registry (effectRegistry) lists them in the order the diagnosis tries its terms; the
 // simulator, ModelExtensions, the diagnosis and the figures iterate it instead of testing ids.

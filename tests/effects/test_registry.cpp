@@ -38,3 +38,30 @@ TEST(EffectRegistry, RangesAndChoicesAreChecked) {
 }
 
 }  // namespace wheelchair::effects::test
+
+namespace wheelchair::effects::test {
+
+TEST(EffectRegistry, EveryTermIsDescribedWithItsEffectsParameters) {
+  // A finding's parameters must read back as the effect (they become [model_extensions]).
+  for (const Effect* e : effectRegistry())
+    for (const auto& term : e->residualTerms({nominal().vehicle.geom.body_mass_kg, true})) {
+      const int k = static_cast<int>(term.coefficients.size());
+      TermFit fit;
+      fit.cfg = &nominal();
+      fit.coef[term.name] = 0.05;
+      fit.sigma[term.name] = 0.001;
+      fit.delay_s = 0.02;
+      const FindingText t = e->describe(term.name, Eigen::VectorXd::Constant(k, 0.05),
+                                        Eigen::MatrixXd::Identity(k, k) * 1e-6, fit);
+      EXPECT_FALSE(t.description.empty()) << term.name;
+      EffectSpec spec{e->id(), {}};
+      for (auto it = t.parameters.begin(); it != t.parameters.end(); ++it) {
+        if (it.key() == "friction_ratio_right_left") continue;  // both sides, for the report
+        spec.params[it.key()] =
+            it->is_string() ? it->get<std::string>() : std::to_string(it->get<double>());
+      }
+      EXPECT_NO_THROW(validateEffect(spec)) << term.name << ": " << formatEffect(spec);
+    }
+}
+
+}  // namespace wheelchair::effects::test
