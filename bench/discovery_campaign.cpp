@@ -87,7 +87,7 @@ int main(int argc, char** argv) {
     auto f = [](double x) { return fmt::format("{:.4g}", x); };
     const auto& cat = simulation::mujocoEffectCatalogue();
     const std::string id = cat[std::uniform_int_distribution<size_t>(0, cat.size() - 1)(rng)].id;
-    simulation::EffectSpec e;
+    effects::EffectSpec e;
     e.id = id;
     if (id == "castor_friction") e.params["swivel_friction_Nm"] = f(U(0.5, 3));
     if (id == "tyre_scrub") e.params["torsion_m"] = f(U(0.005, 0.03));
@@ -95,7 +95,7 @@ int main(int argc, char** argv) {
     if (id == "soft_tyre") e.params["growth_m"] = f(U(0.002, 0.008));
     if (id == "tyre_grip") e.params["mu"] = f(U(0.15, 0.4));
     simulation::validateEngineEffect(e, "mujoco");
-    return std::vector<simulation::EffectSpec>{e};
+    return std::vector<effects::EffectSpec>{e};
   };
   auto cfg =
       cfg_path.empty() ? config::WheelchairConfig() : config::WheelchairConfig::load(cfg_path);

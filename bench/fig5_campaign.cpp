@@ -18,9 +18,9 @@
 // (encoders only; encoder v + gyro omega) and of the baseline filter, each with a paired
 // t < -2 (the CTest `fig5_campaign_smoke` runs it on 6 drives).
 #include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/effects/Effect.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Metrics.h"
-#include "libwheelchair/simulation/Effects.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Simulator.h"
 
@@ -50,7 +50,7 @@ struct RunMetrics {
 };
 
 RunMetrics runOne(const config::WheelchairConfig& cfg, uint64_t seed,
-                  const std::vector<simulation::EffectSpec>& effects, bool against_truth,
+                  const std::vector<effects::EffectSpec>& effects, bool against_truth,
                   const std::string& engine) {
   RunMetrics out;
   out.seed = seed;
@@ -173,7 +173,7 @@ int parseArgs(int argc, char** argv, Args& args) {
 // Every drive of the campaign, on two workers (the reference machine's cores); each run is
 // independent and seeded.
 std::vector<RunMetrics> runCampaign(const Args& args, const config::WheelchairConfig& cfg,
-                                    const std::vector<simulation::EffectSpec>& effects) {
+                                    const std::vector<effects::EffectSpec>& effects) {
   const int runs = args.runs;
   const unsigned workers = std::max(1u, std::min(2u, std::thread::hardware_concurrency()));
   std::vector<RunMetrics> results(runs);
@@ -288,7 +288,7 @@ int main(int argc, char** argv) {
   const auto cfg = config::WheelchairConfig::load(
       args.cfg_path.empty() ? std::string(WHEELCHAIR_SOURCE_DIR) + "/config/wheelchair.ini"
                             : args.cfg_path);
-  std::vector<simulation::EffectSpec> effects;
+  std::vector<effects::EffectSpec> effects;
   std::stringstream ss(args.effects_text);
   for (std::string t; std::getline(ss, t, ';');)
     if (!t.empty()) effects.push_back(simulation::parseEngineEffect(t, args.engine));

@@ -21,7 +21,7 @@ namespace viz = wheelchair::visualization;
 
 int main(int argc, char** argv) {
   std::string cfg_path, out;
-  std::vector<simulation::EffectSpec> effects;
+  std::vector<effects::EffectSpec> effects;
   try {
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];

@@ -36,7 +36,7 @@ void printCatalogue() {
   fmt::print("scenarios:");
   for (const auto& s : simulation::scenarioNames()) fmt::print(" {}", s);
   fmt::print("\neffects (--effect ID:key=value,...; docs/effects.md):\n");
-  for (const auto& e : simulation::effectCatalogue()) {
+  for (const auto& e : effects::effectCatalogue()) {
     fmt::print("  {}\n", e.id);
     for (const auto& p : e.params)
       fmt::print("      {:<22} {:<9} {}{}\n", p.name, p.unit, p.description,
@@ -61,7 +61,7 @@ int runSimulate(const SimulateOptions& o) {
     std::cerr << "wheelchair simulate: --scenario and -o are required (see --help)\n";
     return kExitUsage;
   }
-  std::vector<simulation::EffectSpec> effects;
+  std::vector<effects::EffectSpec> effects;
   try {
     for (const auto& t : o.effects) effects.push_back(simulation::parseEngineEffect(t, o.engine));
     bool known = false;
@@ -108,7 +108,7 @@ int runSimulate(const SimulateOptions& o) {
              count(StreamKind::Encoders), count(StreamKind::Imu), count(StreamKind::Motors),
              count(StreamKind::Sonar), count(StreamKind::Pozyx), count(StreamKind::Joystick));
   if (effects.empty()) fmt::print("  effects: none\n");
-  for (const auto& e : effects) fmt::print("  effect: {}\n", simulation::formatEffect(e));
+  for (const auto& e : effects) fmt::print("  effect: {}\n", effects::formatEffect(e));
   const auto& end = res.truth.samples.back();
   fmt::print("  end pose (start frame): x {:.3f} m, y {:.3f} m, phi {:.3f} rad\n", end.x_m, end.y_m,
              end.phi_rad);

@@ -29,9 +29,9 @@ using stats::median;
 using stats::quantile;
 }  // namespace
 
-simulation::EffectSpec randomEffect(const std::string& id, std::mt19937_64& rng) {
+effects::EffectSpec randomEffect(const std::string& id, std::mt19937_64& rng) {
   auto f = [](double x) { return fmt::format("{:.6g}", x); };
-  simulation::EffectSpec e;
+  effects::EffectSpec e;
   e.id = id;
   if (id == "gyro_bias") e.params["bias_rad_s"] = f(sgn(rng) * U(rng, 0.003, 0.02));
   if (id == "gyro_scale") e.params["scale"] = f(1 + sgn(rng) * U(rng, 0.01, 0.05));
@@ -51,7 +51,7 @@ simulation::EffectSpec randomEffect(const std::string& id, std::mt19937_64& rng)
   return e;
 }
 
-double parameterError(const simulation::EffectSpec& t, const Finding& f,
+double parameterError(const effects::EffectSpec& t, const Finding& f,
                       const config::WheelchairConfig& cfg) {
   auto num = [&](const char* k) {
     return f.parameters.contains(k) && f.parameters[k].is_number() ? f.parameters[k].get<double>()
@@ -94,7 +94,7 @@ double parameterError(const simulation::EffectSpec& t, const Finding& f,
 nlohmann::json CaseResult::toJson() const {
   nlohmann::json j;
   std::vector<std::string> t;
-  for (auto& e : truth) t.push_back(simulation::formatEffect(e));
+  for (auto& e : truth) t.push_back(effects::formatEffect(e));
   j["truth"] = t;
   j["reported"] = reported;
   j["correct"] = correct;
@@ -108,7 +108,7 @@ nlohmann::json CaseResult::toJson() const {
 }
 
 CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scenario, uint64_t seed,
-                   double duration_s, const std::vector<simulation::EffectSpec>& effects,
+                   double duration_s, const std::vector<effects::EffectSpec>& effects,
                    const DiagnosisOptions& dopt, const std::string& engine) {
   CaseResult c;
   c.truth = effects;
@@ -202,7 +202,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
         const std::size_t a = std::uniform_int_distribution<size_t>(0, opt.effects.size() - 1)(rng);
         if (std::find(idx.begin(), idx.end(), a) == idx.end()) idx.push_back(a);
       }
-      std::vector<simulation::EffectSpec> es;
+      std::vector<effects::EffectSpec> es;
       for (std::size_t a : idx) es.push_back(randomEffect(opt.effects[a], rng));
       const std::string sc = pickScenario();
       const uint64_t seed = rng() % 1000000;

@@ -11,7 +11,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
-#include "libwheelchair/simulation/Effects.h"
+#include "libwheelchair/effects/Effect.h"
 
 #include <nlohmann/json.hpp>
 
@@ -42,19 +42,19 @@ struct CampaignOptions {
   /// know their names). Scored as flagged (a mismatch or any finding) or silent, with the
   /// catalogue names the diagnosis used for them.
   int unknown_runs = 0;
-  std::function<std::vector<simulation::EffectSpec>(std::mt19937_64&)> unknown_effects;
+  std::function<std::vector<effects::EffectSpec>(std::mt19937_64&)> unknown_effects;
 };
 
 /// A concealed effect with a random SMALL magnitude (docs/discovery.md lists the ranges).
-simulation::EffectSpec randomEffect(const std::string& id, std::mt19937_64& rng);
+effects::EffectSpec randomEffect(const std::string& id, std::mt19937_64& rng);
 
 /// Relative error of the fitted parameter of a finding against the concealed effect, on the
 /// deviation from nominal (e.g. (scale - 1)); NaN if not comparable.
-double parameterError(const simulation::EffectSpec& truth, const Finding& f,
+double parameterError(const effects::EffectSpec& truth, const Finding& f,
                       const config::WheelchairConfig& cfg);
 
 struct CaseResult {
-  std::vector<simulation::EffectSpec> truth;
+  std::vector<effects::EffectSpec> truth;
   std::vector<std::string> reported;
   bool correct = false;
   std::vector<double> param_errors;              ///< per concealed effect
@@ -68,7 +68,7 @@ struct CaseResult {
 };
 
 CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scenario, uint64_t seed,
-                   double duration_s, const std::vector<simulation::EffectSpec>& effects,
+                   double duration_s, const std::vector<effects::EffectSpec>& effects,
                    const DiagnosisOptions& dopt, const std::string& engine = "model");
 
 /// Runs everything; returns {"engine", "single": {effect: {runs, correct, rate,

@@ -1,6 +1,7 @@
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/diagnosis/EncoderSide.h"
 #include "libwheelchair/diagnosis/HeldOut.h"
+#include "libwheelchair/stats/Statistics.h"
 
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/diagnosis/SensorFaults.h"
@@ -24,61 +25,36 @@
 
 namespace wheelchair::diagnosis {
 
+using stats::BiasTest;
+using stats::biasTest;
+using stats::compareNested;
+using stats::effectiveSampleSize;
+using stats::Evidence;
+using stats::fitLinear;
+using stats::Groups;
+using stats::LinearFit;
+using stats::ljungBox;
+using stats::singleGroup;
+using stats::Whiteness;
+
 namespace {
 
 constexpr double kRad2Deg = 180.0 / M_PI;
 
-Eigen::MatrixXd unit(int n, std::initializer_list<int> cols) {
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(n, 1);
-  for (int c : cols) S(c, 0) = 1.0;
-  return S;
-}
-
+/// The catalogue terms of the two stages (effects/: registry order).
 std::vector<Candidate> kinematicCandidates(bool delay) {
-  std::vector<Candidate> c;
-  auto scaleOk = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.5 && 1 + b(0) < 2.0; };
-  c.push_back({"gyro_bias", "gyro_bias", unit(5, {0}), {}, [](const Eigen::VectorXd& b) {
-                 return std::abs(b(0)) < 0.5;
-               }});
-  c.push_back({"gyro_scale", "gyro_scale", unit(5, {1}), {}, scaleOk});
-  c.push_back({"encoder_scale/right", "encoder_scale", unit(5, {2}), {}, scaleOk});
-  c.push_back({"encoder_scale/left", "encoder_scale", unit(5, {3}), {}, scaleOk});
-  if (delay)
-    c.push_back(
-        {"sensor_delay/imu", "sensor_delay", unit(5, {4}), {}, [](const Eigen::VectorXd& b) {
-           return std::abs(b(0)) < 0.5;
-         }});
-  return c;
+  return stageCandidates(effects::Stage::kinematic, {0.0, delay});
 }
 
 std::vector<Candidate> dynamicCandidates(double body_mass, bool delay) {
-  std::vector<Candidate> c;
-  auto ratioOk = [](const Eigen::VectorXd& b) { return 1 + b(0) > 0.1 && 1 + b(0) < 10; };
-  auto coulOk = [](const Eigen::VectorXd& b) { return b(0) > 0 && b(0) < 10; };
-  c.push_back({"motor_asymmetry/right", "motor_asymmetry", unit(8, {0}), {}, ratioOk});
-  c.push_back({"motor_asymmetry/left", "motor_asymmetry", unit(8, {1}), {}, ratioOk});
-  c.push_back({"coulomb_friction/both",
-               "coulomb_friction",
-               unit(8, {2, 3}),
-               {"coulomb_friction/right", "coulomb_friction/left"},
-               coulOk});
-  c.push_back({"coulomb_friction/right", "coulomb_friction", unit(8, {2}), {}, coulOk});
-  c.push_back({"coulomb_friction/left", "coulomb_friction", unit(8, {3}), {}, coulOk});
-  c.push_back(
-      {"payload_mass", "payload_mass", unit(8, {4}), {}, [body_mass](const Eigen::VectorXd& b) {
-         return body_mass + b(0) > 0.2 * body_mass && body_mass + b(0) < 5 * body_mass;
-       }});
-  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(8, 2);
-  S(5, 0) = 1, S(6, 1) = 1;
-  c.push_back({"ground_slope", "ground_slope", S, {}, [](const Eigen::VectorXd& b) {
-                 return std::hypot(b(0), b(1)) < std::sin(30.0 / kRad2Deg);
-               }});
-  if (delay)
-    c.push_back(
-        {"sensor_delay/motors", "sensor_delay", unit(8, {7}), {}, [](const Eigen::VectorXd& b) {
-           return std::abs(b(0)) < 0.5;
-         }});
-  return c;
+  return stageCandidates(effects::Stage::dynamic, {body_mass, delay});
+}
+
+/// Index of the candidate called `name` (-1: none).
+int candidateIndex(const std::vector<Candidate>& cands, const std::string& name) {
+  for (std::size_t i = 0; i < cands.size(); ++i)
+    if (cands[i].name == name) return static_cast<int>(i);
+  return -1;
 }
 
 /// Time segments where |contribution| exceeds 2 sigma, merged over gaps < 1 s.
@@ -171,9 +147,11 @@ std::string encoderScaleUndetectable(const KinRows& k, const std::vector<Candida
                                      const std::vector<int>& accepted, double alpha_b) {
   for (int a : accepted)
     if (cands[a].effect == "encoder_scale") return "";
-  if (k.X.rows() == 0 || k.X.cols() < 4) return "";
+  if (k.X.rows() == 0) return "";
   const auto [var_sum, turn_rad, dist_m, duration_s] = rowTotals(k);
-  const double x2 = std::min(k.X.col(2).squaredNorm(), k.X.col(3).squaredNorm());
+  const double x2 =
+      std::min(k.X.col(columnIndex(effects::Stage::kinematic, "encoder_scale/right")).squaredNorm(),
+               k.X.col(columnIndex(effects::Stage::kinematic, "encoder_scale/left")).squaredNorm());
   const double var = var_sum / k.X.rows();
   const double eps = x2 > 0 ? std::sqrt(stats::chi2Quantile(1 - alpha_b, 1) * var / x2)
                             : std::numeric_limits<double>::infinity();
@@ -253,10 +231,6 @@ std::vector<std::string> biasedRegimes(const nlohmann::json& reg) {
   for (auto it = reg.begin(); it != reg.end(); ++it)
     if (it->value("biased", false)) out.push_back(it.key());
   return out;
-}
-
-std::string sideName(int s) {
-  return s == 0 ? "right" : "left";
 }
 
 // ---------- trajectory check (dead reckoning against ground truth) ----------
@@ -466,543 +440,419 @@ void DiagnosisOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
                              ": must be > 2 cutoff_hz");
 }
 
-DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
-                         const std::vector<io::Recording>& val_recs,
-                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
-  auto tstart = std::chrono::steady_clock::now();
-  DiagnosisReport rep;
-  std::vector<Streams> fitS, valS, allS;
+namespace {
+
+/// The recordings as streams: `fit` and `val` (the held-out part or the --validate
+/// recordings) and `all` (the whole fit recordings, for the trajectory check).
+struct StageData {
+  std::vector<Streams> fit, val, all;
+  bool any_enc = false, any_gyro = false, any_mot = false;
+  const std::vector<io::Recording>* fit_recs = nullptr;  ///< the recordings `all` came from
+  double fit_fraction = 1.0;  ///< part of each fit recording in `fit` (1: --validate given)
+};
+
+StageData splitStreams(const std::vector<io::Recording>& fit_recs,
+                       const std::vector<io::Recording>& val_recs,
+                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+  StageData d;
+  d.fit_recs = &fit_recs;
+  d.fit_fraction = val_recs.empty() ? opt.fit_fraction : 1.0;
   for (auto& r : fit_recs) {
     Streams s = makeStreams(r, cfg);
-    allS.push_back(s);
+    d.all.push_back(s);
     if (val_recs.empty()) {
       double tc = s.t_begin + opt.fit_fraction * (s.t_end - s.t_begin);
-      fitS.push_back(cropStreams(s, s.t_begin, tc));
-      valS.push_back(cropStreams(s, tc, s.t_end));
+      d.fit.push_back(cropStreams(s, s.t_begin, tc));
+      d.val.push_back(cropStreams(s, tc, s.t_end));
     } else {
-      fitS.push_back(s);
+      d.fit.push_back(s);
     }
   }
-  for (auto& r : val_recs) valS.push_back(makeStreams(r, cfg));
-  bool any_enc = false, any_gyro = false, any_mot = false;
-  for (auto& s : allS)
-    any_enc |= s.hasEncoders(), any_gyro |= s.hasGyro(), any_mot |= s.hasMotors();
-  if (!any_enc) throw std::runtime_error("diagnose: no encoder data in the fit recordings");
-  rep.info["streams"] = {{"encoders", any_enc}, {"gyro", any_gyro}, {"motors", any_mot}};
-  rep.info["validation"] =
-      val_recs.empty()
-          ? fmt::format("held-out last {:.0f}% of each recording", 100 * (1 - opt.fit_fraction))
-          : fmt::format("{} --validate recording(s)", val_recs.size());
-  const double lw = cfg.vehicle.geom.track_width_m;
-  Corrections corr;
-  const int lags1 = 5;
-  nlohmann::json skipped = nlohmann::json::object();
+  for (auto& r : val_recs) d.val.push_back(makeStreams(r, cfg));
+  for (auto& s : d.all)
+    d.any_enc |= s.hasEncoders(), d.any_gyro |= s.hasGyro(), d.any_mot |= s.hasMotors();
+  return d;
+}
 
-  // ---------------- stage 1: kinematic consistency ----------------
-  if (any_gyro) {
-    auto cands = kinematicCandidates(opt.enable_delay);
-    KinRows kf = kinematicRows(fitS, corr, cfg, opt), kv = kinematicRows(valS, corr, cfg, opt);
-    SelectionData sd{
-        kf.y,      kv.y,      kf.X,  kv.X,
-        kf.groups, kv.groups, lags1, opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s};
-    Selection sel = forwardSelect(sd, cands, opt);
-    double alpha_b = selectionRule(opt, cands.size()).level();
-    // nonlinear refinement of a delay: shift the gyro and refit
-    int di = -1;
-    for (size_t a = 0; a < sel.accepted.size(); ++a)
-      if (cands[sel.accepted[a]].name == "sensor_delay/imu") di = static_cast<int>(a);
-    double delay = 0;
-    // Re-built rows with the re-estimated delay; without a delay kf, kv themselves (no copy).
-    KinRows kf2n, kv2n;
-    const KinRows* pkf2 = &kf;
-    const KinRows* pkv2 = &kv;
-    if (di >= 0) {
-      for (int it = 0; it < 4; ++it) {
-        delay += sel.fit.beta(sel.ranges[di].first);
-        Corrections c2;
-        c2.delay_imu = delay;
-        kf2n = kinematicRows(fitS, c2, cfg, opt);
-        Eigen::MatrixXd D = acceptedDesign(kf2n.X, cands, sel.accepted);
-        sel.fit = fitLinear(D, kf2n.y, kf2n.groups, lags1);
-      }
-      delay += sel.fit.beta(sel.ranges[di].first);
-      Corrections c2;
-      c2.delay_imu = delay;
-      kf2n = kinematicRows(fitS, c2, cfg, opt);
-      kv2n = kinematicRows(valS, c2, cfg, opt);
-      // re-select the other terms on the delay-corrected rows (the linearised delay leaves
-      // second-order structure that other terms may have absorbed)
-      SelectionStep dstep = sel.steps[di];
-      int dcand = sel.accepted[di];
-      SelectionData sd2{kf2n.y,      kv2n.y,      kf2n.X, kv2n.X,
-                        kf2n.groups, kv2n.groups, lags1,  sd.min_contribution_rms};
-      sel = forwardSelect(sd2, cands, opt, {dcand});
-      sel.steps.insert(sel.steps.begin(), dstep);
-      delay += sel.fit.beta(sel.ranges[0].first);
-      c2.delay_imu = delay;
-      kf2n = kinematicRows(fitS, c2, cfg, opt);
-      kv2n = kinematicRows(valS, c2, cfg, opt);
-      sel.fit = fitLinear(acceptedDesign(kf2n.X, cands, sel.accepted), kf2n.y, kf2n.groups, lags1);
-      pkf2 = &kf2n;
-      pkv2 = &kv2n;
-    }
-    const KinRows& kf2 = *pkf2;
-    const KinRows& kv2 = *pkv2;
-    // which encoder: ground truth or the currents decide when the gyro cannot (EncoderSide.h)
-    const EncoderSideDecision side_truth =
-        resolveEncoderSide(fit_recs, val_recs.empty() ? opt.fit_fraction : 1.0, cfg, kf2, cands,
-                           sel, lags1, alpha_b, any_mot ? &fitS : nullptr, &opt);
-    if (!side_truth.evidence.empty()) rep.info["encoder_side"] = side_truth.evidence;
-    // coefficients
-    double bg = 0, bR = 0, bL = 0, b0 = 0;
-    double sb0 = 0, sbg = 0, sbR = 0, sbL = 0, sdel = 0;
-    for (size_t a = 0; a < sel.accepted.size(); ++a) {
-      int i = sel.ranges[a].first;
-      double val = sel.fit.beta(i), se = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
-      const auto& n = cands[sel.accepted[a]].name;
-      if (n == "gyro_bias") b0 = val, sb0 = se;
-      if (n == "gyro_scale") bg = val, sbg = se;
-      if (n == "encoder_scale/right") bR = val, sbR = se;
-      if (n == "encoder_scale/left") bL = val, sbL = se;
-      if (n == "sensor_delay/imu") sdel = se;
-    }
-    double g = 1 + bg;
-    corr.gyro_scale = g;
-    corr.gyro_bias = b0;
-    corr.enc_scale[0] = g / (1 + bg + bR);
-    corr.enc_scale[1] = g / (1 + bg + bL);
-    if (delay > 0)
-      corr.delay_imu = delay;
-    else
-      corr.delay_enc = -delay;
-    // residuals before/after on validation
-    Eigen::VectorXd rv_after = kv2.y - acceptedDesign(kv2.X, cands, sel.accepted) * sel.fit.beta;
-    double nv_per = 0;
-    {
-      double T = 0;
-      for (int i = 0; i < kv.X.rows(); ++i) T += kv.X(i, 0);
-      nv_per = kv.X.rows() ? kf.noise_var_per_s * T / kv.X.rows() + kf.noise_var_const : 0;
-    }
-    if (const std::string why = encoderScaleUndetectable(kf, cands, sel.accepted, alpha_b);
-        !why.empty())
-      rep.info["insufficient_data"].push_back(why);
-    rep.channels["gyro_vs_encoders"] = {
-        {"unit", "rad per window"},
-        {"window_s", opt.window_s},
-        {"before", channelMetrics(kv.y, kv.groups, lags1, nv_per)},
-        {"after", channelMetrics(rv_after, kv2.groups, lags1, nv_per)},
-        {"regimes_before", regimeStats(kf.y, kf.v, kf.omega, {}, kf.phi, lags1, opt.alpha)},
-        {"rejected_candidates", sel.log}};
-    auto regimes = biasedRegimes(rep.channels["gyro_vs_encoders"]["regimes_before"]);
-    Eigen::VectorXd cf_all = acceptedDesign(kf2.X, cands, sel.accepted) * sel.fit.beta;
-    double sigma = std::sqrt(sel.fit.rss / std::max<Eigen::Index>(1, kf2.y.size()));
-    for (size_t a = 0; a < sel.accepted.size(); ++a) {
-      const Candidate& c = cands[sel.accepted[a]];
-      const SelectionStep& st = sel.steps[a];
-      Finding f;
-      f.effect = c.effect;
-      f.channels = {"gyro", "encoders"};
-      f.evidence = evidenceJson(st, alpha_b);
-      f.evidence["regimes_biased_before"] = regimes;
-      f.fit_before = {{"channel", "gyro_vs_encoders"},
-                      {"validation_rms_rad", rmsOf(st.rss0_val, kv.y.size())},
-                      {"fit_rms_rad", rmsOf(st.rss0_fit, kf.y.size())}};
-      f.fit_after = {{"channel", "gyro_vs_encoders"},
-                     {"validation_rms_rad", rmsOf(st.rss1_val, kv.y.size())},
-                     {"fit_rms_rad", rmsOf(st.rss1_fit, kf.y.size())}};
-      Eigen::MatrixXd Dc = kf2.X * c.S;
-      Eigen::VectorXd contrib =
-          Dc * sel.fit.beta.segment(sel.ranges[a].first, sel.ranges[a].second);
-      std::vector<std::pair<double, double>> tc;
-      for (int i = 0; i < contrib.size(); ++i)
-        tc.push_back({0.5 * (kf2.t0[i] + kf2.t1[i]), contrib(i)});
-      f.segments = activeSegments(tc, sigma);
-      if (c.name == "gyro_bias") {
-        f.parameters = {{"bias_rad_s", b0}};
-        f.uncertainty = {{"bias_rad_s", sb0}};
-        f.channels = {"gyro"};
-        f.description = fmt::format(
-            "the gyro reads {:+.4f} rad/s ({:+.2f} deg/s) when the encoders say the chair does not "
-            "turn: a "
-            "constant gyro bias (+-{:.4f} rad/s); uncorrected it adds {:.1f} deg of heading per "
-            "minute",
-            b0, b0 * kRad2Deg, sb0, b0 * kRad2Deg * 60);
-      } else if (c.name == "gyro_scale") {
-        f.parameters = {{"scale", g}};
-        f.uncertainty = {{"scale", sbg}};
-        f.channels = {"gyro"};
-        f.description = fmt::format(
-            "the gyro reports {:.2f}% {} turn than both encoders agree on (scale {:.4f} +- "
-            "{:.4f}): a gyro "
-            "scale-factor error (symmetric in both wheels, so not an encoder fault)",
-            std::abs(bg) * 100, bg > 0 ? "more" : "less", g, sbg);
-      } else if (c.effect == "encoder_scale") {
-        int s = c.name == "encoder_scale/right" ? 0 : 1;
-        const int other = c.name == "encoder_scale/right" ? 3 : 2;  // kinematicCandidates order
-        if (const std::string why =
-                side_truth.decided ? std::string()
-                                   : encoderSideUndecided(kf2, cands, sel.accepted, sel.accepted[a],
-                                                          other, alpha_b, lags1);
-            !why.empty()) {
-          rep.info["insufficient_data"].push_back(why);
-          rep.mismatch = true;  // the encoders disagree, only the side is undecided
-          corr.enc_scale[0] = corr.enc_scale[1] = 1.0;  // none written, so none applied after
-          continue;
-        }
-        double k = corr.enc_scale[s];
-        double b = s == 0 ? bR : bL, sb = s == 0 ? sbR : sbL;
-        double sk = sb * std::abs(g) / std::pow(1 + bg + b, 2);
-        f.parameters = {{"side", sideName(s)}, {"scale", k}};
-        f.uncertainty = {{"scale", sk}};
-        f.channels = {"encoders"};
-        f.description = fmt::format(
-            "the {} encoder reports {:.4f} x the distance its wheel rolls (+- {:.4f}; the gyro and "
-            "the other "
-            "encoder agree): a wrong pulley ratio on that side; uncorrected, odometry drifts to "
-            "the {} by "
-            "{:.1f} deg per 10 m driven straight",
-            sideName(s), k, sk, (s == 0) == (k < 1) ? "right" : "left",
-            std::abs(10.0 * (1 - k) / lw) * kRad2Deg);
-      } else if (c.effect == "sensor_delay") {
-        std::string sensor = delay >= 0 ? "imu" : "encoders";
-        f.parameters = {{"sensor", sensor}, {"delay_s", std::abs(delay)}};
-        f.uncertainty = {{"delay_s", sdel}};
-        f.channels = {sensor == "imu" ? "gyro" : "encoders"};
-        f.description = fmt::format(
-            "the {} stream is time-stamped {:.1f} ms late relative to the {} (+- {:.1f} ms): the "
-            "gyro integral "
-            "lags the odometric heading change whenever the turn rate changes",
-            sensor == "imu" ? "gyro" : "encoder", 1000 * std::abs(delay),
-            sensor == "imu" ? "encoders" : "gyro", 1000 * sdel);
-      }
-      rep.addFinding(f);
-    }
-    // unmodeled (stage 1): structure left after the catalogue terms
-    if (opt.enable_unmodeled) {
-      auto lib = [&](const KinRows& k) {
-        Eigen::MatrixXd L(k.y.size(), 6);
-        for (int i = 0; i < k.y.size(); ++i) {
-          double T = k.X(i, 0), w = k.omega[i];
-          L.row(i) << T * k.v[i], T * std::abs(w), T * w * std::abs(w), T * std::cos(k.phi[i]),
-              T * std::sin(k.phi[i]), T * k.v[i] * w;
-        }
-        return L;
-      };
-      Eigen::VectorXd rf = sel.fit.residual;
-      SparseResult sr = stlsq(lib(kf2), rf, kf2.groups, lib(kv2), rv_after, kv2.groups, lags1, opt,
-                              opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
-      if (sr.accepted) {
-        static const char* names[] = {"v",        "|omega|",  "omega*|omega|",
-                                      "cos(phi)", "sin(phi)", "v*omega"};
-        Finding f;
-        f.effect = "unmodeled";
-        f.channels = {"gyro_vs_encoders"};
-        std::string eq = "gyro - odometric turn rate =";
-        for (size_t k = 0; k < sr.terms.size(); ++k) {
-          f.parameters[names[sr.terms[k]]] = sr.coef(k);
-          f.uncertainty[names[sr.terms[k]]] = sr.se(k);
-          eq += fmt::format(" {:+.4g}*{}", sr.coef(k), names[sr.terms[k]]);
-        }
-        f.parameters["channel"] = "gyro_vs_encoders";
-        f.description =
-            "a term outside the catalogue acts on the turn-rate consistency: " + eq + " (rad/s)";
-        f.evidence = {{"likelihood_ratio", sr.ev.lr},
-                      {"p_value", sr.ev.p_value},
-                      {"delta_bic", sr.ev.delta_bic},
-                      {"n_eff", sr.ev.n_eff},
-                      {"validation_likelihood_ratio", sr.lr_val}};
-        f.fit_before = {{"validation_rms_rad", sr.rms_before_val}};
-        f.fit_after = {{"validation_rms_rad", sr.rms_after_val}};
-        rep.addFinding(f);
-      }
-    }
-  } else {
-    skipped["stage1"] = "no gyro stream: kinematic consistency not checked";
+/// Rows rebuilt with a re-estimated stream delay (`delay` s).
+template <class Rows>
+struct DelayRefit {
+  double delay = 0;
+  Rows fit, val;
+};
+
+/// Nonlinear refinement of an accepted stream delay (accepted term number `di`): the
+/// linearised delay term is iterated with the rows rebuilt at the current estimate, then the
+/// other terms are re-selected on the delay-corrected rows (the linearised delay leaves
+/// second-order structure other terms may have absorbed) and the delay updated once more.
+/// `rows(fit, delay_s)` builds the fit (true) or validation (false) rows with that delay.
+template <class Rows, class MakeRows>
+DelayRefit<Rows> refineDelay(Selection& sel, int di, const std::vector<Candidate>& cands,
+                             const DiagnosisOptions& opt, int lags, double min_contribution_rms,
+                             const MakeRows& rows) {
+  DelayRefit<Rows> r;
+  for (int it = 0; it < 4; ++it) {
+    r.delay += sel.fit.beta(sel.ranges[di].first);
+    r.fit = rows(true, r.delay);
+    sel.fit = fitLinear(acceptedDesign(r.fit.X, cands, sel.accepted), r.fit.y, r.fit.groups, lags);
   }
+  r.delay += sel.fit.beta(sel.ranges[di].first);
+  r.fit = rows(true, r.delay);
+  r.val = rows(false, r.delay);
+  SelectionStep dstep = sel.steps[di];
+  int dcand = sel.accepted[di];
+  SelectionData sd2{r.fit.y,      r.val.y,      r.fit.X, r.val.X,
+                    r.fit.groups, r.val.groups, lags,    min_contribution_rms};
+  sel = forwardSelect(sd2, cands, opt, {dcand});
+  sel.steps.insert(sel.steps.begin(), dstep);
+  r.delay += sel.fit.beta(sel.ranges[0].first);
+  r.fit = rows(true, r.delay);
+  r.val = rows(false, r.delay);
+  sel.fit = fitLinear(acceptedDesign(r.fit.X, cands, sel.accepted), r.fit.y, r.fit.groups, lags);
+  return r;
+}
 
-  // ---------------- stage 2: dynamics in current space ----------------
-  if (any_mot) {
-    const double mb = cfg.vehicle.geom.body_mass_kg;
-    auto cands = dynamicCandidates(mb, opt.enable_delay);
-    double alpha_b = selectionRule(opt, cands.size()).level();
-    DynRows df = dynamicRows(fitS, corr, cfg, opt), dv = dynamicRows(valS, corr, cfg, opt);
-    // Stage 1 found nothing to correct: dv are the fully nominal model's rows too.
-    const bool sensors_nominal = corr == Corrections{};
-    int lags2 = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
-    if (df.y.size() > 50) {
-      SelectionData sd{df.y,      dv.y,      df.X,  dv.X,
-                       df.groups, dv.groups, lags2, opt.min_relevance * cfg.motors.current_noise_A};
-      Selection sel = forwardSelect(sd, cands, opt);
-      int di = -1;
-      for (size_t a = 0; a < sel.accepted.size(); ++a)
-        if (cands[sel.accepted[a]].name == "sensor_delay/motors") di = static_cast<int>(a);
-      double delay = 0;
-      // The rows re-built with the re-estimated delay; without a delay df, dv themselves (no
-      // copy: the rows are the bulk of diagnose's memory).
-      DynRows df2n, dv2n;
-      const DynRows* pf2 = &df;
-      const DynRows* pv2 = &dv;
-      if (di >= 0) {
-        Corrections c2 = corr;
-        for (int it = 0; it < 4; ++it) {
-          delay += sel.fit.beta(sel.ranges[di].first);
-          c2.delay_motors = delay;
-          df2n = dynamicRows(fitS, c2, cfg, opt);
-          sel.fit =
-              fitLinear(acceptedDesign(df2n.X, cands, sel.accepted), df2n.y, df2n.groups, lags2);
-        }
-        delay += sel.fit.beta(sel.ranges[di].first);
-        c2.delay_motors = delay;
-        corr.delay_motors = delay;
-        df2n = dynamicRows(fitS, c2, cfg, opt);
-        dv2n = dynamicRows(valS, c2, cfg, opt);
-        SelectionStep dstep = sel.steps[di];
-        int dcand = sel.accepted[di];
-        SelectionData sd2{df2n.y,      dv2n.y,      df2n.X, dv2n.X,
-                          df2n.groups, dv2n.groups, lags2,  sd.min_contribution_rms};
-        sel = forwardSelect(sd2, cands, opt, {dcand});
-        sel.steps.insert(sel.steps.begin(), dstep);
-        delay += sel.fit.beta(sel.ranges[0].first);
-        c2.delay_motors = delay;
-        corr.delay_motors = delay;
-        df2n = dynamicRows(fitS, c2, cfg, opt);
-        dv2n = dynamicRows(valS, c2, cfg, opt);
-        sel.fit =
-            fitLinear(acceptedDesign(df2n.X, cands, sel.accepted), df2n.y, df2n.groups, lags2);
-        pf2 = &df2n;
-        pv2 = &dv2n;
-      }
-      const DynRows& df2 = *pf2;
-      const DynRows& dv2 = *pv2;
-      Eigen::VectorXd rv_after = dv2.y - acceptedDesign(dv2.X, cands, sel.accepted) * sel.fit.beta;
-      int nRv = static_cast<int>(dv.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
-      auto half = [](const Groups& g, int nR, bool left) {
-        Groups o;
-        for (auto [a, b] : g)
-          if ((a >= nR) == left)
-            o.push_back(left ? std::make_pair(a - nR, b - nR) : std::make_pair(a, b));
-        return o;
-      };
-      // The fully nominal model (no sensor corrections either), as the report's figures show it.
-      std::optional<DynRows> dn_rows;
-      if (!sensors_nominal) dn_rows = dynamicRows(valS, Corrections{}, cfg, opt);
-      const DynRows& dn = sensors_nominal ? dv : *dn_rows;
-      const int nRn = static_cast<int>(dn.y.size() / 2);
-      for (int sd2 = 0; sd2 < 2; ++sd2) {
-        std::string ch = sd2 == 0 ? "current_right" : "current_left";
-        int nRf = static_cast<int>(df.y.size() / 2);
-        std::vector<double> v(df.v.begin() + sd2 * nRf, df.v.begin() + (sd2 + 1) * nRf);
-        std::vector<double> w(df.omega.begin() + sd2 * nRf, df.omega.begin() + (sd2 + 1) * nRf);
-        std::vector<double> vd(df.vdot.begin() + sd2 * nRf, df.vdot.begin() + (sd2 + 1) * nRf);
-        std::vector<double> ph(df.phi.begin() + sd2 * nRf, df.phi.begin() + (sd2 + 1) * nRf);
-        rep.channels[ch] = {
-            {"unit", "A (equation error of (6), zero-phase filtered)"},
-            {"cutoff_hz", opt.cutoff_hz},
-            {"before", channelMetrics(dv.y.segment(sd2 * nRv, nRv), half(dv.groups, nRv, sd2 == 1),
-                                      lags2, dv.noise_var)},
-            {"after", channelMetrics(rv_after.segment(sd2 * nRv2, nRv2),
-                                     half(dv2.groups, nRv2, sd2 == 1), lags2, dv.noise_var)},
-            {"before_nominal", channelMetrics(dn.y.segment(sd2 * nRn, nRn),
-                                              half(dn.groups, nRn, sd2 == 1), lags2, dn.noise_var)},
-            {"regimes_before",
-             regimeStats(df.y.segment(sd2 * nRf, nRf), v, w, vd, ph, lags2, opt.alpha)},
-            {"rejected_candidates", sel.log}};
-      }
-      std::vector<std::string> regimes;
-      for (auto ch : {"current_right", "current_left"})
-        for (auto& r : biasedRegimes(rep.channels[ch]["regimes_before"]))
-          regimes.push_back(std::string(ch) + ":" + r);
-      double sigma = std::sqrt(sel.fit.rss / std::max<Eigen::Index>(1, df2.y.size()));
-      // asymmetry: combine both sides into one finding
-      double asym[2] = {0, 0}, sasym[2] = {0, 0};
-      bool has_asym[2] = {false, false};
-      const double theta5 = cfg.vehicle.motor_viscous_Nm_s_rad / cfg.vehicle.torque_constant_Nm_A;
-      const double rGr = cfg.vehicle.geom.gear_ratio / cfg.vehicle.geom.wheel_radius_m;
-      for (size_t a = 0; a < sel.accepted.size(); ++a) {
-        const Candidate& c = cands[sel.accepted[a]];
-        int i = sel.ranges[a].first;
-        if (c.effect == "motor_asymmetry") {
-          int s = c.name == "motor_asymmetry/right" ? 0 : 1;
-          has_asym[s] = true;
-          asym[s] = sel.fit.beta(i);
-          sasym[s] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
-        }
-      }
-      // The slope regressor is scaled with the configured mass; when the payload is found too,
-      // the same current means a smaller angle on the heavier chair (sin a = s M_nominal / M).
-      double payload_dm_kg = 0;
-      for (size_t a = 0; a < sel.accepted.size(); ++a)
-        if (cands[sel.accepted[a]].effect == "payload_mass")
-          payload_dm_kg = sel.fit.beta(sel.ranges[a].first);
-      const double slope_mass_scale = (mb + 2 * cfg.vehicle.geom.wheel_mass_kg) /
-                                      (mb + payload_dm_kg + 2 * cfg.vehicle.geom.wheel_mass_kg);
-      bool asym_done = false;
-      for (size_t a = 0; a < sel.accepted.size(); ++a) {
-        const Candidate& c = cands[sel.accepted[a]];
-        const SelectionStep& st = sel.steps[a];
-        int i = sel.ranges[a].first;
-        int k = sel.ranges[a].second;
-        Eigen::VectorXd b = sel.fit.beta.segment(i, k);
-        Eigen::MatrixXd C = sel.fit.cov.block(i, i, k, k);
-        Finding f;
-        f.effect = c.effect;
-        f.evidence = evidenceJson(st, alpha_b);
-        f.evidence["regimes_biased_before"] = regimes;
-        f.fit_before = {{"channel", "currents"},
-                        {"validation_rms_A", rmsOf(st.rss0_val, dv.y.size())},
-                        {"fit_rms_A", rmsOf(st.rss0_fit, df.y.size())}};
-        f.fit_after = {{"channel", "currents"},
-                       {"validation_rms_A", rmsOf(st.rss1_val, dv.y.size())},
-                       {"fit_rms_A", rmsOf(st.rss1_fit, df.y.size())}};
-        Eigen::VectorXd contrib = (df2.X * c.S) * b;
-        std::vector<std::pair<double, double>> tc;
-        for (int q = 0; q < contrib.size(); ++q) tc.push_back({df2.t[q], contrib(q)});
-        f.segments = activeSegments(tc, sigma);
-        f.channels = {"current_right", "current_left"};
-        if (c.effect == "motor_asymmetry") {
-          if (asym_done) continue;
-          asym_done = true;
-          // the side with more viscous friction and the ratio of the two sides
-          double fr = 1 + asym[0], fl = 1 + asym[1];
-          int side = fr >= fl ? 0 : 1;
-          double ratio = side == 0 ? fr / fl : fl / fr;
-          double sr = ratio * std::hypot(sasym[0] / fr, sasym[1] / fl);
-          f.parameters = {{"side", sideName(side)}, {"friction_ratio", ratio}};
-          f.uncertainty = {{"friction_ratio", sr}};
-          f.channels = {side == 0 ? "current_right" : "current_left"};
-          if (has_asym[0] && has_asym[1]) f.channels = {"current_right", "current_left"};
-          double dI = std::abs(asym[0] - asym[1]) * theta5 * rGr * 0.8;
-          f.description = fmt::format(
-              "the {} drive needs {:.2f} A more than the {} to go straight at 0.8 m/s: unequal "
-              "gearbox "
-              "(viscous) friction, {:.0f}% more on the {} (friction ratio {:.3f} +- {:.3f}); the "
-              "symmetric "
-              "model (6) reads the current difference as a turn",
-              sideName(side), dI, sideName(1 - side), (ratio - 1) * 100, sideName(side), ratio, sr);
-          if (has_asym[0] && has_asym[1]) f.parameters["friction_ratio_right_left"] = {fr, fl};
-        } else if (c.effect == "coulomb_friction") {
-          std::string side = c.name.substr(c.name.find('/') + 1);
-          f.parameters = {{"current_A", b(0)}, {"side", side}};
-          f.uncertainty = {{"current_A", std::sqrt(C(0, 0))}};
-          if (side != "both") f.channels = {"current_" + side};
-          f.description = fmt::format(
-              "{} needs {:.3f} A (+- {:.3f}) more current at any speed, in the direction of "
-              "motion: dry "
-              "(Coulomb) friction in the drive, not modelled by the viscous term of (6)",
-              side == "both" ? "each motor" : "the " + side + " motor", b(0), std::sqrt(C(0, 0)));
-        } else if (c.effect == "payload_mass") {
-          double m = mb + b(0);
-          f.parameters = {{"body_mass_kg", m}};
-          f.uncertainty = {{"body_mass_kg", std::sqrt(C(0, 0))}};
-          f.description = fmt::format(
-              "accelerating takes {:.0f}% {} current than the model predicts with the same cruise "
-              "current: "
-              "the mass of chair and user is {:.1f} kg (+- {:.1f}), not the configured {:.1f} kg",
-              std::abs(b(0)) / (mb + 2 * cfg.vehicle.geom.wheel_mass_kg + 17.1) * 100,
-              b(0) > 0 ? "more" : "less", m, std::sqrt(C(0, 0)), mb);
-        } else if (c.effect == "ground_slope") {
-          const double s_current = std::hypot(b(0), b(1));  // in units of the nominal M g / 2
-          b *= slope_mass_scale;
-          C *= slope_mass_scale * slope_mass_scale;
-          double s = std::hypot(b(0), b(1));
-          double ang = std::asin(std::min(1.0, s)) * kRad2Deg;
-          double head = std::atan2(b(1), b(0)) * kRad2Deg;
-          // delta method
-          Eigen::RowVector2d ja = Eigen::RowVector2d(b(0), b(1)) / std::max(1e-12, s) /
-                                  std::sqrt(std::max(1e-12, 1 - s * s)) * kRad2Deg;
-          Eigen::RowVector2d jh =
-              Eigen::RowVector2d(-b(1), b(0)) / std::max(1e-24, s * s) * kRad2Deg;
-          double sa = std::sqrt(std::max(0.0, (ja * C * ja.transpose())(0)));
-          double sh = std::sqrt(std::max(0.0, (jh * C * jh.transpose())(0)));
-          f.parameters = {{"angle_deg", ang}, {"downhill_heading_deg", head}};
-          f.uncertainty = {{"angle_deg", sa}, {"downhill_heading_deg", sh}};
-          f.description = fmt::format(
-              "both motors need less current heading {:.0f} deg and more heading {:.0f} deg (start "
-              "frame), "
-              "{:.2f} A each at the extremes: the floor slopes by {:.2f} deg (+- {:.2f}) downhill "
-              "towards "
-              "{:.0f} deg (+- {:.0f})",
-              head, head + 180,
-              s_current * (cfg.vehicle.geom.body_mass_kg + 2 * cfg.vehicle.geom.wheel_mass_kg) *
-                  9.81 / 2 * cfg.vehicle.geom.wheel_radius_m / cfg.vehicle.geom.gear_ratio /
-                  (cfg.vehicle.gearbox_efficiency * cfg.vehicle.torque_constant_Nm_A),
-              ang, sa, head, sh);
-        } else if (c.effect == "sensor_delay") {
-          std::string sensor = delay >= 0 ? "motors" : "encoders";
-          f.parameters = {{"sensor", sensor}, {"delay_s", std::abs(delay)}};
-          f.uncertainty = {{"delay_s", std::sqrt(C(0, 0))}};
-          f.channels = {sensor == "motors" ? "currents" : "encoders"};
-          f.description = fmt::format(
-              "the {} are time-stamped {:.1f} ms (+- {:.1f}) late relative to the {}: {}",
-              sensor == "motors" ? "motor currents" : "encoder counts", 1000 * std::abs(delay),
-              1000 * std::sqrt(C(0, 0)), sensor == "motors" ? "encoders" : "motor currents",
-              sensor == "motors" ? "the current leads the acceleration it causes"
-                                 : "the motion lags the current that causes it");
-        }
-        rep.addFinding(f);
-      }
-      if (opt.enable_unmodeled) {
-        Eigen::VectorXd rf = sel.fit.residual;
-        int nRf = static_cast<int>(df2.y.size() / 2);
-        for (int s2 = 0; s2 < 2; ++s2) {
-          Eigen::MatrixXd L = df2.lib.middleRows(s2 * nRf, nRf);
-          Eigen::MatrixXd Lv = dv2.lib.middleRows(s2 * nRv2, nRv2);
-          // i_self is the measured quantity itself: keep it out (it would absorb everything)
-          L.col(12).setZero(), Lv.col(12).setZero();
-          SparseResult sr =
-              stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
-                    rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags2, opt,
-                    opt.min_relevance * cfg.motors.current_noise_A);
-          if (!sr.accepted) continue;
-          Finding f;
-          f.effect = "unmodeled";
-          std::string ch = s2 == 0 ? "current_right" : "current_left";
-          f.channels = {ch};
-          std::string eq = ch + " - model =";
-          for (size_t k = 0; k < sr.terms.size(); ++k) {
-            const auto& nm = dynLibNames()[sr.terms[k]];
-            f.parameters[nm] = sr.coef(k);
-            f.uncertainty[nm] = sr.se(k);
-            eq += fmt::format(" {:+.4g}*{}", sr.coef(k), nm);
-          }
-          f.parameters["channel"] = ch;
-          f.description =
-              "a term outside the catalogue acts on the " + ch + " equation: " + eq + " (A)";
-          f.evidence = {{"likelihood_ratio", sr.ev.lr},
-                        {"p_value", sr.ev.p_value},
-                        {"delta_bic", sr.ev.delta_bic},
-                        {"n_eff", sr.ev.n_eff},
-                        {"validation_likelihood_ratio", sr.lr_val}};
-          f.fit_before = {{"validation_rms_A", sr.rms_before_val}};
-          f.fit_after = {{"validation_rms_A", sr.rms_after_val}};
-          rep.addFinding(f);
-        }
-      }
-    } else {
-      skipped["stage2"] = "too little overlapping encoder and motor-current data";
-    }
-  } else {
-    skipped["stage2"] = "no motor currents: dynamics not checked";
+/// Index (in sel.accepted) of the candidate called `name`, or -1.
+int acceptedIndex(const Selection& sel, const std::vector<Candidate>& cands,
+                  const std::string& name) {
+  int di = -1;
+  for (size_t a = 0; a < sel.accepted.size(); ++a)
+    if (cands[sel.accepted[a]].name == name) di = static_cast<int>(a);
+  return di;
+}
+
+/// Evidence and before/after fit metrics of one accepted term, on channel `channel` whose
+/// residual is in `unit` (rms keys validation_rms_<unit>, fit_rms_<unit>).
+Finding termFinding(const Candidate& c, const SelectionStep& st, double alpha_b,
+                    const std::vector<std::string>& regimes, const std::string& channel,
+                    const std::string& unit, Eigen::Index n_val, Eigen::Index n_fit) {
+  Finding f;
+  f.effect = c.effect;
+  f.evidence = evidenceJson(st, alpha_b);
+  f.evidence["regimes_biased_before"] = regimes;
+  f.fit_before = {{"channel", channel},
+                  {"validation_rms_" + unit, rmsOf(st.rss0_val, n_val)},
+                  {"fit_rms_" + unit, rmsOf(st.rss0_fit, n_fit)}};
+  f.fit_after = {{"channel", channel},
+                 {"validation_rms_" + unit, rmsOf(st.rss1_val, n_val)},
+                 {"fit_rms_" + unit, rmsOf(st.rss1_fit, n_fit)}};
+  return f;
+}
+
+/// An accepted STLSQ result as an `unmodeled` finding on `channel` (residual unit `unit`).
+Finding unmodeledFinding(const SparseResult& sr, const std::vector<std::string>& names,
+                         const std::string& channel, const std::string& eq_lhs,
+                         const std::string& where, const std::string& unit,
+                         const std::string& rms_unit) {
+  Finding f;
+  f.effect = "unmodeled";
+  f.channels = {channel};
+  std::string eq = eq_lhs + " =";
+  for (size_t k = 0; k < sr.terms.size(); ++k) {
+    const auto& nm = names[sr.terms[k]];
+    f.parameters[nm] = sr.coef(k);
+    f.uncertainty[nm] = sr.se(k);
+    eq += fmt::format(" {:+.4g}*{}", sr.coef(k), nm);
   }
-  if (!skipped.empty()) rep.info["skipped"] = skipped;
+  f.parameters["channel"] = channel;
+  f.description =
+      "a term outside the catalogue acts on the " + where + ": " + eq + " (" + unit + ")";
+  f.evidence = {{"likelihood_ratio", sr.ev.lr},
+                {"p_value", sr.ev.p_value},
+                {"delta_bic", sr.ev.delta_bic},
+                {"n_eff", sr.ev.n_eff},
+                {"validation_likelihood_ratio", sr.lr_val}};
+  f.fit_before = {{"validation_rms_" + rms_unit, sr.rms_before_val}};
+  f.fit_after = {{"validation_rms_" + rms_unit, sr.rms_after_val}};
+  return f;
+}
 
-  // ---------------- odometric geometry against ground truth (with or without a gyro) -------------
-  addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
+// ---------------- stage 1: kinematic consistency ----------------
 
-  // ---------------- sensor faults (not physics): sonar dropouts, Pozyx outliers ----------------
+/// The accepted terms of a selection by name: first coefficient and its 1-sigma.
+effects::TermFit termFit(const Selection& sel, const std::vector<Candidate>& cands,
+                         const config::WheelchairConfig& cfg, double delay_s) {
+  effects::TermFit fit;
+  fit.cfg = &cfg;
+  fit.delay_s = delay_s;
+  for (size_t a = 0; a < sel.accepted.size(); ++a) {
+    const int i = sel.ranges[a].first;
+    const auto& n = cands[sel.accepted[a]].name;
+    fit.coef[n] = sel.fit.beta(i);
+    fit.sigma[n] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
+  }
+  return fit;
+}
+
+/// The effect's parameters, words and channels (the stage's when it names none) in a finding.
+void describeFinding(Finding& f, const Candidate& c, const Selection& sel, std::size_t a,
+                     const effects::TermFit& fit) {
+  const int i = sel.ranges[a].first, k = sel.ranges[a].second;
+  const effects::FindingText t = effects::findEffect(c.effect)->describe(
+      c.name, sel.fit.beta.segment(i, k), sel.fit.cov.block(i, i, k, k), fit);
+  f.parameters = t.parameters;
+  f.uncertainty = t.uncertainty;
+  f.description = t.description;
+  if (!t.channels.empty()) f.channels = t.channels;
+}
+
+/// Stage 1 terms outside the catalogue: STLSQ over a library of window integrals.
+void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows& kv2,
+                        const Eigen::VectorXd& rv_after, int lags,
+                        const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
+                        DiagnosisReport& rep) {
+  auto lib = [&](const KinRows& k) {
+    Eigen::MatrixXd L(k.y.size(), 6);
+    for (int i = 0; i < k.y.size(); ++i) {
+      double T = k.t1[i] - k.t0[i], w = k.omega[i];
+      L.row(i) << T * k.v[i], T * std::abs(w), T * w * std::abs(w), T * std::cos(k.phi[i]),
+          T * std::sin(k.phi[i]), T * k.v[i] * w;
+    }
+    return L;
+  };
+  Eigen::VectorXd rf = sel.fit.residual;
+  SparseResult sr = stlsq(lib(kf2), rf, kf2.groups, lib(kv2), rv_after, kv2.groups, lags, opt,
+                          opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
+  if (!sr.accepted) return;
+  static const std::vector<std::string> names = {"v",        "|omega|",  "omega*|omega|",
+                                                 "cos(phi)", "sin(phi)", "v*omega"};
+  rep.addFinding(unmodeledFinding(sr, names, "gyro_vs_encoders", "gyro - odometric turn rate",
+                                  "turn-rate consistency", "rad/s", "rad"));
+}
+
+/// Stage 1: the gyro integral over encoder windows against the odometric heading change.
+/// Sets the sensor corrections (gyro, encoder scales, delay) in `corr`.
+void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
+                    const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep) {
+  const int lags = 5;
+  auto cands = kinematicCandidates(opt.enable_delay);
+  KinRows kf = kinematicRows(data.fit, corr, cfg, opt),
+          kv = kinematicRows(data.val, corr, cfg, opt);
+  SelectionData sd{
+      kf.y,      kv.y,      kf.X, kv.X,
+      kf.groups, kv.groups, lags, opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s};
+  Selection sel = forwardSelect(sd, cands, opt);
+  double alpha_b = selectionRule(opt, cands.size()).level();
+  // Re-built rows with the re-estimated delay; without a delay kf, kv themselves (no copy).
+  DelayRefit<KinRows> refit;
+  const KinRows* pkf2 = &kf;
+  const KinRows* pkv2 = &kv;
+  if (const int di = acceptedIndex(sel, cands, "sensor_delay/imu"); di >= 0) {
+    refit = refineDelay<KinRows>(sel, di, cands, opt, lags, sd.min_contribution_rms,
+                                 [&](bool fit, double delay) {
+                                   Corrections c2;
+                                   c2.delay_imu = delay;
+                                   return kinematicRows(fit ? data.fit : data.val, c2, cfg, opt);
+                                 });
+    pkf2 = &refit.fit;
+    pkv2 = &refit.val;
+  }
+  const KinRows& kf2 = *pkf2;
+  const KinRows& kv2 = *pkv2;
+  // which encoder: ground truth or the currents decide when the gyro cannot (EncoderSide.h)
+  const EncoderSideDecision side_truth =
+      resolveEncoderSide(*data.fit_recs, data.fit_fraction, cfg, kf2, cands, sel, lags, alpha_b,
+                         data.any_mot ? &data.fit : nullptr, &opt);
+  if (!side_truth.evidence.empty()) rep.info["encoder_side"] = side_truth.evidence;
+  const effects::TermFit fit = termFit(sel, cands, cfg, refit.delay);
+  const double bg = fit.value("gyro_scale"), g = 1 + bg;
+  corr.gyro_scale = g;
+  corr.gyro_bias = fit.value("gyro_bias");
+  corr.enc_scale[0] = g / (1 + bg + fit.value("encoder_scale/right"));
+  corr.enc_scale[1] = g / (1 + bg + fit.value("encoder_scale/left"));
+  if (refit.delay > 0)
+    corr.delay_imu = refit.delay;
+  else
+    corr.delay_enc = -refit.delay;
+  // residuals before/after on validation
+  Eigen::VectorXd rv_after = kv2.y - acceptedDesign(kv2.X, cands, sel.accepted) * sel.fit.beta;
+  double nv_per = 0;
   {
-    SensorFaultOptions so;
-    so.alpha = opt.alpha;
-    SensorFaultReport sf = detectSensorFaults(fit_recs, cfg, corr, so);
-    for (auto& f : sf.findings) rep.addFinding(f);
-    rep.info["sensor_faults"] = sf.info;
+    double T = 0;
+    for (int i = 0; i < kv.X.rows(); ++i) T += kv.t1[i] - kv.t0[i];
+    nv_per = kv.X.rows() ? kf.noise_var_per_s * T / kv.X.rows() + kf.noise_var_const : 0;
   }
+  if (const std::string why = encoderScaleUndetectable(kf, cands, sel.accepted, alpha_b);
+      !why.empty())
+    rep.info["insufficient_data"].push_back(why);
+  rep.channels["gyro_vs_encoders"] = {
+      {"unit", "rad per window"},
+      {"window_s", opt.window_s},
+      {"before", channelMetrics(kv.y, kv.groups, lags, nv_per)},
+      {"after", channelMetrics(rv_after, kv2.groups, lags, nv_per)},
+      {"regimes_before", regimeStats(kf.y, kf.v, kf.omega, {}, kf.phi, lags, opt.alpha)},
+      {"rejected_candidates", sel.log}};
+  auto regimes = biasedRegimes(rep.channels["gyro_vs_encoders"]["regimes_before"]);
+  double sigma = std::sqrt(sel.fit.rss / std::max<Eigen::Index>(1, kf2.y.size()));
+  for (size_t a = 0; a < sel.accepted.size(); ++a) {
+    const Candidate& c = cands[sel.accepted[a]];
+    Finding f = termFinding(c, sel.steps[a], alpha_b, regimes, "gyro_vs_encoders", "rad",
+                            kv.y.size(), kf.y.size());
+    f.channels = {"gyro", "encoders"};
+    Eigen::VectorXd contrib =
+        (kf2.X * c.S) * sel.fit.beta.segment(sel.ranges[a].first, sel.ranges[a].second);
+    std::vector<std::pair<double, double>> tc;
+    for (int i = 0; i < contrib.size(); ++i)
+      tc.push_back({0.5 * (kf2.t0[i] + kf2.t1[i]), contrib(i)});
+    f.segments = activeSegments(tc, sigma);
+    if (c.effect == "encoder_scale") {
+      // Which side: the data must tell a short one from a long other one.
+      const int other = candidateIndex(
+          cands, c.name == "encoder_scale/right" ? "encoder_scale/left" : "encoder_scale/right");
+      if (const std::string why = side_truth.decided
+                                      ? std::string()
+                                      : encoderSideUndecided(kf2, cands, sel.accepted,
+                                                             sel.accepted[a], other, alpha_b, lags);
+          !why.empty()) {
+        rep.info["insufficient_data"].push_back(why);
+        rep.mismatch = true;  // the encoders disagree, only the side is undecided
+        corr.enc_scale[0] = corr.enc_scale[1] = 1.0;  // none written, so none applied after
+        continue;
+      }
+    }
+    describeFinding(f, c, sel, a, fit);
+    rep.addFinding(f);
+  }
+  if (opt.enable_unmodeled) kinematicUnmodeled(sel, kf2, kv2, rv_after, lags, cfg, opt, rep);
+}
 
-  // ---------------- verify: trajectories against ground truth ----------------
+// ---------------- stage 2: dynamics in current space ----------------
+
+/// Rows [left ? nR : 0, left ? 2 nR : nR) of a right-then-left group list, re-based.
+Groups half(const Groups& g, int nR, bool left) {
+  Groups o;
+  for (auto [a, b] : g)
+    if ((a >= nR) == left)
+      o.push_back(left ? std::make_pair(a - nR, b - nR) : std::make_pair(a, b));
+  return o;
+}
+
+/// The current_right / current_left channel metrics (before, after, fully nominal, regimes).
+void dynamicChannels(const DynRows& df, const DynRows& dv, const DynRows& dv2, const DynRows& dn,
+                     const Eigen::VectorXd& rv_after, const Selection& sel, int lags,
+                     const DiagnosisOptions& opt, DiagnosisReport& rep) {
+  int nRv = static_cast<int>(dv.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
+  const int nRn = static_cast<int>(dn.y.size() / 2);
+  for (int sd2 = 0; sd2 < 2; ++sd2) {
+    std::string ch = sd2 == 0 ? "current_right" : "current_left";
+    int nRf = static_cast<int>(df.y.size() / 2);
+    std::vector<double> v(df.v.begin() + sd2 * nRf, df.v.begin() + (sd2 + 1) * nRf);
+    std::vector<double> w(df.omega.begin() + sd2 * nRf, df.omega.begin() + (sd2 + 1) * nRf);
+    std::vector<double> vd(df.vdot.begin() + sd2 * nRf, df.vdot.begin() + (sd2 + 1) * nRf);
+    std::vector<double> ph(df.phi.begin() + sd2 * nRf, df.phi.begin() + (sd2 + 1) * nRf);
+    rep.channels[ch] = {
+        {"unit", "A (equation error of (6), zero-phase filtered)"},
+        {"cutoff_hz", opt.cutoff_hz},
+        {"before", channelMetrics(dv.y.segment(sd2 * nRv, nRv), half(dv.groups, nRv, sd2 == 1),
+                                  lags, dv.noise_var)},
+        {"after", channelMetrics(rv_after.segment(sd2 * nRv2, nRv2),
+                                 half(dv2.groups, nRv2, sd2 == 1), lags, dv.noise_var)},
+        {"before_nominal", channelMetrics(dn.y.segment(sd2 * nRn, nRn),
+                                          half(dn.groups, nRn, sd2 == 1), lags, dn.noise_var)},
+        {"regimes_before",
+         regimeStats(df.y.segment(sd2 * nRf, nRf), v, w, vd, ph, lags, opt.alpha)},
+        {"rejected_candidates", sel.log}};
+  }
+}
+
+/// Stage 2 terms outside the catalogue: STLSQ per motor over the term library.
+void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& dv2,
+                      const Eigen::VectorXd& rv_after, int lags,
+                      const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
+                      DiagnosisReport& rep) {
+  Eigen::VectorXd rf = sel.fit.residual;
+  int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
+  for (int s2 = 0; s2 < 2; ++s2) {
+    Eigen::MatrixXd L = df2.lib.middleRows(s2 * nRf, nRf);
+    Eigen::MatrixXd Lv = dv2.lib.middleRows(s2 * nRv2, nRv2);
+    // i_self is the measured quantity itself: keep it out (it would absorb everything)
+    L.col(12).setZero(), Lv.col(12).setZero();
+    SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
+                            rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
+                            lags, opt, opt.min_relevance * cfg.motors.current_noise_A);
+    if (!sr.accepted) continue;
+    std::string ch = s2 == 0 ? "current_right" : "current_left";
+    rep.addFinding(
+        unmodeledFinding(sr, dynLibNames(), ch, ch + " - model", ch + " equation", "A", "A"));
+  }
+}
+
+/// Stage 2: the per-motor equation error of the drive model in current space, with the
+/// stage 1 corrections applied. Sets corr.delay_motors. false: too little data.
+bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
+                  const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep) {
+  auto cands = dynamicCandidates(cfg.vehicle.geom.body_mass_kg, opt.enable_delay);
+  double alpha_b = selectionRule(opt, cands.size()).level();
+  DynRows df = dynamicRows(data.fit, corr, cfg, opt), dv = dynamicRows(data.val, corr, cfg, opt);
+  // Stage 1 found nothing to correct: dv are the fully nominal model's rows too.
+  const bool sensors_nominal = corr == Corrections{};
+  int lags = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
+  if (!(df.y.size() > 50)) return false;
+  SelectionData sd{df.y,      dv.y,      df.X, dv.X,
+                   df.groups, dv.groups, lags, opt.min_relevance * cfg.motors.current_noise_A};
+  Selection sel = forwardSelect(sd, cands, opt);
+  // The rows re-built with the re-estimated delay; without a delay df, dv themselves (no
+  // copy: the rows are the bulk of diagnose's memory).
+  DelayRefit<DynRows> refit;
+  const DynRows* pf2 = &df;
+  const DynRows* pv2 = &dv;
+  if (const int di = acceptedIndex(sel, cands, "sensor_delay/motors"); di >= 0) {
+    refit = refineDelay<DynRows>(sel, di, cands, opt, lags, sd.min_contribution_rms,
+                                 [&](bool fit, double delay) {
+                                   Corrections c2 = corr;
+                                   c2.delay_motors = delay;
+                                   return dynamicRows(fit ? data.fit : data.val, c2, cfg, opt);
+                                 });
+    corr.delay_motors = refit.delay;
+    pf2 = &refit.fit;
+    pv2 = &refit.val;
+  }
+  const DynRows& df2 = *pf2;
+  const DynRows& dv2 = *pv2;
+  Eigen::VectorXd rv_after = dv2.y - acceptedDesign(dv2.X, cands, sel.accepted) * sel.fit.beta;
+  {
+    // The fully nominal model (no sensor corrections either), as the report's figures show it.
+    std::optional<DynRows> dn_rows;
+    if (!sensors_nominal) dn_rows = dynamicRows(data.val, Corrections{}, cfg, opt);
+    dynamicChannels(df, dv, dv2, sensors_nominal ? dv : *dn_rows, rv_after, sel, lags, opt, rep);
+  }
+  std::vector<std::string> regimes;
+  for (auto ch : {"current_right", "current_left"})
+    for (auto& r : biasedRegimes(rep.channels[ch]["regimes_before"]))
+      regimes.push_back(std::string(ch) + ":" + r);
+  double sigma = std::sqrt(sel.fit.rss / std::max<Eigen::Index>(1, df2.y.size()));
+  const effects::TermFit fit = termFit(sel, cands, cfg, refit.delay);
+  bool asym_done = false;
+  for (size_t a = 0; a < sel.accepted.size(); ++a) {
+    const Candidate& c = cands[sel.accepted[a]];
+    if (c.effect == "motor_asymmetry") {  // both sides make one finding
+      if (asym_done) continue;
+      asym_done = true;
+    }
+    int i = sel.ranges[a].first;
+    int k = sel.ranges[a].second;
+    Eigen::VectorXd b = sel.fit.beta.segment(i, k);
+    Finding f =
+        termFinding(c, sel.steps[a], alpha_b, regimes, "currents", "A", dv.y.size(), df.y.size());
+    Eigen::VectorXd contrib = (df2.X * c.S) * b;
+    std::vector<std::pair<double, double>> tc;
+    for (int q = 0; q < contrib.size(); ++q) tc.push_back({df2.t[q], contrib(q)});
+    f.segments = activeSegments(tc, sigma);
+    f.channels = {"current_right", "current_left"};
+    describeFinding(f, c, sel, a, fit);
+    rep.addFinding(f);
+  }
+  if (opt.enable_unmodeled) dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, rep);
+  return true;
+}
+
+/// Dead reckoning against ground truth before and after the corrections, and the corrections.
+void verifyTrajectories(const StageData& data, const Corrections& corr,
+                        const config::WheelchairConfig& cfg, DiagnosisReport& rep) {
   Corrections none;
-  nlohmann::json tb = trajectoryJson(valS, none, cfg), ta = trajectoryJson(valS, corr, cfg);
+  nlohmann::json tb = trajectoryJson(data.val, none, cfg), ta = trajectoryJson(data.val, corr, cfg);
   if (!tb.empty()) rep.validation["trajectory_heldout"] = {{"before", tb}, {"after", ta}};
-  nlohmann::json fb = trajectoryJson(allS, none, cfg), fa = trajectoryJson(allS, corr, cfg);
+  nlohmann::json fb = trajectoryJson(data.all, none, cfg), fa = trajectoryJson(data.all, corr, cfg);
   if (!fb.empty()) rep.validation["trajectory_full_recordings"] = {{"before", fb}, {"after", fa}};
   rep.validation["corrections"] = {{"encoder_scale_right", corr.enc_scale[0]},
                                    {"encoder_scale_left", corr.enc_scale[1]},
@@ -1011,6 +861,47 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
                                    {"delay_imu_s", corr.delay_imu},
                                    {"delay_encoders_s", corr.delay_enc},
                                    {"delay_motors_s", corr.delay_motors}};
+}
+
+}  // namespace
+
+DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
+                         const std::vector<io::Recording>& val_recs,
+                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+  auto tstart = std::chrono::steady_clock::now();
+  DiagnosisReport rep;
+  const StageData data = splitStreams(fit_recs, val_recs, cfg, opt);
+  if (!data.any_enc) throw std::runtime_error("diagnose: no encoder data in the fit recordings");
+  rep.info["streams"] = {
+      {"encoders", data.any_enc}, {"gyro", data.any_gyro}, {"motors", data.any_mot}};
+  rep.info["validation"] =
+      val_recs.empty()
+          ? fmt::format("held-out last {:.0f}% of each recording", 100 * (1 - opt.fit_fraction))
+          : fmt::format("{} --validate recording(s)", val_recs.size());
+  Corrections corr;
+  nlohmann::json skipped = nlohmann::json::object();
+  if (data.any_gyro)
+    kinematicStage(data, cfg, opt, corr, rep);
+  else
+    skipped["stage1"] = "no gyro stream: kinematic consistency not checked";
+  if (!data.any_mot)
+    skipped["stage2"] = "no motor currents: dynamics not checked";
+  else if (!dynamicStage(data, cfg, opt, corr, rep))
+    skipped["stage2"] = "too little overlapping encoder and motor-current data";
+  if (!skipped.empty()) rep.info["skipped"] = skipped;
+
+  // odometric geometry against ground truth (with or without a gyro)
+  addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
+
+  // sensor faults (not physics): sonar dropouts, Pozyx outliers
+  {
+    SensorFaultOptions so;
+    so.alpha = opt.alpha;
+    SensorFaultReport sf = detectSensorFaults(fit_recs, cfg, corr, so);
+    for (auto& f : sf.findings) rep.addFinding(f);
+    rep.info["sensor_faults"] = sf.info;
+  }
+  verifyTrajectories(data, corr, cfg, rep);
   enforceHeldOutRule(rep);  // issue 16: no finding whose held-out prediction gets worse
   rep.info["runtime_s"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - tstart).count();
@@ -1028,16 +919,16 @@ bool isModelExtension(const Finding& f) {
 
 }  // namespace
 
-std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep) {
-  std::vector<simulation::EffectSpec> out;
+std::vector<effects::EffectSpec> findingsAsEffects(const DiagnosisReport& rep) {
+  std::vector<effects::EffectSpec> out;
   for (auto& f : rep.findings) {
     if (!isModelExtension(f)) continue;
-    simulation::EffectSpec e;
+    effects::EffectSpec e;
     e.id = f.effect;
     for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it) {
-      if (simulation::findEffect(e.id)) {
+      if (effects::findEffect(e.id)) {
         bool known = false;
-        for (auto& p : simulation::findEffect(e.id)->params) known |= p.name == it.key();
+        for (auto& p : effects::findEffect(e.id)->info().params) known |= p.name == it.key();
         if (!known) continue;
       }
       if (it->is_number())
@@ -1059,8 +950,7 @@ config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,
   for (auto& f : rep.findings) {
     if (!isModelExtension(f)) continue;
     ++k;
-    out.set("model_extensions", fmt::format("effect_{}", k),
-            simulation::formatEffect(effects[k - 1]));
+    out.set("model_extensions", fmt::format("effect_{}", k), effects::formatEffect(effects[k - 1]));
     std::string u;
     for (auto it = f.uncertainty.begin(); it != f.uncertainty.end(); ++it)
       if (it->is_number())

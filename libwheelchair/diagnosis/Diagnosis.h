@@ -24,7 +24,7 @@
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/Finding.h"
 #include "libwheelchair/io/Recording.h"
-#include "libwheelchair/simulation/Effects.h"
+#include "libwheelchair/effects/Effect.h"
 
 #include <string>
 #include <vector>
@@ -66,10 +66,10 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit,
                          const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
 
 /// The findings as simulator effects (docs/effects.md): one definition for both.
-std::vector<simulation::EffectSpec> findingsAsEffects(const DiagnosisReport& rep);
+std::vector<effects::EffectSpec> findingsAsEffects(const DiagnosisReport& rep);
 
 /// The configuration with a [model_extensions] section: count = N, effect_1..effect_N =
-/// `id:key=value,...` (simulation::parseEffect reads each), sigma_1.. = uncertainties, and
+/// `id:key=value,...` (effects::parseEffect reads each), sigma_1.. = uncertainties, and
 /// the shared keys corrected where the nominal model has them (payload: [vehicle]
 /// body_mass_kg).
 config::WheelchairConfig correctedConfig(const config::WheelchairConfig& cfg,

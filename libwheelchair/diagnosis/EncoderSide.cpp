@@ -10,6 +10,9 @@
 
 namespace wheelchair::diagnosis {
 
+using stats::fitLinear;
+using stats::LinearFit;
+
 namespace {
 
 constexpr double kTruthRatio = 0.8;

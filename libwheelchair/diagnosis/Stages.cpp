@@ -1,15 +1,25 @@
 #include "libwheelchair/diagnosis/Stages.h"
+#include "libwheelchair/stats/Selection.h"
+#include "libwheelchair/stats/Statistics.h"
 
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/model/DriveDynamics.h"
 #include "libwheelchair/sensors/Encoders.h"
 #include "libwheelchair/sensors/Filtering.h"
+#include "libwheelchair/signals/DriveSignals.h"
 
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
 
 namespace wheelchair::diagnosis {
+
+using stats::compareNested;
+using stats::effectiveSampleSize;
+using stats::fitLinear;
+using stats::Groups;
+using stats::LinearFit;
 
 namespace {
 
@@ -84,33 +94,12 @@ double filteredNoiseFactor(double fc, double fs) {
 
 Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cfg) {
   Streams s;
-  const double rR = cfg.vehicle.geom.odometryRadius(0), rL = cfg.vehicle.geom.odometryRadius(1);
-  const double rpt = cfg.encoders.params.wheelRadPerTick();
-  if (!rec.encoders.empty()) {
-    auto un = sensors::unwrapTicks(rec.encoders);
-    std::vector<size_t> idx(un.t_s.size());
-    std::iota(idx.begin(), idx.end(), 0);
-    std::stable_sort(idx.begin(), idx.end(),
-                     [&](size_t a, size_t b) { return un.t_s[a] < un.t_s[b]; });
-    for (size_t k : idx) {
-      if (!s.te.empty() && !(un.t_s[k] > s.te.back())) continue;
-      s.te.push_back(un.t_s[k]);
-      s.sR.push_back(rR * rpt * double(un.right[k]));
-      s.sL.push_back(rL * rpt * double(un.left[k]));
-    }
-    if (!s.sR.empty()) {
-      double r0 = s.sR.front(), l0 = s.sL.front();
-      for (auto& v : s.sR) v -= r0;
-      for (auto& v : s.sL) v -= l0;
-    }
-  }
+  signals::DriveStreams d = signals::driveStreams(rec, cfg);
+  s.te = std::move(d.te), s.sR = std::move(d.s[0]), s.sL = std::move(d.s[1]);
+  s.tm = std::move(d.tm), s.iR = std::move(d.i[0]), s.iL = std::move(d.i[1]);
   auto imu = sortedUnique(rec.imu, [](const io::ImuSample& a) { return a.t_s; });
   for (auto& g : imu)
     if (std::isfinite(g.gyro_z_rad_s)) s.tg.push_back(g.t_s), s.gz.push_back(g.gyro_z_rad_s);
-  auto mot = sortedUnique(rec.motors, [](const io::MotorSample& a) { return a.t_s; });
-  for (auto& m : mot)
-    if (std::isfinite(m.current_right_A) && std::isfinite(m.current_left_A))
-      s.tm.push_back(m.t_s), s.iR.push_back(m.current_right_A), s.iL.push_back(m.current_left_A);
   s.pozyx = sortedUnique(rec.pozyx, [](const io::PozyxSample& a) { return a.t_s; });
   s.gt = sortedUnique(rec.ground_truth, [](const io::GroundTruthPoseSample& a) { return a.t_s; });
   s.t_begin = rec.startTime();
@@ -141,8 +130,9 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
   KinRows k;
   const double lw = cfg.vehicle.geom.track_width_m;
-  std::vector<double> y;
-  std::vector<std::array<double, 5>> X;
+  const auto& cols = kinematicColumns();
+  const std::size_t ncol = cols.size();
+  std::vector<double> y, X;  // X row-major, ncol per row
   double gyro_dt_sum = 0;
   int gyro_dt_n = 0;
   for (const auto& s : recs) {
@@ -181,7 +171,8 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
       }
       double ig = G.integral(t0, t1);
       y.push_back(ig - dphi_enc);
-      X.push_back({t1 - t0, dphi_enc, dR / lw, -dL / lw, -(G.value(t1) - G.value(t0))});
+      const effects::KinematicWindow w{t1 - t0, dR, dL, lw, G.value(t1) - G.value(t0)};
+      for (const auto& c : cols) X.push_back(c.value(w));
       k.t0.push_back(t0), k.t1.push_back(t1);
       k.v.push_back(0.5 * (dR + dL) / (t1 - t0));
       k.omega.push_back(dphi_enc / (t1 - t0));
@@ -190,14 +181,64 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
     if (static_cast<int>(y.size()) > begin) k.groups.push_back({begin, static_cast<int>(y.size())});
   }
   k.y = Eigen::Map<Eigen::VectorXd>(y.data(), y.size());
-  k.X.resize(y.size(), 5);
-  for (size_t i = 0; i < X.size(); ++i)
-    for (int j = 0; j < 5; ++j) k.X(i, j) = X[i][j];
+  k.X.resize(y.size(), ncol);
+  for (size_t i = 0; i < y.size(); ++i)
+    for (size_t j = 0; j < ncol; ++j) k.X(i, j) = X[i * ncol + j];
   const double tick_m = cfg.vehicle.geom.wheel_radius_m * cfg.encoders.params.wheelRadPerTick();
   double dtg = gyro_dt_n ? gyro_dt_sum / gyro_dt_n : 0.01;
   k.noise_var_per_s = cfg.imu.gyro_noise_rad_s * cfg.imu.gyro_noise_rad_s * dtg;
   k.noise_var_const = 2.0 * tick_m * tick_m / 6.0 / (lw * lw);
   return k;
+}
+
+namespace {
+
+/// Every effect's columns of one stage, in registry order.
+template <class Column>
+std::vector<Column> registryColumns(std::vector<Column> (effects::Effect::*of)() const) {
+  std::vector<Column> out;
+  for (const effects::Effect* e : effects::effectRegistry())
+    for (auto& col : (e->*of)()) out.push_back(col);
+  return out;
+}
+
+template <class Column>
+int indexOf(const std::vector<Column>& cols, const std::string& name) {
+  for (std::size_t j = 0; j < cols.size(); ++j)
+    if (cols[j].name == name) return static_cast<int>(j);
+  throw std::logic_error("no diagnosis column '" + name + "'");
+}
+
+}  // namespace
+
+const std::vector<effects::KinematicColumn>& kinematicColumns() {
+  static const auto c = registryColumns(&effects::Effect::kinematicColumns);
+  return c;
+}
+
+const std::vector<effects::DriveColumn>& driveColumns() {
+  static const auto c = registryColumns(&effects::Effect::driveColumns);
+  return c;
+}
+
+int columnIndex(effects::Stage stage, const std::string& name) {
+  return stage == effects::Stage::kinematic ? indexOf(kinematicColumns(), name)
+                                            : indexOf(driveColumns(), name);
+}
+
+std::vector<Candidate> stageCandidates(effects::Stage stage, const effects::TermOptions& o) {
+  const int ncol = static_cast<int>(stage == effects::Stage::kinematic ? kinematicColumns().size()
+                                                                       : driveColumns().size());
+  std::vector<Candidate> out;
+  for (const effects::Effect* e : effects::effectRegistry())
+    for (const auto& term : e->residualTerms(o)) {
+      if (term.stage != stage) continue;
+      Eigen::MatrixXd S = Eigen::MatrixXd::Zero(ncol, term.coefficients.size());
+      for (std::size_t k = 0; k < term.coefficients.size(); ++k)
+        for (const auto& col : term.coefficients[k]) S(columnIndex(stage, col), k) = 1.0;
+      out.push_back({term.name, e->id(), S, term.conflicts, term.plausible});
+    }
+  return out;
 }
 
 const std::vector<std::string>& dynLibNames() {
@@ -219,69 +260,38 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   const double eps = dt.coulomb_smoothing_m_s > 0 ? dt.coulomb_smoothing_m_s : 0.01;
   const double Mg2 = (g.body_mass_kg + 2 * g.wheel_mass_kg) * 9.81 / 2.0;
   const double fs = opt.grid_rate_hz, fc = opt.cutoff_hz;
-  const int ncol = 8, nlib = static_cast<int>(dynLibNames().size());
+  const auto& cols = driveColumns();
+  const int ncol = static_cast<int>(cols.size()), nlib = static_cast<int>(dynLibNames().size());
   struct Row {
     double y, t, v, w, vd, wd, phi;
     int side;
-    std::array<double, 8> x;
     std::array<double, 14> l;
   };
   std::vector<Row> rowsR, rowsL;
+  std::vector<double> xR, xL;  // the rows' columns, row-major
   Groups gR, gL;
+  signals::DriveSignalOptions so;
+  so.grid_rate_hz = fs, so.cutoff_hz = fc, so.max_gap_s = opt.max_gap_s;
+  so.edge_trim_s = opt.edge_trim_s;
   for (const auto& s : recs) {
     if (!s.hasEncoders() || !s.hasMotors()) continue;
-    std::vector<double> te(s.te.size()), tm(s.tm.size());
-    for (size_t i = 0; i < te.size(); ++i) te[i] = s.te[i] - c.delay_enc;
-    for (size_t i = 0; i < tm.size(); ++i) tm[i] = s.tm[i] - c.delay_motors;
-    std::vector<double> sR(s.sR), sL(s.sL);
-    for (auto& v : sR) v /= c.enc_scale[0];
-    for (auto& v : sL) v /= c.enc_scale[1];
-    // Continuous segments covered by both streams.
-    std::vector<std::pair<double, double>> segs;
-    auto splitGaps = [&](const std::vector<double>& t) {
-      std::vector<std::pair<double, double>> out;
-      double a = t.front();
-      for (size_t i = 1; i < t.size(); ++i)
-        if (t[i] - t[i - 1] > opt.max_gap_s) out.push_back({a, t[i - 1]}), a = t[i];
-      out.push_back({a, t.back()});
-      return out;
-    };
-    auto se = splitGaps(te), sm = splitGaps(tm);
-    for (auto& a : se)
-      for (auto& b : sm) {
-        double lo = std::max(a.first, b.first) + opt.edge_trim_s;
-        double hi = std::min(a.second, b.second) - opt.edge_trim_s;
-        if (hi - lo > 3.0) segs.push_back({lo, hi});
-      }
-    for (auto [lo, hi] : segs) {
-      // grid with a margin for the filter (the margin is dropped afterwards)
-      double margin = std::min(opt.edge_trim_s, 1.0);
-      double glo = lo - margin, ghi = hi + margin;
-      int n = static_cast<int>(std::floor((ghi - glo) * fs)) + 1;
-      if (n < 20) continue;
-      std::vector<double> tg(n);
-      for (int i = 0; i < n; ++i) tg[i] = glo + i / fs;
-      auto pR = sensors::resampleLinear(te, sR, tg);
-      auto pL = sensors::resampleLinear(te, sL, tg);
-      auto uR = sensors::centralDerivative(tg, pR);
-      auto uL = sensors::centralDerivative(tg, pL);
-      auto uRf = sensors::filtfiltButter2(uR, fc, fs);
-      auto uLf = sensors::filtfiltButter2(uL, fc, fs);
+    // The recording with the sensor corrections applied.
+    signals::DriveStreams ds;
+    ds.te.resize(s.te.size()), ds.tm.resize(s.tm.size());
+    for (size_t i = 0; i < s.te.size(); ++i) ds.te[i] = s.te[i] - c.delay_enc;
+    for (size_t i = 0; i < s.tm.size(); ++i) ds.tm[i] = s.tm[i] - c.delay_motors;
+    ds.s = {s.sR, s.sL};
+    for (auto& v : ds.s[0]) v /= c.enc_scale[0];
+    for (auto& v : ds.s[1]) v /= c.enc_scale[1];
+    ds.i = {s.iR, s.iL};
+    for (const signals::DriveSegment& seg : signals::prepare(ds, so)) {
+      const std::vector<double>& tg = seg.t;
+      const int n = static_cast<int>(tg.size());
+      const auto &pR = seg.p[0], &pL = seg.p[1], &uRf = seg.u_f[0], &uLf = seg.u_f[1];
+      const auto &udR = seg.a_f[0], &udL = seg.a_f[1], &iRf = seg.i_f[0], &iLf = seg.i_f[1];
       double fc2 = std::min(2.5 * fc, 0.45 * fs);
-      auto uR2 = sensors::filtfiltButter2(uR, fc2, fs);
-      auto uL2 = sensors::filtfiltButter2(uL, fc2, fs);
-      auto udR = sensors::centralDerivative(tg, uRf);
-      auto udL = sensors::centralDerivative(tg, uLf);
-      // currents: filtered on their own time base, then resampled
-      std::vector<double> tmi, iRs, iLs;
-      for (size_t i = 0; i < tm.size(); ++i)
-        if (tm[i] >= glo - 2 && tm[i] <= ghi + 2)
-          tmi.push_back(tm[i]), iRs.push_back(s.iR[i]), iLs.push_back(s.iL[i]);
-      if (tmi.size() < 10) continue;
-      auto iRf = sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, iRs, fc), tg);
-      auto iLf = sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, iLs, fc), tg);
-      auto iRraw = sensors::resampleLinear(tmi, iRs, tg);
-      auto iLraw = sensors::resampleLinear(tmi, iLs, tg);
+      auto uR2 = sensors::filtfiltButter2(seg.u[0], fc2, fs);
+      auto uL2 = sensors::filtfiltButter2(seg.u[1], fc2, fs);
       // nonlinear columns from lightly filtered signals, then filtered like everything else
       std::vector<double> sgR(n), sgL(n), cph(n), sph(n), phi(n);
       for (int i = 0; i < n; ++i) {
@@ -307,9 +317,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
       }
       auto dpR = sensors::centralDerivative(tg, predR);
       auto dpL = sensors::centralDerivative(tg, predL);
-      int i0 = static_cast<int>(std::ceil(margin * fs)), i1 = n - i0;
       int bR = static_cast<int>(rowsR.size());
-      for (int i = i0; i < i1; ++i) {
+      for (int i = seg.i0; i < seg.i1; ++i) {
         for (int sd = 0; sd < 2; ++sd) {
           Row row;
           row.t = tg[i], row.v = v[i], row.w = w[i], row.vd = vd[i], row.wd = wd[i],
@@ -319,21 +328,16 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
           double im = sd == 0 ? iRf[i] : iLf[i];
           double io = sd == 0 ? iLf[i] : iRf[i];
           row.y = im - (sd == 0 ? predR[i] : predL[i]);
-          row.x.fill(0.0);
-          row.x[sd] = theta5 * (rG / r) * u;
-          row.x[2 + sd] = sd == 0 ? sgR[i] : sgL[i];
-          row.x[4] = alpha * (r / rG) * vd[i] / 2.0;
-          row.x[5] = -alpha * (r / rG) * Mg2 * cph[i];
-          row.x[6] = -alpha * (r / rG) * Mg2 * sph[i];
-          row.x[7] = -(sd == 0 ? dpR[i] : dpL[i]);
           double sg = sd == 0 ? sgR[i] : sgL[i];
+          const effects::DriveSample sample{
+              sd,     u,     sg, vd[i], cph[i], sph[i], sd == 0 ? dpR[i] : dpL[i],
+              theta5, alpha, r,  rG,    Mg2};
+          for (const auto& c : cols) (sd == 0 ? xR : xL).push_back(c.value(sample));
           row.l = {1.0,   v[i],        w[i],        vd[i],  wd[i],  sg, std::abs(u),
                    u * u, v[i] * w[i], w[i] * w[i], cph[i], sph[i], im, io};
           (sd == 0 ? rowsR : rowsL).push_back(row);
         }
       }
-      (void)iRraw;
-      (void)iLraw;
       gR.push_back({bR, static_cast<int>(rowsR.size())});
     }
   }
@@ -344,8 +348,9 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   d.lib.resize(N, nlib);
   for (int k = 0; k < N; ++k) {
     const Row& row = k < nR ? rowsR[k] : rowsL[k - nR];
+    const double* x = k < nR ? &xR[k * ncol] : &xL[(k - nR) * ncol];
     d.y(k) = row.y;
-    for (int j = 0; j < ncol; ++j) d.X(k, j) = row.x[j];
+    for (int j = 0; j < ncol; ++j) d.X(k, j) = x[j];
     for (int j = 0; j < nlib; ++j) d.lib(k, j) = row.l[j];
     d.t.push_back(row.t), d.v.push_back(row.v), d.omega.push_back(row.w);
     d.vdot.push_back(row.vd), d.omegadot.push_back(row.wd), d.phi.push_back(row.phi);

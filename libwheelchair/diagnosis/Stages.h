@@ -4,6 +4,7 @@
 #pragma once
 
 #include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/effects/Effect.h"
 #include "libwheelchair/io/Recording.h"
 #include "libwheelchair/stats/Selection.h"
 #include "libwheelchair/stats/Statistics.h"
@@ -15,19 +16,6 @@
 #include <vector>
 
 namespace wheelchair::diagnosis {
-
-// The statistics of the stages are those of libwheelchair/stats.
-using stats::BiasTest;
-using stats::biasTest;
-using stats::compareNested;
-using stats::effectiveSampleSize;
-using stats::Evidence;
-using stats::fitLinear;
-using stats::Groups;
-using stats::LinearFit;
-using stats::ljungBox;
-using stats::singleGroup;
-using stats::Whiteness;
 
 struct DiagnosisOptions;
 
@@ -62,15 +50,22 @@ struct Corrections {
   }
 };
 
+/// The regression columns of the stages: every effect's kinematicColumns() / driveColumns(), in
+/// registry order (effects/Effect.h).
+const std::vector<effects::KinematicColumn>& kinematicColumns();
+const std::vector<effects::DriveColumn>& driveColumns();
+/// Index of a column of a stage by name; throws std::logic_error when there is none.
+int columnIndex(effects::Stage stage, const std::string& name);
+
 /// Stage 1 rows: one per window of encoder samples, y = gyro integral - odometric heading
-/// change (rad). Columns: 0 T (gyro bias), 1 (dR - dL)/l_w (gyro scale), 2 dR/l_w (right
-/// encoder scale), 3 -dL/l_w (left encoder scale), 4 -(omega(t1) - omega(t0)) (gyro delay
-/// relative to the encoders).
+/// change (rad). Columns: kinematicColumns() (gyro_bias T, gyro_scale (dR - dL)/l_w,
+/// encoder_scale/right dR/l_w, encoder_scale/left -dL/l_w, sensor_delay/imu
+/// -(omega(t1) - omega(t0))).
 struct KinRows {
   Eigen::VectorXd y;
   Eigen::MatrixXd X;
   std::vector<double> t0, t1, v, omega, phi;
-  Groups groups;
+  stats::Groups groups;
   double noise_var_per_s = 0;  ///< predicted variance of y: gyro white noise part (per second)
   double noise_var_const = 0;  ///< ... tick quantisation part (per window)
 };
@@ -78,15 +73,15 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
 
 /// Stage 2 rows: per grid sample the right and then the left motor equation error (A),
-/// y = filtered current - nominal model current. Columns: 0 asym right, 1 asym left,
-/// 2 Coulomb right, 3 Coulomb left, 4 payload (per kg), 5/6 slope cos/sin, 7 motor delay.
+/// y = filtered current - nominal model current. Columns: driveColumns() (asymmetry right/left,
+/// Coulomb right/left, payload per kg, slope cos/sin, motors delay).
 /// `lib` holds the unmodeled-term library (per row) with names in libNames().
 struct DynRows {
   Eigen::VectorXd y;
   Eigen::MatrixXd X, lib;
   std::vector<double> t, v, omega, vdot, omegadot, phi;
   std::vector<int> side;  ///< 0 right, 1 left
-  Groups groups;
+  stats::Groups groups;
   double noise_var = 0;  ///< predicted variance of y from the current-sensor noise
 };
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
@@ -102,9 +97,13 @@ struct Candidate {
   std::function<bool(const Eigen::VectorXd& coef)> plausible;
 };
 
+/// The catalogue terms of a stage: every effect's residualTerms() of that stage, in registry
+/// order, with S selecting the stage's columns.
+std::vector<Candidate> stageCandidates(effects::Stage stage, const effects::TermOptions& o);
+
 struct SelectionStep {
   int candidate = -1;
-  Evidence evidence;
+  stats::Evidence evidence;
   double rss0_fit = 0, rss1_fit = 0, rss0_val = 0, rss1_val = 0;
   double lr_val = 0, lr_val_expected = 0, n_eff_val = 0;
   bool val_tested = false;
@@ -114,7 +113,7 @@ struct SelectionStep {
 struct Selection {
   std::vector<int> accepted;
   std::vector<SelectionStep> steps;         ///< one per accepted candidate
-  LinearFit fit;                            ///< final joint fit (columns: accepted in order)
+  stats::LinearFit fit;                            ///< final joint fit (columns: accepted in order)
   std::vector<std::pair<int, int>> ranges;  ///< coefficient range of each accepted candidate
   std::vector<std::string> log;             ///< why candidates were rejected (last round)
 };
@@ -123,7 +122,7 @@ struct Selection {
 struct SelectionData {
   const Eigen::VectorXd &y_fit, &y_val;
   const Eigen::MatrixXd &X_fit, &X_val;
-  const Groups &g_fit, &g_val;
+  const stats::Groups &g_fit, &g_val;
   int lags = 5;
   /// Relevance: the RMS of a term's contribution over the fit rows must reach this (units of
   /// y), i.e. min_relevance x the configured noise of one sensor sample; below it a term is

@@ -51,7 +51,7 @@ ModelExtensions ModelExtensions::fromConfig(const mrpt::config::CConfigFileBase&
     if (k.rfind("effect_", 0) != 0) continue;
     const std::string text = ini.read_string("model_extensions", k, "");
     try {
-      m.effects.push_back(simulation::parseValidEffect(text));
+      m.effects.push_back(effects::parseValidEffect(text));
     } catch (const std::invalid_argument& e) {
       throw std::runtime_error(fmt::format("[model_extensions] {}: {}", k, e.what()));
     }
@@ -62,71 +62,28 @@ ModelExtensions ModelExtensions::fromConfig(const mrpt::config::CConfigFileBase&
 io::Recording ModelExtensions::apply(const io::Recording& rec,
                                      const config::WheelchairConfig& cfg) const {
   io::Recording out = rec;
-  const auto& ep = cfg.encoders.params;
-  // 1. Sensor effects.
-  for (const auto& e : effects) {
-    if (e.id == "encoder_scale") {
-      const double scale = e.number("scale");
-      if (!(scale > 0)) continue;
-      for (const int side : simulation::effectSides(e)) {
-        sensors::TickUnwrapper unwrap;
-        for (auto& s : out.encoders) {
-          int32_t& raw = side == 0 ? s.right_ticks : s.left_ticks;
-          raw = sensors::toHardwareCounter(std::llround(unwrap.unwrap(raw) / scale));
-        }
-      }
-    } else if (e.id == "gyro_bias") {
-      const double b = e.number("bias_rad_s");
-      for (auto& s : out.imu) s.gyro_z_rad_s -= b;
-    } else if (e.id == "gyro_scale") {
-      const double g = e.number("scale");
-      if (g > 0)
-        for (auto& s : out.imu) s.gyro_z_rad_s /= g;
-    } else if (e.id == "sensor_delay") {
-      const std::string sn = e.text("sensor");
-      const double d = e.number("delay_s");
-      auto shift = [&](auto& v) {
-        for (auto& s : v) s.t_s -= d;
-      };
-      if (sn == "encoders") shift(out.encoders);
-      if (sn == "imu") shift(out.imu);
-      if (sn == "motors") shift(out.motors);
-      if (sn == "sonar") shift(out.sonar);
-      if (sn == "pozyx") shift(out.pozyx);
-      if (sn == "joystick") shift(out.joystick);
-    }
-  }
-  // 2. Drive-train effects, with the corrected encoders' rim speeds.
   RimSpeeds rims;
-  rims.iv = sensors::wheelSpeedsFromTicks(out.encoders, ep, cfg.vehicle.geom.wheel_radius_m,
+  const effects::CorrectionContext ctx{cfg, [&rims](double t) { return rims.at(t); }};
+  // 1. Sensor effects, on the raw data.
+  for (const auto& e : effects)
+    if (const effects::Effect* eff = effects::findEffect(e.id);
+        eff && eff->correctionPhase() == effects::CorrectionPhase::sensor)
+      eff->correct(e, out, ctx);
+  // 2. Drive-train effects, with the corrected encoders' rim speeds.
+  rims.iv = sensors::wheelSpeedsFromTicks(out.encoders, cfg.encoders.params,
+                                          cfg.vehicle.geom.wheel_radius_m,
                                           cfg.vehicle.geom.track_width_m);
-  const double viscous_A_per_m_s = cfg.vehicle.motor_viscous_Nm_s_rad /
-                                   cfg.vehicle.torque_constant_Nm_A * cfg.vehicle.geom.gear_ratio /
-                                   cfg.vehicle.geom.wheel_radius_m;
-  for (const auto& e : effects) {
-    if (e.id == "motor_asymmetry") {
-      const double ratio = e.number("friction_ratio");
-      for (const int side : simulation::effectSides(e))
-        for (auto& s : out.motors) {
-          double& i = side == 0 ? s.current_right_A : s.current_left_A;
-          i -= (ratio - 1.0) * viscous_A_per_m_s * rims.at(s.t_s)(side);
-        }
-    } else if (e.id == "coulomb_friction") {
-      const double c = e.number("current_A");
-      for (const int side : simulation::effectSides(e))
-        for (auto& s : out.motors) {
-          double& i = side == 0 ? s.current_right_A : s.current_left_A;
-          i -= c * std::tanh(rims.at(s.t_s)(side) / 0.01);
-        }
-    }
-  }
+  for (const auto& e : effects)
+    if (const effects::Effect* eff = effects::findEffect(e.id);
+        eff && eff->correctionPhase() == effects::CorrectionPhase::drive)
+      eff->correct(e, out, ctx);
   return out;
 }
 
 config::WheelchairConfig ModelExtensions::adjustConfig(const config::WheelchairConfig& cfg) const {
   config::WheelchairConfig c = cfg;
   for (const auto& e : effects)
-    if (e.id == "payload_mass") c.set("vehicle", "body_mass_kg", e.text("body_mass_kg"));
+    if (const effects::Effect* eff = effects::findEffect(e.id)) eff->adjustConfig(e, c);
   return c;
 }
 

@@ -3,7 +3,7 @@
 // parameter names of docs/effects.md) to a recording before it is filtered, so that the
 // corrected model is what the estimator and the dead-reckoning variants see.
 //
-// Sensor effects are inverted exactly on the raw data:
+// Each effect's own inverse (effects::Effect::correct) does the work, sensor effects first:
 //   encoder_scale (side, scale)   that side's cumulative ticks divided by `scale` (the counter
 //                                 is unwrapped first and re-wrapped after; < 1 tick error)
 //   gyro_bias (bias_rad_s)        gyro_z - bias
@@ -25,7 +25,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/io/Recording.h"
-#include "libwheelchair/simulation/Effects.h"
+#include "libwheelchair/effects/Effect.h"
 
 #include <map>
 #include <string>
@@ -35,9 +35,9 @@ namespace wheelchair::estimation {
 
 class ModelExtensions {
  public:
-  /// In the effect grammar shared with `wheelchair simulate` (simulation/Effects.h): ids,
+  /// In the effect grammar shared with `wheelchair simulate` (effects/Effect.h): ids,
   /// parameter names and catalogue defaults of docs/effects.md.
-  std::vector<simulation::EffectSpec> effects;
+  std::vector<effects::EffectSpec> effects;
 
   /// Reads [model_extensions] (`effect_N` keys); empty when the section is absent. Throws on a
   /// malformed entry or one outside the catalogue.

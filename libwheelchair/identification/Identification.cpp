@@ -1,5 +1,6 @@
 #include "libwheelchair/identification/Identification.h"
 #include "libwheelchair/stats/Distributions.h"
+#include "libwheelchair/stats/LeastSquares.h"
 
 #include "libwheelchair/model/VehicleParams.h"
 #include "libwheelchair/sensors/Encoders.h"
@@ -15,6 +16,12 @@
 #include <stdexcept>
 
 namespace wheelchair::identification {
+
+using stats::LsInput;
+using stats::LsOptions;
+using stats::LsSolution;
+using stats::ResidualStats;
+using stats::solveLeastSquares;
 
 namespace {
 
@@ -301,53 +308,124 @@ Eigen::Matrix<double, 5, 1> d2Weights(const model::Geometry& g) {
 
 // ---------------------------------------------------------------------------------------
 
+namespace {
+
+/// One recording's streams for the identification: encoder interval speeds, motor currents
+/// and V_RC voltages (with the motor voltage U per side from the V_RC inverse), gyro.
+struct RecordingStreams {
+  EncoderStream enc;
+  Stream mot, imu;
+  std::array<std::vector<double>, 2> U;  ///< motor voltage at the motor samples (V)
+  bool any_voltage = false;
+};
+
+RecordingStreams recordingStreams(const io::Recording& rec, const config::WheelchairConfig& cfg) {
+  RecordingStreams r;
+  r.enc = encoderStream(rec, cfg);
+  Stream& mot = r.mot;
+  mot.x.resize(4);
+  for (const auto& m : rec.motors) {
+    mot.t.push_back(m.t_s);
+    mot.x[0].push_back(m.current_right_A);
+    mot.x[1].push_back(m.current_left_A);
+    mot.x[2].push_back(m.vrc_right_V);
+    mot.x[3].push_back(m.vrc_left_V);
+  }
+  sanitize(mot);
+  r.imu.x.resize(1);
+  for (const auto& s : rec.imu) {
+    r.imu.t.push_back(s.t_s);
+    r.imu.x[0].push_back(s.gyro_z_rad_s);
+  }
+  sanitize(r.imu);
+  // Motor voltage U per side from the V_RC inverse, at the motor samples.
+  for (int side = 0; side < 2 && mot.t.size() >= 4; ++side) {
+    const auto& vrc = mot.x[2 + side];
+    r.U[side].resize(vrc.size());
+    for (std::size_t k = 0; k < vrc.size(); ++k) {
+      const std::size_t a = k == 0 ? 0 : k - 1, b = std::min(k + 1, vrc.size() - 1);
+      const double rate = (vrc[b] - vrc[a]) / (mot.t[b] - mot.t[a]);
+      // Differential V_RC of one motor -> U = V_w1 - V_w2 (inverse of (11) with the knee).
+      r.U[side][k] = sensors::motorVoltageFromVrc(vrc[k], rate, cfg.motors.circuit);
+      r.any_voltage = r.any_voltage || vrc[k] != 0.0;
+    }
+  }
+  return r;
+}
+
+/// Raw-minus-filtered sums of squares of v and omega (the noise floor estimate).
+struct NoiseSums {
+  double ss_v = 0, ss_w = 0;
+  std::size_t n = 0;
+};
+
+/// The grid samples [k0, k1) of one recording as a filtered segment.
+PreparedSegment conditionSegment(const RecordingStreams& r, int recording, double t_lo, long k0,
+                                 long k1, double lw, const IdentificationOptions& o,
+                                 NoiseSums& noise) {
+  const double dt = 1.0 / o.rate_hz;
+  const bool gyro = o.omega_source == "gyro";
+  const EncoderStream& enc = r.enc;
+  PreparedSegment s;
+  s.recording = recording;
+  for (long k = k0; k < k1; ++k) s.t.push_back(t_lo + k * dt);
+  const auto ur_raw = resample(enc.t, enc.u_r, s.t);
+  const auto ul_raw = resample(enc.t, enc.u_l, s.t);
+  // Currents, voltages, gyro: interval means over the encoder intervals first.
+  auto viaEnc = [&](const Stream& st, const std::vector<double>& x) {
+    return resample(enc.t, intervalMeans(st.t, x, enc.t0, enc.t1), s.t);
+  };
+  s.u_r = filt(ur_raw, o);
+  s.u_l = filt(ul_raw, o);
+  s.i_r = filt(viaEnc(r.mot, r.mot.x[0]), o);
+  s.i_l = filt(viaEnc(r.mot, r.mot.x[1]), o);
+  s.U_r = filt(viaEnc(r.mot, r.U[0]), o);
+  s.U_l = filt(viaEnc(r.mot, r.U[1]), o);
+  const std::size_t n = s.t.size();
+  std::vector<double> v_raw(n), w_raw(n);
+  s.v.resize(n);
+  s.omega.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    v_raw[k] = 0.5 * (ur_raw[k] + ul_raw[k]);
+    w_raw[k] = (ur_raw[k] - ul_raw[k]) / lw;
+    s.v[k] = 0.5 * (s.u_r[k] + s.u_l[k]);
+    s.omega[k] = (s.u_r[k] - s.u_l[k]) / lw;
+  }
+  if (gyro) {
+    w_raw = viaEnc(r.imu, r.imu.x[0]);
+    s.omega = filt(w_raw, o);
+  }
+  s.vdot = centralDiff(s.v, dt);
+  s.omegadot = centralDiff(s.omega, dt);
+  s.interior.assign(n, 0);
+  s.moving.assign(n, 0);
+  const long trim = static_cast<long>(std::ceil(o.edge_trim_s / dt));
+  for (std::size_t k = 0; k < n; ++k) {
+    s.interior[k] = long(k) >= trim && long(k) < long(n) - trim;
+    s.moving[k] = std::max(std::abs(s.u_r[k]), std::abs(s.u_l[k])) >= o.standstill_speed_m_s;
+    if (s.interior[k]) {
+      noise.ss_v += std::pow(v_raw[k] - s.v[k], 2);
+      noise.ss_w += std::pow(w_raw[k] - s.omega[k], 2);
+      ++noise.n;
+    }
+  }
+  return s;
+}
+
+}  // namespace
+
 PreparedData prepareSignals(const std::vector<io::Recording>& recs,
                             const config::WheelchairConfig& cfg, const IdentificationOptions& o) {
-  const auto& g = cfg.vehicle.geom;
-  const double dt = 1.0 / o.rate_hz, lw = g.track_width_m;
+  const double dt = 1.0 / o.rate_hz, lw = cfg.vehicle.geom.track_width_m;
   const bool gyro = o.omega_source == "gyro";
   PreparedData out;
-  double ss_v = 0, ss_w = 0;
-  std::size_t n_noise = 0;
-
+  NoiseSums noise;
   for (std::size_t ri = 0; ri < recs.size(); ++ri) {
-    const auto& rec = recs[ri];
-    const EncoderStream enc = encoderStream(rec, cfg);
-    Stream mot;
-    mot.x.resize(4);
-    for (const auto& m : rec.motors) {
-      mot.t.push_back(m.t_s);
-      mot.x[0].push_back(m.current_right_A);
-      mot.x[1].push_back(m.current_left_A);
-      mot.x[2].push_back(m.vrc_right_V);
-      mot.x[3].push_back(m.vrc_left_V);
-    }
-    sanitize(mot);
-    Stream imu;
-    imu.x.resize(1);
-    for (const auto& s : rec.imu) {
-      imu.t.push_back(s.t_s);
-      imu.x[0].push_back(s.gyro_z_rad_s);
-    }
-    sanitize(imu);
+    const RecordingStreams r = recordingStreams(recs[ri], cfg);
+    const EncoderStream& enc = r.enc;
+    const Stream &mot = r.mot, &imu = r.imu;
     if (enc.t.size() < 4 || mot.t.size() < 4 || (gyro && imu.t.size() < 4)) continue;
-
-    // Motor voltage U per side from the V_RC inverse, at the motor samples.
-    std::array<std::vector<double>, 2> U;
-    bool any_voltage = false;
-    for (int side = 0; side < 2; ++side) {
-      const auto& vrc = mot.x[2 + side];
-      U[side].resize(vrc.size());
-      for (std::size_t k = 0; k < vrc.size(); ++k) {
-        const std::size_t a = k == 0 ? 0 : k - 1, b = std::min(k + 1, vrc.size() - 1);
-        const double rate = (vrc[b] - vrc[a]) / (mot.t[b] - mot.t[a]);
-        // Differential V_RC of one motor -> U = V_w1 - V_w2 (inverse of (11) with the knee).
-        U[side][k] = sensors::motorVoltageFromVrc(vrc[k], rate, cfg.motors.circuit);
-        any_voltage = any_voltage || vrc[k] != 0.0;
-      }
-    }
-    out.has_voltage = out.has_voltage || any_voltage;
-
+    out.has_voltage = out.has_voltage || r.any_voltage;
     double t_lo = std::max(enc.t.front(), mot.t.front());
     double t_hi = std::min(enc.t.back(), mot.t.back());
     if (gyro) t_lo = std::max(t_lo, imu.t.front()), t_hi = std::min(t_hi, imu.t.back());
@@ -367,55 +445,14 @@ PreparedData prepareSignals(const std::vector<io::Recording>& recs,
       }
       long k1 = k0;
       while (k1 < n_grid && ok[k1]) ++k1;
-      if (k1 - k0 >= min_len) {
-        PreparedSegment s;
-        s.recording = static_cast<int>(ri);
-        for (long k = k0; k < k1; ++k) s.t.push_back(t_lo + k * dt);
-        const auto ur_raw = resample(enc.t, enc.u_r, s.t);
-        const auto ul_raw = resample(enc.t, enc.u_l, s.t);
-        // Currents, voltages, gyro: interval means over the encoder intervals first.
-        auto viaEnc = [&](const Stream& st, const std::vector<double>& x) {
-          return resample(enc.t, intervalMeans(st.t, x, enc.t0, enc.t1), s.t);
-        };
-        s.u_r = filt(ur_raw, o);
-        s.u_l = filt(ul_raw, o);
-        s.i_r = filt(viaEnc(mot, mot.x[0]), o);
-        s.i_l = filt(viaEnc(mot, mot.x[1]), o);
-        s.U_r = filt(viaEnc(mot, U[0]), o);
-        s.U_l = filt(viaEnc(mot, U[1]), o);
-        const std::size_t n = s.t.size();
-        std::vector<double> v_raw(n), w_raw(n);
-        s.v.resize(n);
-        s.omega.resize(n);
-        for (std::size_t k = 0; k < n; ++k) {
-          v_raw[k] = 0.5 * (ur_raw[k] + ul_raw[k]);
-          w_raw[k] = (ur_raw[k] - ul_raw[k]) / lw;
-          s.v[k] = 0.5 * (s.u_r[k] + s.u_l[k]);
-          s.omega[k] = (s.u_r[k] - s.u_l[k]) / lw;
-        }
-        if (gyro) {
-          w_raw = viaEnc(imu, imu.x[0]);
-          s.omega = filt(w_raw, o);
-        }
-        s.vdot = centralDiff(s.v, dt);
-        s.omegadot = centralDiff(s.omega, dt);
-        s.interior.assign(n, 0);
-        s.moving.assign(n, 0);
-        const long trim = static_cast<long>(std::ceil(o.edge_trim_s / dt));
-        for (std::size_t k = 0; k < n; ++k) {
-          s.interior[k] = long(k) >= trim && long(k) < long(n) - trim;
-          s.moving[k] = std::max(std::abs(s.u_r[k]), std::abs(s.u_l[k])) >= o.standstill_speed_m_s;
-          if (s.interior[k]) {
-            ss_v += std::pow(v_raw[k] - s.v[k], 2);
-            ss_w += std::pow(w_raw[k] - s.omega[k], 2);
-            ++n_noise;
-          }
-        }
-        out.segments.push_back(std::move(s));
-      }
+      if (k1 - k0 >= min_len)
+        out.segments.push_back(
+            conditionSegment(r, static_cast<int>(ri), t_lo, k0, k1, lw, o, noise));
       k0 = k1;
     }
   }
+  double ss_v = noise.ss_v, ss_w = noise.ss_w;
+  std::size_t n_noise = noise.n;
   // Noise floors: raw-minus-filtered rms (the noise above the cut-off) times the noise gain
   // of the filter (and of filter + central difference) for white noise.
   if (n_noise > 0) {
@@ -542,21 +579,8 @@ Estimate ratioThroughOrigin(const std::vector<double>& x, const std::vector<doub
   return e;
 }
 
-}  // namespace
-
-IdentificationResult identify(const std::vector<io::Recording>& recs,
-                              const config::WheelchairConfig& cfg, const IdentificationOptions& o,
-                              const std::vector<std::string>& sources) {
-  IdentificationResult res;
-  res.options = o;
-  res.config_origin = cfg.origin();
-  res.sources = sources;
-  res.hac_lags = o.hacLags();
-  res.z = stats::normalQuantile(0.5 + o.confidence / 2);
-  const auto& g = cfg.vehicle.geom;
-  const double r = g.wheel_radius_m, rG = g.gear_ratio, lw = g.track_width_m;
-
-  const PreparedData data = prepareSignals(recs, cfg, o);
+/// The samples the regressions use (moving, away from segment edges); counts in `res`.
+std::vector<Row> usableRows(const PreparedData& data, IdentificationResult& res) {
   std::vector<Row> rows;
   for (std::size_t si = 0; si < data.segments.size(); ++si) {
     const auto& s = data.segments[si];
@@ -579,8 +603,12 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
         "identify: only {} usable samples (moving, away from segment edges and gaps); need a "
         "recording with encoders and motor currents while the chair moves",
         rows.size()));
+  return rows;
+}
 
-  // Excitation of each signal over the used samples.
+/// Excitation of v, omega, vdot, omegadot over the used samples (res.excitation, notes).
+void measureExcitation(const PreparedData& data, const std::vector<Row>& rows,
+                       const IdentificationOptions& o, IdentificationResult& res) {
   auto rms = [&](auto member) {
     double ss = 0;
     for (const auto& rw : rows) ss += std::pow((data.segments[rw.seg].*member)[rw.k], 2);
@@ -603,48 +631,99 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
     e.excited = e.snr >= o.min_excitation_snr;
     res.excitation.push_back(e);
   }
-  const bool ex_v = res.excitation[0].excited, ex_w = res.excitation[1].excited;
-  const bool ex_vd = res.excitation[2].excited, ex_wd = res.excitation[3].excited;
-  if (!ex_wd)
+  if (!res.excitation[3].excited)
     res.notes.push_back(fmt::format(
         "angular acceleration not excited (omegadot rms {:.3g} rad/s^2, noise floor {:.3g}, SNR "
         "{:.2g} < {}): yaw parameters (theta_4, D2, a2, a4) are not identifiable from this drive",
         res.excitation[3].rms, res.excitation[3].noise, res.excitation[3].snr,
         o.min_excitation_snr));
-  if (!ex_vd)
+  if (!res.excitation[2].excited)
     res.notes.push_back(
         "linear acceleration not excited: D1, a1, a3 are not identifiable from this drive");
+}
 
-  // Unexcited signals are set to zero in the regressors: their measured values are noise, and
-  // regressing on noise would produce a confident, attenuated (wrong) coefficient.
-  auto val = [&](const Row& rw, int which) {
-    const auto& s = data.segments[rw.seg];
+/// The regressions' view of the used samples. Unexcited signals are set to zero in the
+/// regressors: their measured values are noise, and regressing on noise would produce a
+/// confident, attenuated (wrong) coefficient.
+struct Samples {
+  const PreparedData& data;
+  const std::vector<Row>& rows;
+  bool ex[4];  ///< v, omega, vdot, omegadot excited
+  const PreparedSegment& seg(const Row& rw) const { return data.segments[rw.seg]; }
+  /// 0 v, 1 omega, 2 vdot, 3 omegadot (0 when not excited).
+  double val(const Row& rw, int which) const {
+    const auto& s = seg(rw);
     switch (which) {
       case 0:
-        return ex_v ? s.v[rw.k] : 0.0;
+        return ex[0] ? s.v[rw.k] : 0.0;
       case 1:
-        return ex_w ? s.omega[rw.k] : 0.0;
+        return ex[1] ? s.omega[rw.k] : 0.0;
       case 2:
-        return ex_vd ? s.vdot[rw.k] : 0.0;
+        return ex[2] ? s.vdot[rw.k] : 0.0;
       default:
-        return ex_wd ? s.omegadot[rw.k] : 0.0;
+        return ex[3] ? s.omegadot[rw.k] : 0.0;
     }
-  };
-  LsOptions lso;
-  lso.hac_lags = res.hac_lags;
-  lso.rank_tol = o.rank_tol;
+  }
+  /// A least-squares problem of `cols` columns over the rows (time index and block set).
+  LsInput input(std::size_t n_rows, int cols) const {
+    LsInput in;
+    in.X.resize(n_rows, cols);
+    in.y.resize(n_rows);
+    in.time_index.resize(n_rows);
+    in.block.resize(n_rows);
+    return in;
+  }
+};
 
-  // ---- theta: the 5-column form (2), right and left rows stacked ----
-  const std::size_t n = rows.size();
-  LsInput th;
-  th.X.resize(2 * n, 5);
-  th.y.resize(2 * n);
-  th.time_index.resize(2 * n);
-  th.block.resize(2 * n);
+/// Null space of the theta regression in a canonical basis: the SVD returns an arbitrary
+/// rotation of it, so first pull out the directions with a known meaning (theta_2 vs theta_3,
+/// theta_4 alone, theta_5 alone) when they lie in it, then describe what remains.
+void nullDirections(const LsSolution& ts, double rG, IdentificationResult& res) {
+  const int p = 5, nn = p - ts.rank;
+  Eigen::MatrixXd Nb = ts.V.rightCols(nn);  // orthonormal, scaled coordinates
+  std::vector<Eigen::VectorXd> cand;
+  Eigen::VectorXd c(5);
+  c << 0, 1, -rG * rG, 0, 0;  // y_i2 = r_G^2 y_i3
+  cand.push_back(c);
+  cand.push_back(Eigen::VectorXd::Unit(5, 3));
+  cand.push_back(Eigen::VectorXd::Unit(5, 4));
+  std::vector<Eigen::VectorXd> basis;
+  for (const auto& d : cand) {
+    if (Nb.cols() == 0) break;
+    Eigen::VectorXd ds = d.cwiseProduct(ts.column_scale);
+    ds /= ds.norm();
+    const Eigen::VectorXd coef = Nb.transpose() * ds;
+    if (coef.norm() < 1 - 1e-6) continue;
+    basis.push_back(ds);
+    // Remove ds from the remaining null basis.
+    Eigen::MatrixXd R = Nb - ds * (ds.transpose() * Nb);
+    Eigen::JacobiSVD<Eigen::MatrixXd> sv(R, Eigen::ComputeThinU);
+    const int keep = static_cast<int>(Nb.cols()) - 1;
+    Nb = sv.matrixU().leftCols(keep);
+  }
+  for (int k = 0; k < Nb.cols(); ++k) basis.push_back(Nb.col(k));
+  for (const auto& vs : basis) {
+    NullDirection nd;
+    Eigen::VectorXd d = vs.cwiseQuotient(ts.column_scale);
+    d /= d.norm();
+    nd.direction.assign(d.data(), d.data() + 5);
+    nd.direction_scaled.assign(vs.data(), vs.data() + 5);
+    nd.singular_value_rel =  // ||X_s vs|| / sigma_max
+        (ts.singular_values.asDiagonal() * (ts.V.transpose() * vs)).norm() / ts.singular_values(0);
+    nd.description = nullDescription(vs, res.excitation);
+    res.null_directions.push_back(nd);
+  }
+}
+
+/// theta: the 5-column form (2), right and left rows stacked; theta_j, D1, D2 in `res`.
+LsSolution fitTheta(const Samples& sm, const model::Geometry& g, const LsOptions& lso,
+                    IdentificationResult& res) {
+  const std::size_t n = sm.rows.size();
+  LsInput th = sm.input(2 * n, 5);
   for (std::size_t q = 0; q < n; ++q) {
-    const auto& rw = rows[q];
-    const auto& s = data.segments[rw.seg];
-    const auto Y = model::regressor(g, val(rw, 0), val(rw, 2), val(rw, 1), val(rw, 3));
+    const auto& rw = sm.rows[q];
+    const auto& s = sm.seg(rw);
+    const auto Y = model::regressor(g, sm.val(rw, 0), sm.val(rw, 2), sm.val(rw, 1), sm.val(rw, 3));
     for (int i = 0; i < 2; ++i) {
       th.X.row(2 * q + i) = Y.row(i);
       th.y(2 * q + i) = i == 0 ? s.i_r[rw.k] : s.i_l[rw.k];
@@ -654,105 +733,71 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
   }
   const LsSolution ts = solveLeastSquares(th, lso);
   res.theta_regression = report(ts, {"y_i1", "y_i2", "y_i3", "y_i4", "y_i5"});
-  // Null space in a canonical basis: the SVD returns an arbitrary rotation of it, so first
-  // pull out the directions with a known meaning (theta_2 vs theta_3, theta_4 alone,
-  // theta_5 alone) when they lie in it, then describe what remains.
-  {
-    const int p = 5, nn = p - ts.rank;
-    Eigen::MatrixXd Nb = ts.V.rightCols(nn);  // orthonormal, scaled coordinates
-    std::vector<Eigen::VectorXd> cand;
-    Eigen::VectorXd c(5);
-    c << 0, 1, -rG * rG, 0, 0;  // y_i2 = r_G^2 y_i3
-    cand.push_back(c);
-    cand.push_back(Eigen::VectorXd::Unit(5, 3));
-    cand.push_back(Eigen::VectorXd::Unit(5, 4));
-    std::vector<Eigen::VectorXd> basis;
-    for (const auto& d : cand) {
-      if (Nb.cols() == 0) break;
-      Eigen::VectorXd ds = d.cwiseProduct(ts.column_scale);
-      ds /= ds.norm();
-      const Eigen::VectorXd coef = Nb.transpose() * ds;
-      if (coef.norm() < 1 - 1e-6) continue;
-      basis.push_back(ds);
-      // Remove ds from the remaining null basis.
-      Eigen::MatrixXd R = Nb - ds * (ds.transpose() * Nb);
-      Eigen::JacobiSVD<Eigen::MatrixXd> sv(R, Eigen::ComputeThinU);
-      const int keep = static_cast<int>(Nb.cols()) - 1;
-      Nb = sv.matrixU().leftCols(keep);
-    }
-    for (int k = 0; k < Nb.cols(); ++k) basis.push_back(Nb.col(k));
-    for (const auto& vs : basis) {
-      NullDirection nd;
-      Eigen::VectorXd d = vs.cwiseQuotient(ts.column_scale);
-      d /= d.norm();
-      nd.direction.assign(d.data(), d.data() + 5);
-      nd.direction_scaled.assign(vs.data(), vs.data() + 5);
-      nd.singular_value_rel =  // ||X_s vs|| / sigma_max
-          (ts.singular_values.asDiagonal() * (ts.V.transpose() * vs)).norm() /
-          ts.singular_values(0);
-      nd.description = nullDescription(vs, res.excitation);
-      res.null_directions.push_back(nd);
-    }
-  }
+  nullDirections(ts, g.gear_ratio, res);
   for (int j = 0; j < 5; ++j) {
     Eigen::VectorXd e = Eigen::VectorXd::Zero(5);
     e(j) = 1;
     res.theta[j] = fromFunctional(ts, e, thetaReason(j, res.excitation));
     guardPrecision(res.theta[j], kThetaNames[j]);
   }
-  const Eigen::VectorXd w1 = d1Weights(g), w2 = d2Weights(g);
-  res.D1 = fromFunctional(ts, w1,
+  res.D1 = fromFunctional(ts, d1Weights(g),
                           "D1 needs linear acceleration: the drive has none above the noise floor");
   res.D2 = fromFunctional(
-      ts, w2, "D2 needs angular acceleration: the drive has none above the noise floor");
+      ts, d2Weights(g), "D2 needs angular acceleration: the drive has none above the noise floor");
   guardPrecision(res.D1, "D1");
   guardPrecision(res.D2, "D2");
+  return ts;
+}
 
-  // a1..a4 from theta (Appendix VI) with delta-method standard errors.
-  {
-    const double rho = r / rG;
-    Eigen::VectorXd e5 = Eigen::VectorXd::Zero(5);
-    e5(4) = 1;
-    auto fromGrad = [&](double value, const Eigen::VectorXd& grad) {
-      Estimate e;
-      e.identifiable = true;
-      e.value = value;
-      e.se = ts.standardError(grad);
-      e.se_naive = ts.standardErrorNaive(grad);
-      return e;
-    };
-    const auto& D1 = res.D1;
-    const auto& D2 = res.D2;
-    const auto& t5 = res.theta[4];
-    const std::string no1 = "a1 = 1/(2 D1) needs D1: " + D1.reason;
-    const std::string no2 = "a2 = 1/(2 D2) needs D2: " + D2.reason;
-    if (D1.identifiable)
-      res.a_from_theta[0] = fromGrad(0.5 / D1.value, -0.5 / (D1.value * D1.value) * w1);
-    else
-      res.a_from_theta[0].reason = no1;
-    if (D2.identifiable)
-      res.a_from_theta[1] = fromGrad(0.5 / D2.value, -0.5 / (D2.value * D2.value) * w2);
-    else
-      res.a_from_theta[1].reason = no2;
-    if (D1.identifiable && t5.identifiable)
-      res.a_from_theta[2] =
-          fromGrad(-t5.value / (rho * D1.value),
-                   -e5 / (rho * D1.value) + t5.value / (rho * D1.value * D1.value) * w1);
-    else
-      res.a_from_theta[2].reason = "a3 = -theta_5 r_G/(r D1) needs D1 and theta_5: " +
-                                   (D1.identifiable ? t5.reason : D1.reason);
-    if (D2.identifiable && t5.identifiable)
-      res.a_from_theta[3] = fromGrad(
-          -t5.value * lw / (2 * rho * D2.value),
-          -lw / (2 * rho * D2.value) * e5 + t5.value * lw / (2 * rho * D2.value * D2.value) * w2);
-    else
-      res.a_from_theta[3].reason = "a4 = -theta_5 l_w r_G/(2 r D2) needs D2 and theta_5: " +
-                                   (D2.identifiable ? t5.reason : D2.reason);
-  }
+/// a1..a4 from theta (Appendix VI) with delta-method standard errors.
+void aFromTheta(const LsSolution& ts, const model::Geometry& g, IdentificationResult& res) {
+  const double r = g.wheel_radius_m, rG = g.gear_ratio, lw = g.track_width_m;
+  const Eigen::VectorXd w1 = d1Weights(g), w2 = d2Weights(g);
+  const double rho = r / rG;
+  Eigen::VectorXd e5 = Eigen::VectorXd::Zero(5);
+  e5(4) = 1;
+  auto fromGrad = [&](double value, const Eigen::VectorXd& grad) {
+    Estimate e;
+    e.identifiable = true;
+    e.value = value;
+    e.se = ts.standardError(grad);
+    e.se_naive = ts.standardErrorNaive(grad);
+    return e;
+  };
+  const auto& D1 = res.D1;
+  const auto& D2 = res.D2;
+  const auto& t5 = res.theta[4];
+  const std::string no1 = "a1 = 1/(2 D1) needs D1: " + D1.reason;
+  const std::string no2 = "a2 = 1/(2 D2) needs D2: " + D2.reason;
+  if (D1.identifiable)
+    res.a_from_theta[0] = fromGrad(0.5 / D1.value, -0.5 / (D1.value * D1.value) * w1);
+  else
+    res.a_from_theta[0].reason = no1;
+  if (D2.identifiable)
+    res.a_from_theta[1] = fromGrad(0.5 / D2.value, -0.5 / (D2.value * D2.value) * w2);
+  else
+    res.a_from_theta[1].reason = no2;
+  if (D1.identifiable && t5.identifiable)
+    res.a_from_theta[2] =
+        fromGrad(-t5.value / (rho * D1.value),
+                 -e5 / (rho * D1.value) + t5.value / (rho * D1.value * D1.value) * w1);
+  else
+    res.a_from_theta[2].reason = "a3 = -theta_5 r_G/(r D1) needs D1 and theta_5: " +
+                                 (D1.identifiable ? t5.reason : D1.reason);
+  if (D2.identifiable && t5.identifiable)
+    res.a_from_theta[3] = fromGrad(
+        -t5.value * lw / (2 * rho * D2.value),
+        -lw / (2 * rho * D2.value) * e5 + t5.value * lw / (2 * rho * D2.value * D2.value) * w2);
+  else
+    res.a_from_theta[3].reason = "a4 = -theta_5 l_w r_G/(2 r D2) needs D2 and theta_5: " +
+                                 (D2.identifiable ? t5.reason : D2.reason);
+}
 
-  // ---- a1..a4 directly from the ODE form (6) ----
+/// a1..a4 directly from the ODE form (6).
+void fitDirect(const Samples& sm, const LsOptions& lso, IdentificationResult& res) {
+  const std::size_t n = sm.rows.size();
   for (int eq = 0; eq < 2; ++eq) {
-    const bool excited = eq == 0 ? ex_vd : ex_wd;
+    const bool excited = eq == 0 ? sm.ex[2] : sm.ex[3];
     const int ia = eq == 0 ? 0 : 1, ib = eq == 0 ? 2 : 3;  // current gain, damping
     if (!excited) {
       const std::string why = eq == 0
@@ -761,17 +806,13 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
       res.a_direct[ia].reason = res.a_direct[ib].reason = why;
       continue;
     }
-    LsInput in;
-    in.X.resize(n, 2);
-    in.y.resize(n);
-    in.time_index.resize(n);
-    in.block.resize(n);
+    LsInput in = sm.input(n, 2);
     for (std::size_t q = 0; q < n; ++q) {
-      const auto& rw = rows[q];
-      const auto& s = data.segments[rw.seg];
+      const auto& rw = sm.rows[q];
+      const auto& s = sm.seg(rw);
       const double isum = eq == 0 ? s.i_r[rw.k] + s.i_l[rw.k] : s.i_r[rw.k] - s.i_l[rw.k];
       in.X(q, 0) = isum;
-      in.X(q, 1) = eq == 0 ? val(rw, 0) : val(rw, 1);
+      in.X(q, 1) = eq == 0 ? sm.val(rw, 0) : sm.val(rw, 1);
       in.y(q) = eq == 0 ? s.vdot[rw.k] : s.omegadot[rw.k];
       in.time_index[q] = rw.k;
       in.block[q] = rw.seg;
@@ -789,21 +830,22 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
       guardPrecision(res.a_direct[idx], nm[idx]);
     }
   }
+}
 
-  // ---- per-side regression: i_i = D1_i vdot + s_i D2_i omegadot + theta5_i (r_G/r) u_i ----
+/// Per side: i_i = D1_i vdot + s_i D2_i omegadot + theta5_i (r_G/r) u_i.
+void fitPerSide(const Samples& sm, const model::Geometry& g, const LsOptions& lso,
+                IdentificationResult& res) {
+  const double r = g.wheel_radius_m, rG = g.gear_ratio, lw = g.track_width_m;
+  const std::size_t n = sm.rows.size();
   for (int side = 0; side < 2; ++side) {
     const double sgn = side == 0 ? 1.0 : -1.0;
-    LsInput in;
-    in.X.resize(n, 3);
-    in.y.resize(n);
-    in.time_index.resize(n);
-    in.block.resize(n);
+    LsInput in = sm.input(n, 3);
     for (std::size_t q = 0; q < n; ++q) {
-      const auto& rw = rows[q];
-      const auto& s = data.segments[rw.seg];
-      in.X(q, 0) = val(rw, 2);
-      in.X(q, 1) = sgn * val(rw, 3);
-      in.X(q, 2) = rG / r * (val(rw, 0) + sgn * lw / 2 * val(rw, 1));
+      const auto& rw = sm.rows[q];
+      const auto& s = sm.seg(rw);
+      in.X(q, 0) = sm.val(rw, 2);
+      in.X(q, 1) = sgn * sm.val(rw, 3);
+      in.X(q, 2) = rG / r * (sm.val(rw, 0) + sgn * lw / 2 * sm.val(rw, 1));
       in.y(q) = side == 0 ? s.i_r[rw.k] : s.i_l[rw.k];
       in.time_index[q] = rw.k;
       in.block[q] = rw.seg;
@@ -819,9 +861,55 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
     guardPrecision(m.D2, "D2 of this side");
     guardPrecision(m.theta5, "theta_5 of this side");
   }
+}
 
-  // ---- quasi-steady segments: per-motor k/eta (eq. 4) and back-EMF constant ----
+/// Per-motor k/eta (eq. 4) and back-EMF constant from the voltage / speed data of each side.
+struct QuasiSteadyData {
   std::array<std::vector<double>, 2> xs, y_ratio, y_emf, wts;
+};
+
+/// One quasi-steady stretch [k0, k1) of a segment: its means (and the data of each used side).
+QuasiSteadySegment quasiSteadySegment(const PreparedSegment& s, std::size_t k0, std::size_t k1,
+                                      double dur, bool has_voltage,
+                                      const config::WheelchairConfig& cfg,
+                                      const IdentificationOptions& o, QuasiSteadyData& d) {
+  const double r = cfg.vehicle.geom.wheel_radius_m, rG = cfg.vehicle.geom.gear_ratio;
+  QuasiSteadySegment q;
+  q.recording = s.recording;
+  q.t_start_s = s.t[k0];
+  q.t_end_s = s.t[k1 - 1];
+  const double m = double(k1 - k0);
+  std::array<double, 2> umin{1e300, 1e300}, umax{-1e300, -1e300};
+  for (std::size_t k = k0; k < k1; ++k) {
+    q.v_m_s += s.v[k] / m;
+    q.omega_rad_s += s.omega[k] / m;
+    const double u[2] = {s.u_r[k], s.u_l[k]};
+    const double cur[2] = {s.i_r[k], s.i_l[k]};
+    const double U[2] = {s.U_r[k], s.U_l[k]};
+    for (int i = 0; i < 2; ++i) {
+      q.current_A[i] += cur[i] / m;
+      q.voltage_V[i] += U[i] / m;
+      q.motor_speed_rad_s[i] += rG / r * u[i] / m;
+      umin[i] = std::min(umin[i], u[i]);
+      umax[i] = std::max(umax[i], u[i]);
+    }
+  }
+  for (int i = 0; i < 2; ++i) {
+    q.used[i] = has_voltage &&
+                (umin[i] >= o.qs_min_wheel_speed_m_s || umax[i] <= -o.qs_min_wheel_speed_m_s);
+    if (!q.used[i]) continue;
+    d.xs[i].push_back(q.motor_speed_rad_s[i]);
+    d.y_ratio[i].push_back(q.voltage_V[i]);
+    d.y_emf[i].push_back(q.voltage_V[i] - cfg.vehicle.armature_resistance_ohm * q.current_A[i]);
+    d.wts[i].push_back(dur);
+  }
+  return q;
+}
+
+/// Quasi-steady segments: per-motor k/eta (eq. 4) and back-EMF constant.
+void fitQuasiSteady(const PreparedData& data, const config::WheelchairConfig& cfg,
+                    const IdentificationOptions& o, IdentificationResult& res) {
+  QuasiSteadyData d;
   for (std::size_t si = 0; si < data.segments.size(); ++si) {
     const auto& s = data.segments[si];
     const std::size_t N = s.t.size();
@@ -837,57 +925,57 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
       std::size_t k1 = k0;
       while (k1 < N && steady(k1)) ++k1;
       const double dur = (k1 - k0) / o.rate_hz;
-      if (dur >= o.qs_min_duration_s) {
-        QuasiSteadySegment q;
-        q.recording = s.recording;
-        q.t_start_s = s.t[k0];
-        q.t_end_s = s.t[k1 - 1];
-        const double m = double(k1 - k0);
-        std::array<double, 2> umin{1e300, 1e300}, umax{-1e300, -1e300};
-        for (std::size_t k = k0; k < k1; ++k) {
-          q.v_m_s += s.v[k] / m;
-          q.omega_rad_s += s.omega[k] / m;
-          const double u[2] = {s.u_r[k], s.u_l[k]};
-          const double cur[2] = {s.i_r[k], s.i_l[k]};
-          const double U[2] = {s.U_r[k], s.U_l[k]};
-          for (int i = 0; i < 2; ++i) {
-            q.current_A[i] += cur[i] / m;
-            q.voltage_V[i] += U[i] / m;
-            q.motor_speed_rad_s[i] += rG / r * u[i] / m;
-            umin[i] = std::min(umin[i], u[i]);
-            umax[i] = std::max(umax[i], u[i]);
-          }
-        }
-        for (int i = 0; i < 2; ++i) {
-          q.used[i] = data.has_voltage &&
-                      (umin[i] >= o.qs_min_wheel_speed_m_s || umax[i] <= -o.qs_min_wheel_speed_m_s);
-          if (!q.used[i]) continue;
-          xs[i].push_back(q.motor_speed_rad_s[i]);
-          y_ratio[i].push_back(q.voltage_V[i]);
-          y_emf[i].push_back(q.voltage_V[i] - cfg.vehicle.armature_resistance_ohm * q.current_A[i]);
-          wts[i].push_back(dur);
-        }
-        res.segments.push_back(q);
-      }
+      if (dur >= o.qs_min_duration_s)
+        res.segments.push_back(quasiSteadySegment(s, k0, k1, dur, data.has_voltage, cfg, o, d));
       k0 = k1;
     }
   }
   for (int i = 0; i < 2; ++i) {
     auto& m = res.motor[i];
-    m.n_segments = static_cast<int>(xs[i].size());
+    m.n_segments = static_cast<int>(d.xs[i].size());
     if (!data.has_voltage) {
       m.k_over_eta.reason = m.back_emf_k.reason =
           "the recordings hold no V_RC voltage (all zero): motor constants need it";
       continue;
     }
-    m.k_over_eta = ratioThroughOrigin(xs[i], y_ratio[i], wts[i], "k/eta (eq. 4)");
-    m.back_emf_k = ratioThroughOrigin(xs[i], y_emf[i], wts[i], "back-EMF constant");
+    m.k_over_eta = ratioThroughOrigin(d.xs[i], d.y_ratio[i], d.wts[i], "k/eta (eq. 4)");
+    m.back_emf_k = ratioThroughOrigin(d.xs[i], d.y_emf[i], d.wts[i], "back-EMF constant");
   }
   if (res.segments.empty())
     res.notes.push_back(fmt::format(
         "no quasi-steady segment (|vdot| < {} m/s^2, |omegadot| < {} rad/s^2 for >= {} s while "
         "moving): per-motor constants not identified",
         o.qs_max_vdot_m_s2, o.qs_max_omegadot_rad_s2, o.qs_min_duration_s));
+}
+
+}  // namespace
+
+IdentificationResult identify(const std::vector<io::Recording>& recs,
+                              const config::WheelchairConfig& cfg, const IdentificationOptions& o,
+                              const std::vector<std::string>& sources) {
+  IdentificationResult res;
+  res.options = o;
+  res.config_origin = cfg.origin();
+  res.sources = sources;
+  res.hac_lags = o.hacLags();
+  res.z = stats::normalQuantile(0.5 + o.confidence / 2);
+  const auto& g = cfg.vehicle.geom;
+
+  const PreparedData data = prepareSignals(recs, cfg, o);
+  const std::vector<Row> rows = usableRows(data, res);
+  measureExcitation(data, rows, o, res);
+  const Samples sm{data,
+                   rows,
+                   {res.excitation[0].excited, res.excitation[1].excited, res.excitation[2].excited,
+                    res.excitation[3].excited}};
+  LsOptions lso;
+  lso.hac_lags = res.hac_lags;
+  lso.rank_tol = o.rank_tol;
+  const LsSolution ts = fitTheta(sm, g, lso, res);
+  aFromTheta(ts, g, res);
+  fitDirect(sm, lso, res);
+  fitPerSide(sm, g, lso, res);
+  fitQuasiSteady(data, cfg, o, res);
 
   res.notes.push_back(fmt::format(
       "standard errors: Newey-West HAC (Bartlett kernel, {} lags = {} x rate/cutoff) over "
@@ -895,7 +983,8 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
       "they are {:.2f} x the iid standard errors (se_naive_iid, reported only for comparison)",
       res.hac_lags, o.hac_lag_factor, res.z, 100 * o.confidence,
       std::sqrt(double(ts.residual.n_rows) / std::max(1.0, ts.residual.n_effective))));
-  if (!ex_v && !ex_w) res.notes.push_back("the chair hardly moves: nothing is identifiable");
+  if (!sm.ex[0] && !sm.ex[1])
+    res.notes.push_back("the chair hardly moves: nothing is identifiable");
   return res;
 }
 

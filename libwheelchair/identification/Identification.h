@@ -32,11 +32,6 @@
 namespace wheelchair::identification {
 
 // The HAC least squares of the identification is the library's one (stats/LeastSquares.h).
-using stats::LsInput;
-using stats::LsOptions;
-using stats::LsSolution;
-using stats::ResidualStats;
-using stats::solveLeastSquares;
 
 /// Section [identification] of the configuration (config/wheelchair.ini documents each key).
 struct IdentificationOptions {
@@ -111,7 +106,7 @@ struct RegressionReport {
   double condition_number = 0;               ///< equilibrated full problem (inf if deficient)
   double condition_number_identifiable = 0;  ///< equilibrated, retained subspace
   std::vector<double> singular_values_rel;   ///< sigma_k / sigma_max
-  ResidualStats residual;
+  stats::ResidualStats residual;
   nlohmann::json toJson() const;
 };
 

@@ -21,38 +21,22 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 constexpr double kGravity_m_s2 = 9.81;
 
-struct Range {
-  double lo, hi;
-};
-// id.key -> allowed closed range of the mujoco-only effects.
-const std::map<std::string, Range>& mujocoRanges() {
-  static const std::map<std::string, Range> r = {
-      {"castor_friction.swivel_friction_Nm", {0, 20}},
-      {"castor_friction.swivel_damping_Nm_s_rad", {0, 20}},
-      {"tyre_scrub.torsion_m", {0, 0.2}},
-      {"rolling_resistance.coefficient_m", {0, 0.05}},
-      {"soft_tyre.growth_m", {-0.02, 0.02}},
-      {"tyre_grip.mu", {0.02, 3}},
-  };
-  return r;
-}
-
-const EffectParamInfo* paramOf(const EffectInfo& info, const std::string& key) {
+const effects::EffectParamInfo* paramOf(const effects::EffectInfo& info, const std::string& key) {
   for (const auto& p : info.params)
     if (p.name == key) return &p;
   return nullptr;
 }
 
-const EffectInfo* findMujocoEffect(const std::string& id) {
+const effects::EffectInfo* findMujocoEffect(const std::string& id) {
   for (const auto& e : mujocoEffectCatalogue())
     if (e.id == id) return &e;
   return nullptr;
 }
 
 /// A mujoco-only effect's number (its catalogue default when absent).
-double mujocoNumber(const EffectSpec& e, const std::string& key) {
-  const EffectInfo* info = findMujocoEffect(e.id);
-  const EffectParamInfo* p = info ? paramOf(*info, key) : nullptr;
+double mujocoNumber(const effects::EffectSpec& e, const std::string& key) {
+  const effects::EffectInfo* info = findMujocoEffect(e.id);
+  const effects::EffectParamInfo* p = info ? paramOf(*info, key) : nullptr;
   std::string t = e.has(key) ? e.params.at(key) : (p ? p->default_value : "");
   const char* s = t.c_str();
   char* end = nullptr;
@@ -101,32 +85,28 @@ struct ChairSpec {
 };
 
 ChairSpec makeSpec(const config::WheelchairConfig& cfg, const MujocoOptions& o,
-                   const std::vector<EffectSpec>& effects) {
+                   const std::vector<effects::EffectSpec>& effects) {
   const auto& v = cfg.vehicle;
   ChairSpec c;
   c.r = v.geom.wheel_radius_m, c.lw = v.geom.track_width_m, c.mw = v.geom.wheel_mass_kg;
   c.Iw = v.wheel_inertia_kg_m2;
   const double rG = v.geom.gear_ratio, eta = v.gearbox_efficiency;
-  double km[2] = {v.torque_constant_Nm_A, v.torque_constant_Nm_A};
-  double B[2] = {v.motor_viscous_Nm_s_rad, v.motor_viscous_Nm_s_rad};
-  double coulomb_A[2] = {0, 0};
-  double body_mass = v.geom.body_mass_kg;
+  // The catalogue effects act on the drive train as on the model engine's (effects/).
+  effects::TruthModel truth;
+  truth.drive = model::DriveTrain::symmetric(v);
+  effects::actOnTruth(effects, truth);
+  const auto& sd = truth.drive.side;
+  const double km[2] = {sd[0].torque_constant_Nm_A, sd[1].torque_constant_Nm_A};
+  const double B[2] = {sd[0].motor_viscous_Nm_s_rad, sd[1].motor_viscous_Nm_s_rad};
+  const double coulomb_A[2] = {sd[0].coulomb_A, sd[1].coulomb_A};
+  const double body_mass = truth.drive.geom.body_mass_kg;
+  c.slope = truth.drive.slope_rad;
+  c.downhill = truth.drive.downhill_heading_rad;
   c.swivel_damping = o.castor_swivel_damping_Nm_s_rad;
   c.mu = o.tyre_friction;
+  // Effects only this engine knows.
   for (const auto& e : effects) {
-    if (e.id == "motor_asymmetry") {
-      for (int s : effectSides(e)) {
-        B[s] *= e.number("friction_ratio");
-        km[s] *= e.number("km_ratio");
-      }
-    } else if (e.id == "coulomb_friction") {
-      for (int s : effectSides(e)) coulomb_A[s] += e.number("current_A");
-    } else if (e.id == "ground_slope") {
-      c.slope = e.number("angle_deg") * kDeg;
-      c.downhill = e.number("downhill_heading_deg") * kDeg;
-    } else if (e.id == "payload_mass") {
-      body_mass = e.number("body_mass_kg");
-    } else if (e.id == "castor_friction") {
+    if (e.id == "castor_friction") {
       c.swivel_friction = mujocoNumber(e, "swivel_friction_Nm");
       if (e.has("swivel_damping_Nm_s_rad"))
         c.swivel_damping = mujocoNumber(e, "swivel_damping_Nm_s_rad");
@@ -246,30 +226,46 @@ namespace {
 [[maybe_unused]] const bool kRegistered = config::registerOptionsOf<MujocoOptions>("mujoco");
 }  // namespace
 
-const std::vector<EffectInfo>& mujocoEffectCatalogue() {
-  static const std::vector<EffectInfo> cat = {
+const std::vector<effects::EffectInfo>& mujocoEffectCatalogue() {
+  static const std::vector<effects::EffectInfo> cat = {
       {"castor_friction",
        "(mujoco only) Dry friction and damping in the castor swivel bearings.",
-       {{"swivel_friction_Nm", "N m", "dry friction torque of each swivel", "", {}},
+       {{"swivel_friction_Nm", "N m", "dry friction torque of each swivel", "", {}, false, 0, 20},
         {"swivel_damping_Nm_s_rad",
          "N m s/rad",
          "viscous swivel damping (absent: [mujoco] castor_swivel_damping_Nm_s_rad)",
          "",
          {},
-         true}}},
+         true,
+         0,
+         20}}},
       {"tyre_scrub",
        "(mujoco only) Torsional friction of the tyre contact patches: turning costs torque.",
-       {{"torsion_m", "m", "torsional friction coefficient (torque / normal force)", "", {}}}},
+       {{"torsion_m",
+         "m",
+         "torsional friction coefficient (torque / normal force)",
+         "",
+         {},
+         false,
+         0,
+         0.2}}},
       {"rolling_resistance",
        "(mujoco only) Rolling resistance of all tyres, proportional to the load on each.",
-       {{"coefficient_m", "m", "rolling friction coefficient (torque / normal force)", "", {}}}},
+       {{"coefficient_m",
+         "m",
+         "rolling friction coefficient (torque / normal force)",
+         "",
+         {},
+         false,
+         0,
+         0.05}}},
       {"soft_tyre",
        "(mujoco only) The drive tyres' rolling radius grows with speed: "
        "r = r0 + growth_m (u / 1 m/s)^2.",
-       {{"growth_m", "m", "radius change at a rim speed of 1 m/s", "", {}}}},
+       {{"growth_m", "m", "radius change at a rim speed of 1 m/s", "", {}, false, -0.02, 0.02}}},
       {"tyre_grip",
        "(mujoco only) Tyre-floor Coulomb friction coefficient (low: the chair slips).",
-       {{"mu", "-", "friction coefficient", "", {}}}},
+       {{"mu", "-", "friction coefficient", "", {}, false, 0.02, 3}}},
   };
   return cat;
 }
@@ -279,38 +275,25 @@ const std::vector<std::string>& engineNames() {
   return n;
 }
 
-void validateEngineEffect(const EffectSpec& e, const std::string& engine) {
+void validateEngineEffect(const effects::EffectSpec& e, const std::string& engine) {
   if (engine != "model" && engine != "mujoco")
     throw std::invalid_argument("unknown engine '" + engine + "' (known: model, mujoco)");
-  const EffectInfo* info = findMujocoEffect(e.id);
-  if (!info) return validateEffect(e);
+  const effects::EffectInfo* info = findMujocoEffect(e.id);
+  if (!info) return effects::validateEffect(e);
   if (engine != "mujoco")
     throw std::invalid_argument("effect '" + e.id + "' exists only with --engine mujoco");
-  for (const auto& [k, val] : e.params)
-    if (!paramOf(*info, k))
-      throw std::invalid_argument("effect '" + e.id + "': unknown parameter '" + k + "'");
-  for (const auto& p : info->params) {
-    if (!e.has(p.name) && p.default_value.empty()) {
-      if (p.optional) continue;
-      throw std::invalid_argument("effect '" + e.id + "': parameter '" + p.name + "' is required");
-    }
-    const double x = mujocoNumber(e, p.name);
-    const Range& r = mujocoRanges().at(e.id + "." + p.name);
-    if (x < r.lo || x > r.hi)
-      throw std::invalid_argument("effect '" + e.id + "': " + p.name + " = " + num(x) +
-                                  " out of range [" + num(r.lo) + ", " + num(r.hi) + "]");
-  }
+  effects::validateAgainst(*info, e);
 }
 
-EffectSpec parseEngineEffect(const std::string& text, const std::string& engine) {
-  EffectSpec e = parseEffect(text);
+effects::EffectSpec parseEngineEffect(const std::string& text, const std::string& engine) {
+  effects::EffectSpec e = effects::parseEffect(text);
   validateEngineEffect(e, engine);
   return e;
 }
 
 // ------------------------------------------------------------------------------------------
 std::string mujocoXml(const config::WheelchairConfig& cfg, const MujocoOptions& o,
-                      const std::vector<EffectSpec>& effects,
+                      const std::vector<effects::EffectSpec>& effects,
                       const std::vector<Obstacle>& obstacles) {
   const ChairSpec c = makeSpec(cfg, o, effects);
   std::ostringstream x;
@@ -407,7 +390,7 @@ struct MujocoChair::Impl {
 };
 
 MujocoChair::MujocoChair(const config::WheelchairConfig& cfg, const MujocoOptions& opt,
-                         const std::vector<EffectSpec>& effects,
+                         const std::vector<effects::EffectSpec>& effects,
                          const std::vector<Obstacle>& obstacles)
     : impl_(std::make_unique<Impl>()) {
   xml_ = mujocoXml(cfg, opt, effects, obstacles);

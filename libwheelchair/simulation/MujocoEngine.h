@@ -39,7 +39,7 @@
 
 #include "libwheelchair/config/Options.h"
 #include "libwheelchair/config/WheelchairConfig.h"
-#include "libwheelchair/simulation/Effects.h"
+#include "libwheelchair/effects/Effect.h"
 #include "libwheelchair/simulation/Scenarios.h"
 
 #include <mrpt/config/CConfigFileBase.h>
@@ -81,7 +81,7 @@ struct MujocoOptions {
 };
 
 /// Effects only the MuJoCo engine knows (physics the catalogue and the diagnosis lack).
-const std::vector<EffectInfo>& mujocoEffectCatalogue();
+const std::vector<effects::EffectInfo>& mujocoEffectCatalogue();
 
 /// Engine names: "model" (the default) and "mujoco".
 const std::vector<std::string>& engineNames();
@@ -89,9 +89,9 @@ const std::vector<std::string>& engineNames();
 /// Parses and validates one effect for an engine: catalogue effects for both, the
 /// mujocoEffectCatalogue only for "mujoco". Throws std::invalid_argument with a one-line
 /// message (unknown engine, unknown id, key, or value out of range).
-EffectSpec parseEngineEffect(const std::string& text, const std::string& engine);
+effects::EffectSpec parseEngineEffect(const std::string& text, const std::string& engine);
 /// Validation part of parseEngineEffect.
-void validateEngineEffect(const EffectSpec& e, const std::string& engine);
+void validateEngineEffect(const effects::EffectSpec& e, const std::string& engine);
 
 /// The multibody state the sensors and the driver read (start frame = floor frame at t = 0).
 struct ChairState {
@@ -119,7 +119,7 @@ class MujocoChair {
   /// Builds the MJCF (mujocoXml), compiles it, settles the chair on the floor. Throws
   /// std::runtime_error with MuJoCo's message if the model does not compile.
   MujocoChair(const config::WheelchairConfig& cfg, const MujocoOptions& opt,
-              const std::vector<EffectSpec>& effects, const std::vector<Obstacle>& obstacles);
+              const std::vector<effects::EffectSpec>& effects, const std::vector<Obstacle>& obstacles);
   ~MujocoChair();
   MujocoChair(const MujocoChair&) = delete;
   MujocoChair& operator=(const MujocoChair&) = delete;
@@ -146,7 +146,7 @@ class MujocoChair {
 
 /// The MJCF text of the chair (for docs and tests).
 std::string mujocoXml(const config::WheelchairConfig& cfg, const MujocoOptions& opt,
-                      const std::vector<EffectSpec>& effects,
+                      const std::vector<effects::EffectSpec>& effects,
                       const std::vector<Obstacle>& obstacles);
 
 }  // namespace wheelchair::simulation

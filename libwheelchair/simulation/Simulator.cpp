@@ -34,15 +34,8 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
+/// The streams in effects::streamNames() order (sensor_delay's index).
 enum Stream { kEncoders, kImu, kMotors, kSonar, kPozyx, kJoystick, kNumStreams };
-const char* const kStreamNames[kNumStreams] = {"encoders", "imu",   "motors",
-                                               "sonar",    "pozyx", "joystick"};
-
-int streamIndex(const std::string& name) {
-  for (int i = 0; i < kNumStreams; ++i)
-    if (name == kStreamNames[i]) return i;
-  throw std::invalid_argument("unknown sensor stream '" + name + "'");
-}
 
 /// Sampling instants of one stream: nominal grid with a per-seed phase plus uniform jitter.
 class StreamClock {
@@ -104,15 +97,6 @@ Mech rk4(const Mech& s, const model::DriveTrain& dt, const Eigen::Vector2d& I, d
 /// The sensors' view of the truth at one instant (linear interpolation within a step).
 struct Snap {
   double x, y, phi, v, om, psiR, psiL, vrcR, vrcL;
-};
-
-/// Everything effects change on the sensor side.
-struct SensorEffects {
-  double encoder_scale[2] = {1, 1};
-  double gyro_bias = 0, gyro_scale = 1;
-  double delay[kNumStreams] = {0, 0, 0, 0, 0, 0};
-  double dropout_probability = 0, dropout_burst = 3;
-  double outlier_rate = 0, outlier_magnitude = 1;
 };
 
 }  // namespace
@@ -230,82 +214,10 @@ void SimulationOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
 }
 
 // ------------------------------------------------------------------------------------------
-SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string& scenario_name,
-                          uint64_t seed, double duration_s, const std::vector<EffectSpec>& effects,
-                          const SimulationOptions& opt) {
-  for (const auto& e : effects) validateEngineEffect(e, opt.engine);
-  if (!(opt.step_s > 0 && opt.step_s <= 0.01))
-    throw std::invalid_argument("simulation step_s must be in (0, 0.01] s");
+namespace {
 
-  Scenario sc = makeScenario(scenario_name, seed, opt.scenario, duration_s);
-  const double T = sc.duration_s;
-  const double h = opt.step_s;
-
-  // --- the true vehicle: nominal configuration + physical effects -------------------------
-  model::DriveTrain dt = model::DriveTrain::symmetric(cfg.vehicle);
-  dt.coulomb_smoothing_m_s = opt.coulomb_smoothing_m_s;
-  PowerModuleParams pmp = opt.power;
-  SensorEffects se;
-  for (const auto& e : effects) {
-    if (e.id == "motor_asymmetry") {
-      for (int s : effectSides(e)) {
-        dt.side[s].motor_viscous_Nm_s_rad *= e.number("friction_ratio");
-        dt.side[s].torque_constant_Nm_A *= e.number("km_ratio");
-      }
-    } else if (e.id == "encoder_scale") {
-      for (int s : effectSides(e)) se.encoder_scale[s] *= e.number("scale");
-    } else if (e.id == "gyro_bias") {
-      se.gyro_bias += e.number("bias_rad_s");
-    } else if (e.id == "gyro_scale") {
-      se.gyro_scale *= e.number("scale");
-    } else if (e.id == "coulomb_friction") {
-      for (int s : effectSides(e)) dt.side[s].coulomb_A += e.number("current_A");
-    } else if (e.id == "ground_slope") {
-      dt.slope_rad = e.number("angle_deg") * kDeg;
-      dt.downhill_heading_rad = e.number("downhill_heading_deg") * kDeg;
-    } else if (e.id == "sensor_delay") {
-      se.delay[streamIndex(e.text("sensor"))] += e.number("delay_s");
-    } else if (e.id == "payload_mass") {
-      dt.geom.body_mass_kg = e.number("body_mass_kg");
-    } else if (e.id == "actuator_lag") {
-      if (e.has("delay_s")) pmp.delay_s = e.number("delay_s");
-      if (e.has("time_constant_s")) pmp.time_constant_s = e.number("time_constant_s");
-    } else if (e.id == "sonar_dropout") {
-      se.dropout_probability = e.number("probability");
-      se.dropout_burst = e.number("burst_length");
-    } else if (e.id == "pozyx_outliers") {
-      se.outlier_rate = e.number("rate");
-      se.outlier_magnitude = e.number("magnitude_m");
-    }
-  }
-  const double r = dt.geom.wheel_radius_m, lw = dt.geom.track_width_m, rG = dt.geom.gear_ratio;
-  const double Rm = cfg.vehicle.armature_resistance_ohm;
-  const double km[2] = {dt.side[0].torque_constant_Nm_A, dt.side[1].torque_constant_Nm_A};
-
-  // --- sensors ----------------------------------------------------------------------------
-  const sensors::EncoderParams& enc = cfg.encoders.params;
-  const sensors::VoltageCircuitParams& vc = cfg.motors.circuit;
-  // (11) with no lead voltage: steady state and decay over one step.
-  const double rc_ss0 = sensors::steadyStateVrc(0.0, vc);
-  const double rc_decay0 = std::exp(
-      h * (sensors::vrcRate(rc_ss0 + 1e-4, 0.0, vc) - sensors::vrcRate(rc_ss0 - 1e-4, 0.0, vc)) /
-      2e-4);
-  const auto& son = cfg.sonar;
-  const auto& poz = cfg.pozyx;
-
-  StreamClock clocks[kNumStreams] = {
-      {cfg.encoders.rate_hz, opt.timestamp_jitter_s, seed, "encoders"},
-      {cfg.imu.rate_hz, opt.timestamp_jitter_s, seed, "imu"},
-      {cfg.motors.rate_hz, opt.timestamp_jitter_s, seed, "motors"},
-      {son.rate_hz, opt.timestamp_jitter_s, seed, "sonar"},
-      {poz.rate_hz, opt.timestamp_jitter_s, seed, "pozyx"},
-      {cfg.joystick.rate_hz, opt.timestamp_jitter_s, seed, "joystick"}};
-  Rng gyro_noise(seed, "imu.noise"), cur_noise(seed, "motors.current_noise"),
-      vrc_noise(seed, "motors.vrc_noise"), sonar_noise(seed, "sonar.noise"),
-      sonar_fail(seed, "sonar.dropout"), pozyx_noise(seed, "pozyx.noise"),
-      pozyx_out(seed, "pozyx.outliers");
-  bool in_burst = false;
-
+/// The Pozyx anchor frame of a run: random per seed or the configured one.
+AnchorFrame anchorFrame(const SimulationOptions& opt, uint64_t seed) {
   AnchorFrame anchor;
   if (opt.pozyx_anchor_random) {
     Rng a(seed, "pozyx.anchor");
@@ -315,8 +227,13 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   } else {
     anchor = {opt.pozyx_anchor_x_m, opt.pozyx_anchor_y_m, opt.pozyx_anchor_yaw_deg * kDeg};
   }
+  return anchor;
+}
 
-  SimulationResult res;
+/// The run's description in the result and the recording's META.
+void describeRun(SimulationResult& res, const config::WheelchairConfig& cfg,
+                 const std::string& scenario_name, uint64_t seed, double T,
+                 const std::vector<effects::EffectSpec>& effects, const SimulationOptions& opt) {
   res.scenario = scenario_name;
   res.engine = opt.engine;
   res.seed = seed;
@@ -324,23 +241,263 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   res.effects = effects;
   res.supervisory = opt.supervisory.enabled;
   res.config_text = cfg.text();
+  std::string eff;
+  for (const auto& e : effects) eff += (eff.empty() ? "" : " ") + effects::formatEffect(e);
+  io::Recording& rec = res.recording;
+  rec.meta["source"] = "wheelchair simulate (libwheelchair truth simulator)";
+  rec.meta["scenario"] = scenario_name;
+  rec.meta["engine"] = opt.engine;
+  rec.meta["seed"] = std::to_string(seed);
+  rec.meta["effects"] = eff.empty() ? "none" : eff;
+  rec.meta["supervisory"] = opt.supervisory.enabled ? "on" : "off";
+  std::ostringstream d;
+  d << T;
+  rec.meta["duration_s"] = d.str();
+}
+
+/// Voltage circuit (11) on the two wires of each motor: V_RC of wire 1 (U > 0) and wire 2
+/// (U < 0). Its time constant (R_par C = 0.17 ms) is shorter than the step, so it is integrated
+/// exponentially (exact for the linear part) around the steady state of the end-of-step lead
+/// voltage, with the local rate constant of (11) there (the Zener conductance included).
+class WireCircuit {
+ public:
+  WireCircuit(const sensors::VoltageCircuitParams& vc, double h) : vc_(vc), h_(h) {
+    // (11) with no lead voltage: steady state and decay over one step.
+    rc_ss0_ = sensors::steadyStateVrc(0.0, vc);
+    rc_decay0_ = std::exp(
+        h *
+        (sensors::vrcRate(rc_ss0_ + 1e-4, 0.0, vc) - sensors::vrcRate(rc_ss0_ - 1e-4, 0.0, vc)) /
+        2e-4);
+    for (auto& m : wire_)
+      for (double& w : m) w = sensors::steadyStateVrc(0.0, vc);
+  }
+  /// Differential V_RC of motor m (V).
+  double vrc(int m) const { return wire_[m][0] - wire_[m][1]; }
+  /// One step with motor m's lead voltage U_end (V) at the end of the step.
+  void step(int m, double U_end) {
+    const double Vw[2] = {std::max(U_end, 0.0), std::max(-U_end, 0.0)};
+    for (int w = 0; w < 2; ++w) {
+      double& x = wire_[m][w];
+      if (Vw[w] == 0.0) {
+        x = rc_ss0_ + (x - rc_ss0_) * rc_decay0_;
+        continue;
+      }
+      const double xs = sensors::steadyStateVrc(Vw[w], vc_);
+      const double lam =
+          (sensors::vrcRate(xs + 1e-4, Vw[w], vc_) - sensors::vrcRate(xs - 1e-4, Vw[w], vc_)) /
+          2e-4;
+      x = xs + (x - xs) * std::exp(lam * h_);
+    }
+  }
+
+ private:
+  const sensors::VoltageCircuitParams& vc_;
+  double h_, rc_ss0_ = 0, rc_decay0_ = 0;
+  double wire_[2][2] = {{0, 0}, {0, 0}};
+};
+
+/// The sensors of a run: their clocks, noise and distortions (the effects' SensorDistortion).
+class SensorSuite {
+ public:
+  SensorSuite(const config::WheelchairConfig& cfg, const SimulationOptions& opt, uint64_t seed,
+              const effects::SensorDistortion& se, const AnchorFrame& anchor,
+              const std::vector<Obstacle>& cone_obstacles, const MujocoChair* mj)
+      : cfg_(cfg),
+        opt_(opt),
+        se_(se),
+        anchor_(anchor),
+        cone_obstacles_(cone_obstacles),
+        mj_(mj),
+        clocks_{{cfg.encoders.rate_hz, opt.timestamp_jitter_s, seed, "encoders"},
+                {cfg.imu.rate_hz, opt.timestamp_jitter_s, seed, "imu"},
+                {cfg.motors.rate_hz, opt.timestamp_jitter_s, seed, "motors"},
+                {cfg.sonar.rate_hz, opt.timestamp_jitter_s, seed, "sonar"},
+                {cfg.pozyx.rate_hz, opt.timestamp_jitter_s, seed, "pozyx"},
+                {cfg.joystick.rate_hz, opt.timestamp_jitter_s, seed, "joystick"}},
+        gyro_noise_(seed, "imu.noise"),
+        cur_noise_(seed, "motors.current_noise"),
+        vrc_noise_(seed, "motors.vrc_noise"),
+        sonar_noise_(seed, "sonar.noise"),
+        sonar_fail_(seed, "sonar.dropout"),
+        pozyx_noise_(seed, "pozyx.noise"),
+        pozyx_out_(seed, "pozyx.outliers") {}
+
+  /// Sized once (no doubling slack, no copy on growth: a long drive's peak is its data).
+  void reserve(io::Recording& rec, double T) const {
+    rec.encoders.reserve(clocks_[kEncoders].capacityFor(T));
+    rec.imu.reserve(clocks_[kImu].capacityFor(T));
+    rec.motors.reserve(clocks_[kMotors].capacityFor(T));
+    rec.sonar.reserve(clocks_[kSonar].capacityFor(T));
+    rec.pozyx.reserve(clocks_[kPozyx].capacityFor(T));
+    rec.joystick.reserve(clocks_[kJoystick].capacityFor(T));
+  }
+
+  /// Every stream's samples due up to t_end (stamped t0 + t + that stream's delay);
+  /// snapAt(t) is the truth at t.
+  /// Each sample goes to put(io::AnySample).
+  template <class SnapAt, class Put>
+  void sampleUntil(double t_end, double t0, const SnapAt& snapAt, const Eigen::Vector2d& I,
+                   const JoystickDemand& joy, const Put& put) {
+    for (int st = 0; st < kNumStreams; ++st) {
+      StreamClock& clk = clocks_[st];
+      while (clk.next() <= t_end) {
+        const double tm = clk.next();
+        clk.advance();
+        const Snap q = snapAt(tm);
+        const double stamp = t0 + tm + se_.delay_s[st];
+        switch (st) {
+          case kEncoders:
+            put(encoders(stamp, q));
+            break;
+          case kImu:
+            put(imu(stamp, q));
+            break;
+          case kMotors:
+            put(motors(stamp, q, I));
+            break;
+          case kSonar:
+            put(io::SonarSample{stamp, sonar(q)});
+            break;
+          case kPozyx:
+            put(pozyx(stamp, q));
+            break;
+          case kJoystick:
+            put(io::JoystickSample{stamp, joy.v_m_s, joy.omega_rad_s});
+            break;
+        }
+      }
+    }
+  }
+
+ private:
+  io::EncoderSample encoders(double stamp, const Snap& q) const {
+    const sensors::EncoderParams& enc = cfg_.encoders.params;
+    // The counter holds whole edges: floor of the continuous count of (9).
+    const auto tr = static_cast<int64_t>(
+        std::floor(sensors::wheelAngleToTicks(se_.encoder_scale[0] * q.psiR, enc)));
+    const auto tl = static_cast<int64_t>(
+        std::floor(sensors::wheelAngleToTicks(se_.encoder_scale[1] * q.psiL, enc)));
+    return {stamp, sensors::toHardwareCounter(opt_.encoder_initial_ticks_right + tr),
+            sensors::toHardwareCounter(opt_.encoder_initial_ticks_left + tl)};
+  }
+  io::ImuSample imu(double stamp, const Snap& q) {
+    io::ImuSample is;
+    is.t_s = stamp;
+    is.gyro_z_rad_s = se_.gyro_scale * q.om + se_.gyro_bias_rad_s +
+                      cfg_.imu.gyro_noise_rad_s * gyro_noise_.normal();
+    return is;
+  }
+  io::MotorSample motors(double stamp, const Snap& q, const Eigen::Vector2d& I) {
+    io::MotorSample ms;
+    ms.t_s = stamp;
+    ms.current_right_A = I(0) + cfg_.motors.current_noise_A * cur_noise_.normal();
+    ms.current_left_A = I(1) + cfg_.motors.current_noise_A * cur_noise_.normal();
+    ms.vrc_right_V = q.vrcR + cfg_.motors.vrc_noise_V * vrc_noise_.normal();
+    ms.vrc_left_V = q.vrcL + cfg_.motors.vrc_noise_V * vrc_noise_.normal();
+    return ms;
+  }
+  /// Range of the sonar (m; 0 = no echo or a dropout).
+  double sonar(const Snap& q) {
+    const auto& son = cfg_.sonar;
+    // Sonar pose in the start frame.
+    const double c = std::cos(q.phi), sn = std::sin(q.phi);
+    const double sx = q.x + c * son.x_m - sn * son.y_m;
+    const double sy = q.y + sn * son.x_m + c * son.y_m;
+    const double syaw = q.phi + son.yaw_deg * kDeg;
+    double best = std::numeric_limits<double>::infinity();
+    if (mj_) best = mj_->sonarRange(sx, sy, syaw, son.cone_half_angle_deg * kDeg);
+    for (const auto& o : cone_obstacles_) {
+      const double dx = o.x_m - sx, dy = o.y_m - sy;
+      const double d = std::hypot(dx, dy);
+      if (d <= o.radius_m) {
+        best = 0;
+        continue;
+      }
+      const double bearing = std::abs(model::wrapAngle(std::atan2(dy, dx) - syaw));
+      const double half = son.cone_half_angle_deg * kDeg + std::asin(o.radius_m / d);
+      if (bearing <= half) best = std::min(best, d - o.radius_m);
+    }
+    const double n = son.noise_m * sonar_noise_.normal();  // drawn for every reading
+    double range = 0;
+    if (std::isfinite(best) && best >= son.min_range_m && best <= son.max_range_m)
+      range = std::max(0.0, best + n);
+    // Dropouts: two-state Markov chain with mean burst length L and long-run
+    // failure fraction p (enter a burst with p / (L (1 - p))).
+    const double u = sonar_fail_.uniform();
+    if (se_.dropout_probability > 0) {
+      const double L = std::max(1.0, se_.dropout_burst);
+      const double p = se_.dropout_probability;
+      in_burst_ = in_burst_ ? (u >= 1.0 / L) : (u < std::min(1.0, p / (L * (1 - p))));
+      if (in_burst_) range = 0;
+    }
+    return range;
+  }
+  io::PozyxSample pozyx(double stamp, const Snap& q) {
+    const auto& poz = cfg_.pozyx;
+    const double c = std::cos(q.phi), sn = std::sin(q.phi);
+    const double tx = q.x + c * poz.lever_x_m - sn * poz.lever_y_m;
+    const double ty = q.y + sn * poz.lever_x_m + c * poz.lever_y_m;
+    const double ca = std::cos(anchor_.yaw_rad), sa = std::sin(anchor_.yaw_rad);
+    io::PozyxSample ps;
+    ps.t_s = stamp;
+    ps.x_m = anchor_.x_m + ca * tx - sa * ty + poz.noise_m * pozyx_noise_.normal();
+    ps.y_m = anchor_.y_m + sa * tx + ca * ty + poz.noise_m * pozyx_noise_.normal();
+    const double u = pozyx_out_.uniform(), dir = pozyx_out_.uniform(0, 2 * M_PI),
+                 mag = pozyx_out_.uniform(0.5, 1.5);
+    if (u < se_.outlier_rate) {
+      ps.x_m += se_.outlier_magnitude_m * mag * std::cos(dir);
+      ps.y_m += se_.outlier_magnitude_m * mag * std::sin(dir);
+    }
+    return ps;
+  }
+
+  const config::WheelchairConfig& cfg_;
+  const SimulationOptions& opt_;
+  const effects::SensorDistortion& se_;
+  const AnchorFrame anchor_;
+  const std::vector<Obstacle>& cone_obstacles_;
+  const MujocoChair* mj_;
+  StreamClock clocks_[kNumStreams];
+  Rng gyro_noise_, cur_noise_, vrc_noise_, sonar_noise_, sonar_fail_, pozyx_noise_, pozyx_out_;
+  bool in_burst_ = false;
+};
+
+}  // namespace
+
+SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string& scenario_name,
+                          uint64_t seed, double duration_s,
+                          const std::vector<effects::EffectSpec>& effects,
+                          const SimulationOptions& opt) {
+  for (const auto& e : effects) validateEngineEffect(e, opt.engine);
+  if (!(opt.step_s > 0 && opt.step_s <= 0.01))
+    throw std::invalid_argument("simulation step_s must be in (0, 0.01] s");
+
+  Scenario sc = makeScenario(scenario_name, seed, opt.scenario, duration_s);
+  const double T = sc.duration_s;
+  const double h = opt.step_s;
+
+  // --- the true vehicle: nominal configuration + the effects (effects/ registry) ----------
+  effects::TruthModel truth;
+  truth.drive = model::DriveTrain::symmetric(cfg.vehicle);
+  truth.drive.coulomb_smoothing_m_s = opt.coulomb_smoothing_m_s;
+  truth.actuator_delay_s = opt.power.delay_s;
+  truth.actuator_time_constant_s = opt.power.time_constant_s;
+  effects::actOnTruth(effects, truth);
+  const model::DriveTrain& dt = truth.drive;
+  PowerModuleParams pmp = opt.power;
+  pmp.delay_s = truth.actuator_delay_s;
+  pmp.time_constant_s = truth.actuator_time_constant_s;
+  const double r = dt.geom.wheel_radius_m, lw = dt.geom.track_width_m, rG = dt.geom.gear_ratio;
+  const double Rm = cfg.vehicle.armature_resistance_ohm;
+  const double km[2] = {dt.side[0].torque_constant_Nm_A, dt.side[1].torque_constant_Nm_A};
+
+  SimulationResult res;
+  describeRun(res, cfg, scenario_name, seed, T, effects, opt);
+  const AnchorFrame anchor = anchorFrame(opt, seed);
   res.truth.obstacles = sc.obstacles;
   res.truth.pozyx_anchor = anchor;
   io::Recording& rec = res.recording;
   const double t0 = opt.start_time_s;
-  {
-    std::string eff;
-    for (const auto& e : effects) eff += (eff.empty() ? "" : " ") + formatEffect(e);
-    rec.meta["source"] = "wheelchair simulate (libwheelchair truth simulator)";
-    rec.meta["scenario"] = scenario_name;
-    rec.meta["engine"] = opt.engine;
-    rec.meta["seed"] = std::to_string(seed);
-    rec.meta["effects"] = eff.empty() ? "none" : eff;
-    rec.meta["supervisory"] = opt.supervisory.enabled ? "on" : "off";
-    std::ostringstream d;
-    d << T;
-    rec.meta["duration_s"] = d.str();
-  }
   if (opt.sink) opt.sink->meta(rec.meta);
 
   // --- state ------------------------------------------------------------------------------
@@ -354,11 +511,9 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     mj = std::make_unique<MujocoChair>(cfg, mo, effects, sc.obstacles);
   }
   const std::vector<Obstacle> no_obstacles;  // the MuJoCo sonar casts rays instead
-  const std::vector<Obstacle>& cone_obstacles = mj ? no_obstacles : sc.obstacles;
-  double wire[2][2] = {{0, 0}, {0, 0}};  // V_RC of wire 1 (U > 0) and wire 2 (U < 0), per motor
-  for (auto& m : wire)
-    for (double& w : m) w = sensors::steadyStateVrc(0.0, vc);
-  auto vrcOf = [&](int m) { return wire[m][0] - wire[m][1]; };
+  SensorSuite sensors(cfg, opt, seed, truth.sensors, anchor, mj ? no_obstacles : sc.obstacles,
+                      mj.get());
+  WireCircuit wires(cfg.motors.circuit, h);
   std::vector<bool> hit(sc.obstacles.size(), false);
   double sup_scale = 1.0, next_sup = 0.0;
   const long n_steps = static_cast<long>(std::ceil(T / h - 1e-9));
@@ -367,18 +522,19 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   // passed to SimulationOptions::sink as produced.
   if (!opt.sink) {
     res.truth.samples.reserve(static_cast<std::size_t>(n_steps / truth_stride) + 1);
-    rec.encoders.reserve(clocks[kEncoders].capacityFor(T));
-    rec.imu.reserve(clocks[kImu].capacityFor(T));
-    rec.motors.reserve(clocks[kMotors].capacityFor(T));
-    rec.sonar.reserve(clocks[kSonar].capacityFor(T));
-    rec.pozyx.reserve(clocks[kPozyx].capacityFor(T));
-    rec.joystick.reserve(clocks[kJoystick].capacityFor(T));
+    sensors.reserve(rec, T);
   }
   const auto put = [&](io::AnySample x) {
     if (opt.sink)
       opt.sink->sample(x);
     else
       io::append(rec, std::move(x));
+  };
+  // Rim speeds r psidot (no slip in the model engine) and motor voltages U = R i + k r_G u / r.
+  auto rimSpeeds = [&]() -> Eigen::Vector2d {
+    return mj ? Eigen::Vector2d(r * mj->state().psidot_right_rad_s,
+                                r * mj->state().psidot_left_rad_s)
+              : Eigen::Vector2d(s.v + lw * s.om / 2, s.v - lw * s.om / 2);
   };
 
   for (long k = 0; k <= n_steps; ++k) {
@@ -392,10 +548,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     }
     const JoystickDemand cmd{joy.v_m_s * sup_scale, joy.omega_rad_s * sup_scale};
     // Power module: currents within the current limit and what the battery can drive.
-    // Rim speeds r psidot as the power module measures them (no slip in the model engine).
-    const Eigen::Vector2d rim =
-        mj ? Eigen::Vector2d(r * mj->state().psidot_right_rad_s, r * mj->state().psidot_left_rad_s)
-           : Eigen::Vector2d(s.v + lw * s.om / 2, s.v - lw * s.om / 2);
+    const Eigen::Vector2d rim = rimSpeeds();
     Eigen::Vector2d i_lo, i_hi;
     for (int m = 0; m < 2; ++m) {
       const double emf = km[m] * rG * rim(m) / r;
@@ -429,7 +582,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
 
     // Mechanics over [t, t + h] with the currents held.
     const Mech s_prev = s;
-    const double vrc_prev[2] = {vrcOf(0), vrcOf(1)};
+    const double vrc_prev[2] = {wires.vrc(0), wires.vrc(1)};
     if (mj) {
       mj->step(I, h);
       const ChairState c = mj->state();
@@ -437,29 +590,8 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     } else {
       s = rk4(s, dt, I, h);
     }
-    // Voltage circuit (11) on each wire. Its time constant (R_par C = 0.17 ms) is shorter
-    // than the step, so it is integrated exponentially (exact for the linear part) around
-    // the steady state of the end-of-step lead voltage, with the local rate constant of
-    // (11) there (the Zener conductance included).
-    for (int m = 0; m < 2; ++m) {
-      const double u_end =
-          mj ? r * (m == 0 ? mj->state().psidot_right_rad_s : mj->state().psidot_left_rad_s)
-             : (m == 0 ? s.v + lw * s.om / 2 : s.v - lw * s.om / 2);
-      const double Uend = Rm * I(m) + km[m] * rG * u_end / r;
-      const double Vw[2] = {std::max(Uend, 0.0), std::max(-Uend, 0.0)};
-      for (int w = 0; w < 2; ++w) {
-        double& x = wire[m][w];
-        if (Vw[w] == 0.0) {
-          x = rc_ss0 + (x - rc_ss0) * rc_decay0;
-          continue;
-        }
-        const double xs = sensors::steadyStateVrc(Vw[w], vc);
-        const double lam =
-            (sensors::vrcRate(xs + 1e-4, Vw[w], vc) - sensors::vrcRate(xs - 1e-4, Vw[w], vc)) /
-            2e-4;
-        x = xs + (x - xs) * std::exp(lam * h);
-      }
-    }
+    const Eigen::Vector2d rim_end = rimSpeeds();
+    for (int m = 0; m < 2; ++m) wires.step(m, Rm * I(m) + km[m] * rG * rim_end(m) / r);
     // Collisions: an obstacle centre inside the footprint.
     for (std::size_t o = 0; o < sc.obstacles.size(); ++o) {
       if (!hit[o] &&
@@ -468,112 +600,21 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
         res.truth.collided_obstacles.push_back(static_cast<int>(o));
       }
     }
-
-    // Sensors sampled in (t, t + h].
+    // Sensors sampled in (t, t + h] (the truth interpolated linearly within the step).
     auto snapAt = [&](double tm) {
       const double a = std::clamp((tm - t) / h, 0.0, 1.0);
       auto L = [a](double p, double q) { return p + a * (q - p); };
-      return Snap{L(s_prev.x, s.x),       L(s_prev.y, s.y),         L(s_prev.phi, s.phi),
-                  L(s_prev.v, s.v),       L(s_prev.om, s.om),       L(s_prev.psiR, s.psiR),
-                  L(s_prev.psiL, s.psiL), L(vrc_prev[0], vrcOf(0)), L(vrc_prev[1], vrcOf(1))};
+      return Snap{L(s_prev.x, s.x),
+                  L(s_prev.y, s.y),
+                  L(s_prev.phi, s.phi),
+                  L(s_prev.v, s.v),
+                  L(s_prev.om, s.om),
+                  L(s_prev.psiR, s.psiR),
+                  L(s_prev.psiL, s.psiL),
+                  L(vrc_prev[0], wires.vrc(0)),
+                  L(vrc_prev[1], wires.vrc(1))};
     };
-    const double t_end = t + h;
-    for (int st = 0; st < kNumStreams; ++st) {
-      StreamClock& clk = clocks[st];
-      while (clk.next() <= t_end) {
-        const double tm = clk.next();
-        clk.advance();
-        const Snap q = snapAt(tm);
-        const double stamp = t0 + tm + se.delay[st];
-        switch (st) {
-          case kEncoders: {
-            // The counter holds whole edges: floor of the continuous count of (9).
-            const auto tr = static_cast<int64_t>(
-                std::floor(sensors::wheelAngleToTicks(se.encoder_scale[0] * q.psiR, enc)));
-            const auto tl = static_cast<int64_t>(
-                std::floor(sensors::wheelAngleToTicks(se.encoder_scale[1] * q.psiL, enc)));
-            put(io::EncoderSample{stamp,
-                                  sensors::toHardwareCounter(opt.encoder_initial_ticks_right + tr),
-                                  sensors::toHardwareCounter(opt.encoder_initial_ticks_left + tl)});
-            break;
-          }
-          case kImu: {
-            io::ImuSample is;
-            is.t_s = stamp;
-            is.gyro_z_rad_s = se.gyro_scale * q.om + se.gyro_bias +
-                              cfg.imu.gyro_noise_rad_s * gyro_noise.normal();
-            put(is);
-            break;
-          }
-          case kMotors: {
-            io::MotorSample ms;
-            ms.t_s = stamp;
-            ms.current_right_A = I(0) + cfg.motors.current_noise_A * cur_noise.normal();
-            ms.current_left_A = I(1) + cfg.motors.current_noise_A * cur_noise.normal();
-            ms.vrc_right_V = q.vrcR + cfg.motors.vrc_noise_V * vrc_noise.normal();
-            ms.vrc_left_V = q.vrcL + cfg.motors.vrc_noise_V * vrc_noise.normal();
-            put(ms);
-            break;
-          }
-          case kSonar: {
-            // Sonar pose in the start frame.
-            const double c = std::cos(q.phi), sn = std::sin(q.phi);
-            const double sx = q.x + c * son.x_m - sn * son.y_m;
-            const double sy = q.y + sn * son.x_m + c * son.y_m;
-            const double syaw = q.phi + son.yaw_deg * kDeg;
-            double best = std::numeric_limits<double>::infinity();
-            if (mj) best = mj->sonarRange(sx, sy, syaw, son.cone_half_angle_deg * kDeg);
-            for (const auto& o : cone_obstacles) {
-              const double dx = o.x_m - sx, dy = o.y_m - sy;
-              const double d = std::hypot(dx, dy);
-              if (d <= o.radius_m) {
-                best = 0;
-                continue;
-              }
-              const double bearing = std::abs(model::wrapAngle(std::atan2(dy, dx) - syaw));
-              const double half = son.cone_half_angle_deg * kDeg + std::asin(o.radius_m / d);
-              if (bearing <= half) best = std::min(best, d - o.radius_m);
-            }
-            const double n = son.noise_m * sonar_noise.normal();  // drawn for every reading
-            double range = 0;
-            if (std::isfinite(best) && best >= son.min_range_m && best <= son.max_range_m)
-              range = std::max(0.0, best + n);
-            // Dropouts: two-state Markov chain with mean burst length L and long-run
-            // failure fraction p (enter a burst with p / (L (1 - p))).
-            const double u = sonar_fail.uniform();
-            if (se.dropout_probability > 0) {
-              const double L = std::max(1.0, se.dropout_burst);
-              const double p = se.dropout_probability;
-              in_burst = in_burst ? (u >= 1.0 / L) : (u < std::min(1.0, p / (L * (1 - p))));
-              if (in_burst) range = 0;
-            }
-            put(io::SonarSample{stamp, range});
-            break;
-          }
-          case kPozyx: {
-            const double c = std::cos(q.phi), sn = std::sin(q.phi);
-            const double tx = q.x + c * poz.lever_x_m - sn * poz.lever_y_m;
-            const double ty = q.y + sn * poz.lever_x_m + c * poz.lever_y_m;
-            const double ca = std::cos(anchor.yaw_rad), sa = std::sin(anchor.yaw_rad);
-            io::PozyxSample ps;
-            ps.t_s = stamp;
-            ps.x_m = anchor.x_m + ca * tx - sa * ty + poz.noise_m * pozyx_noise.normal();
-            ps.y_m = anchor.y_m + sa * tx + ca * ty + poz.noise_m * pozyx_noise.normal();
-            const double u = pozyx_out.uniform(), dir = pozyx_out.uniform(0, 2 * M_PI),
-                         mag = pozyx_out.uniform(0.5, 1.5);
-            if (u < se.outlier_rate) {
-              ps.x_m += se.outlier_magnitude * mag * std::cos(dir);
-              ps.y_m += se.outlier_magnitude * mag * std::sin(dir);
-            }
-            put(ps);
-            break;
-          }
-          case kJoystick:
-            put(io::JoystickSample{stamp, joy.v_m_s, joy.omega_rad_s});
-            break;
-        }
-      }
-    }
+    sensors.sampleUntil(t + h, t0, snapAt, I, joy, put);
   }
   res.collisions = static_cast<int>(res.truth.collided_obstacles.size());
   if (opt.record_ground_truth && !opt.sink)
@@ -587,16 +628,18 @@ namespace {
 
 using nlohmann::json;
 
-#define WC_TRUTH_COLUMNS(X)                                                                       \
-  X(t_s)                                                                                          \
-  X(x_m)                                                                                          \
-  X(y_m)                                                                                          \
-  X(phi_rad)                                                                                      \
-  X(v_m_s)                                                                                        \
-  X(omega_rad_s) X(wheel_speed_right_rad_s) X(wheel_speed_left_rad_s) X(wheel_angle_right_rad)    \
-      X(wheel_angle_left_rad) X(current_right_A) X(current_left_A) X(voltage_right_V)             \
-          X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) X(omega_ref_rad_s) \
-              X(supervisory_scale)
+#define WC_TRUTH_COLUMNS(X)                                                                   \
+  X(t_s)                                                                                      \
+  X(x_m)                                                                                      \
+  X(y_m)                                                                                      \
+  X(phi_rad)                                                                                  \
+  X(v_m_s)                                                                                    \
+  X(omega_rad_s)                                                                              \
+  X(wheel_speed_right_rad_s)                                                                  \
+  X(wheel_speed_left_rad_s)                                                                   \
+  X(wheel_angle_right_rad) X(wheel_angle_left_rad) X(current_right_A) X(current_left_A)       \
+      X(voltage_right_V) X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) \
+          X(omega_ref_rad_s) X(supervisory_scale)
 
 std::string fmtNum(double x) {
   char buf[40];
@@ -687,7 +730,7 @@ void SimulationResult::writeTruth(const std::string& path, const TruthReplay& re
     json je;
     je["id"] = e.id;
     je["params"] = e.params;
-    je["text"] = formatEffect(e);
+    je["text"] = effects::formatEffect(e);
     eff.push_back(je);
   }
   j["effects"] = eff;

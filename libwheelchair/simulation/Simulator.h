@@ -16,15 +16,15 @@
 // Example:
 //   auto cfg = config::WheelchairConfig();            // nominal vehicle
 //   SimulationOptions opt;                            // or opt.loadFromConfig(cfg.ini())
-//   auto res = simulate(cfg, "three_task", 42, 0, {parseEffect("gyro_bias:bias_rad_s=0.01")}, opt);
+//   auto res = simulate(cfg, "three_task", 42, 0, {effects::parseEffect("gyro_bias:bias_rad_s=0.01")}, opt);
 //   io::writeRawlog(res.recording, "sim.rawlog", cfg);
 //   res.writeTruth("sim.rawlog.truth.json");
 #pragma once
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/io/Recording.h"
+#include "libwheelchair/effects/Effect.h"
 #include "libwheelchair/io/Samples.h"
-#include "libwheelchair/simulation/Effects.h"
 #include "libwheelchair/simulation/PowerModule.h"
 #include "libwheelchair/simulation/Scenarios.h"
 #include "libwheelchair/simulation/Supervisory.h"
@@ -117,7 +117,7 @@ struct TruthTrajectory {
 struct SimulationResult {
   io::Recording recording;
   TruthTrajectory truth;
-  std::vector<EffectSpec> effects;
+  std::vector<effects::EffectSpec> effects;
   int collisions = 0;
   std::string scenario;
   std::string engine = "model";  ///< truth engine that produced the run
@@ -140,7 +140,7 @@ struct SimulationResult {
 /// Runs a scenario. duration_s <= 0: the scenario's default. Throws std::invalid_argument
 /// for an unknown scenario or engine or an invalid effect (validateEngineEffect).
 SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string& scenario,
-                          uint64_t seed, double duration_s, const std::vector<EffectSpec>& effects,
+                          uint64_t seed, double duration_s, const std::vector<effects::EffectSpec>& effects,
                           const SimulationOptions& options);
 
 /// Reads a truth JSON written by writeTruth (recording left empty). Throws on a bad file.

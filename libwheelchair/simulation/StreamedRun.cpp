@@ -96,7 +96,7 @@ struct FileSink : SimulationSink {
 
 StreamedSimulation simulateToFiles(const config::WheelchairConfig& cfg, const std::string& scenario,
                                    uint64_t seed, double duration_s,
-                                   const std::vector<EffectSpec>& effects,
+                                   const std::vector<effects::EffectSpec>& effects,
                                    const SimulationOptions& options, const std::string& rawlog,
                                    const std::string& truth_path, std::size_t truth_in_memory) {
   StreamedSimulation out;

@@ -11,6 +11,7 @@
 #include "libwheelchair/model/DriveDynamics.h"
 #include "libwheelchair/sensors/Encoders.h"
 #include "libwheelchair/sensors/Filtering.h"
+#include "libwheelchair/signals/DriveSignals.h"
 #include "libwheelchair/visualization/DriveData.h"
 #include "libwheelchair/visualization/Plot.h"
 #include "libwheelchair/visualization/Scene3D.h"
@@ -92,14 +93,30 @@ std::vector<S> sortedUnique(std::vector<S> v, F time) {
   return out;
 }
 
-std::vector<std::pair<double, double>> splitGaps(const std::vector<double>& t, double max_gap) {
-  std::vector<std::pair<double, double>> out;
-  if (t.empty()) return out;
-  double a = t.front();
-  for (std::size_t i = 1; i < t.size(); ++i)
-    if (t[i] - t[i - 1] > max_gap) out.push_back({a, t[i - 1]}), a = t[i];
-  out.push_back({a, t.back()});
+/// The effects that have no inverse on a recording but change the drive model (registry:
+/// correctionPhase() none and a different drive train after actOnTruth, e.g. ground_slope).
+std::vector<effects::EffectSpec> modelOnlyEffects(const std::vector<effects::EffectSpec>& all) {
+  std::vector<effects::EffectSpec> out;
+  for (const auto& e : all) {
+    const effects::Effect* eff = effects::findEffect(e.id);
+    if (!eff || eff->correctionPhase() != effects::CorrectionPhase::none) continue;
+    effects::TruthModel a, b;
+    eff->actOnTruth(e, b);
+    if (b.drive.slope_rad != a.drive.slope_rad ||
+        b.drive.downhill_heading_rad != a.drive.downhill_heading_rad)
+      out.push_back(e);
+  }
   return out;
+}
+
+/// Whether an effect acts on the power module's response to the commands (actuator_lag).
+bool actsOnCommands(const effects::EffectSpec& e) {
+  const effects::Effect* eff = effects::findEffect(e.id);
+  if (!eff) return false;
+  effects::TruthModel a, b;
+  eff->actOnTruth(e, b);
+  return a.actuator_delay_s != b.actuator_delay_s ||
+         a.actuator_time_constant_s != b.actuator_time_constant_s;
 }
 
 /// The command-response stage(s) of a diagnosis JSON (objects with "stage": "command_response").
@@ -374,106 +391,12 @@ evaluation::Metrics trajMetrics(const evaluation::Trajectory& t,
   return evaluation::computeMetrics(t, gt, mo);
 }
 
-RecordingFigures recordingFigures(const std::string& path, const std::string& suffix,
-                                  const config::WheelchairConfig& input_cfg,
-                                  const config::WheelchairConfig& corrected_cfg, bool heldout,
-                                  const DiagnosisFigureOptions& o) {
-  RecordingFigures rf;
-  rf.path = path;
-  rf.suffix = suffix;
-  const io::Recording raw = io::readRawlog(path);
-  if (raw.encoders.size() < 3 || raw.motors.size() < 3) {
-    rf.why_not =
-        "no encoder and motor-current streams (a command-driven recording): the "
-        "residual and trajectory figures are made for the currents-driven form only";
-    return rf;
-  }
-  rf.drawn = true;
-  io::Recording corrected;
-  config::WheelchairConfig corrected_adj;
-  applyCorrection(raw, corrected_cfg, corrected, corrected_adj);
-  double slope = 0, downhill = 0;
-  bool has_slope = false;
-  for (const auto& e : estimation::ModelExtensions::fromConfig(corrected_cfg.ini()).effects)
-    if (e.id == "ground_slope") {
-      slope = e.number("angle_deg") / kDeg;
-      downhill = e.number("downhill_heading_deg") / kDeg;
-      has_slope = true;
-    }
-
-  evaluation::MetricOptions mo;
-  mo.alignment = evaluation::Alignment::SE2FirstSeconds;
-  mo.align_first_s = o.align_first_s;
-  // One read of the rawlog serves the residuals and both trajectory sets.
-  const DriveData before = loadDrive(raw, path, input_cfg, mo);
-  const DriveData after = loadDrive(raw, path, corrected_cfg, mo);
-  const double t0 = before.t0_s;
-  const double tb = raw.startTime(), te = raw.endTime();
-  TimeFigure base;
-  base.t0 = t0;
-  if (heldout) {
-    base.fit_end = tb + o.diagnosis_options.fit_fraction * (te - tb);
-    base.val0 = *base.fit_end;
-  }
-  const std::string name = fs::path(path).filename().string();
-  const std::string val_words =
-      heldout ? fmt::format("held-out last {:.0f}% of {} (the shaded part was used for fitting)",
-                            100 * (1 - o.diagnosis_options.fit_fraction), name)
-              : "validation recording " + name + " (not used for fitting)";
+/// The trajectory figures of one recording (and the metrics against its ground truth).
+void trajectoryFigures(const DriveData& before, const DriveData& after, double t0,
+                       const std::string& name, const std::string& suffix,
+                       const DiagnosisFigureOptions& o, RecordingFigures& rf) {
   auto file = [&](const std::string& stem) { return stem + suffix + ".png"; };
   auto out = [&](const std::string& f) { return (fs::path(o.out_dir) / f).string(); };
-
-  // Gyro vs encoders.
-  if (raw.imu.size() >= 3) {
-    const auto rb = gyroEncoderResidual(raw, input_cfg, o.diagnosis_options.window_s);
-    const auto ra = gyroEncoderResidual(corrected, corrected_adj, o.diagnosis_options.window_s);
-    TimeFigure f = base;
-    f.title = "Residual gyro omega - encoder omega, nominal vs corrected model";
-    f.ylabel = "omega_gyro - omega_encoders (rad/s)";
-    f.unit = "rad/s";
-    f.before = &rb;
-    f.after = &ra;
-    drawTimeFigure(f, out(file("residual_gyro_omega")), o.width, o.height);
-    rf.figures.push_back(
-        {file("residual_gyro_omega"),
-         fmt::format("Angular velocity from the gyro minus that from the encoders, each the mean "
-                     "over windows of {:.2f} s (the kinematic channel of the diagnosis), with the "
-                     "nominal model (orange) and the corrected one (blue, sensor effects of "
-                     "[model_extensions] undone); {}.",
-                     o.diagnosis_options.window_s, val_words)});
-    rf.residual_stats["gyro_vs_encoders (rad/s)"] = {statsIn(rb, f.val0, f.val1),
-                                                     statsIn(ra, f.val0, f.val1)};
-  }
-  // Motor currents.
-  {
-    const auto cb = currentResiduals(raw, input_cfg, o);
-    const auto ca = currentResiduals(corrected, corrected_adj, o, slope, downhill);
-    for (int s = 0; s < 2; ++s) {
-      const std::string side = s == 0 ? "right" : "left";
-      TimeFigure f = base;
-      f.title = fmt::format(
-          "Residual {} motor current (measured - model (6)), nominal vs corrected", side);
-      f.ylabel = fmt::format("i_{} - model current (A)", s == 0 ? "R" : "L");
-      f.unit = "A";
-      f.before = &cb[s];
-      f.after = &ca[s];
-      f.xnote =
-          fmt::format("both currents zero-phase low-pass {:.1f} Hz", o.diagnosis_options.cutoff_hz);
-      const std::string stem = "residual_current_" + side;
-      drawTimeFigure(f, out(file(stem)), o.width, o.height);
-      rf.figures.push_back(
-          {file(stem),
-           fmt::format("{} motor: measured current minus the current the drive model needs for "
-                       "the motion the encoders saw (zero-phase filtered at {:.1f} Hz), with the "
-                       "nominal model (orange) and the corrected one (blue: drive-train extension "
-                       "currents removed{}); {}.",
-                       s == 0 ? "Right" : "Left", o.diagnosis_options.cutoff_hz,
-                       has_slope ? ", floor slope in the model" : "", val_words)});
-      rf.residual_stats["current_" + side + " (A)"] = {statsIn(cb[s], f.val0, f.val1),
-                                                       statsIn(ca[s], f.val0, f.val1)};
-    }
-  }
-  // Trajectories.
   Eigen::Vector2d lever;
   const auto gt = groundTruthInStartFrame(after, o, lever, rf.gt_note);
   const bool gt_truth = after.truth && !after.truth->t_s.empty();
@@ -503,6 +426,107 @@ RecordingFigures recordingFigures(const std::string& path, const std::string& su
              ". Curves far above the corrected ones leave the plot at the top (their maximum "
              "is in the legend)."});
   }
+}
+
+RecordingFigures recordingFigures(const std::string& path, const std::string& suffix,
+                                  const config::WheelchairConfig& input_cfg,
+                                  const config::WheelchairConfig& corrected_cfg, bool heldout,
+                                  const DiagnosisFigureOptions& o) {
+  RecordingFigures rf;
+  rf.path = path;
+  rf.suffix = suffix;
+  const io::Recording raw = io::readRawlog(path);
+  if (raw.encoders.size() < 3 || raw.motors.size() < 3) {
+    rf.why_not =
+        "no encoder and motor-current streams (a command-driven recording): the "
+        "residual and trajectory figures are made for the currents-driven form only";
+    return rf;
+  }
+  rf.drawn = true;
+  io::Recording corrected;
+  config::WheelchairConfig corrected_adj;
+  applyCorrection(raw, corrected_cfg, corrected, corrected_adj);
+  // Effects without an inverse on the data act on the corrected model instead (ground_slope).
+  const auto in_model =
+      modelOnlyEffects(estimation::ModelExtensions::fromConfig(corrected_cfg.ini()).effects);
+  std::string in_model_words;
+  for (const auto& e : in_model) in_model_words += ", " + e.id + " in the model";
+
+  evaluation::MetricOptions mo;
+  mo.alignment = evaluation::Alignment::SE2FirstSeconds;
+  mo.align_first_s = o.align_first_s;
+  // One read of the rawlog serves the residuals and both trajectory sets.
+  const DriveData before = loadDrive(raw, path, input_cfg, mo);
+  const DriveData after = loadDrive(raw, path, corrected_cfg, mo);
+  const double t0 = before.t0_s;
+  const double tb = raw.startTime(), te = raw.endTime();
+  TimeFigure base;
+  base.t0 = t0;
+  if (heldout) {
+    base.fit_end = tb + o.diagnosis_options.fit_fraction * (te - tb);
+    base.val0 = *base.fit_end;
+  }
+  const std::string name = fs::path(path).filename().string();
+  const std::string val_words =
+      heldout ? fmt::format("held-out last {:.0f}% of {} (the shaded part was used for fitting)",
+                            100 * (1 - o.diagnosis_options.fit_fraction), name)
+              : "validation recording " + name + " (not used for fitting)";
+  auto file = [&](const std::string& stem) { return stem + suffix + ".png"; };
+  auto out = [&](const std::string& f) { return (fs::path(o.out_dir) / f).string(); };
+
+  // Gyro vs encoders.
+  if (raw.imu.size() >= 3) {
+    const auto rb = gyroEncoderResidual(raw, input_cfg, o.diagnosis_options.window_s,
+                                        o.diagnosis_options.max_gap_s);
+    const auto ra = gyroEncoderResidual(corrected, corrected_adj, o.diagnosis_options.window_s,
+                                        o.diagnosis_options.max_gap_s);
+    TimeFigure f = base;
+    f.title = "Residual gyro omega - encoder omega, nominal vs corrected model";
+    f.ylabel = "omega_gyro - omega_encoders (rad/s)";
+    f.unit = "rad/s";
+    f.before = &rb;
+    f.after = &ra;
+    drawTimeFigure(f, out(file("residual_gyro_omega")), o.width, o.height);
+    rf.figures.push_back(
+        {file("residual_gyro_omega"),
+         fmt::format("Angular velocity from the gyro minus that from the encoders, each the mean "
+                     "over windows of {:.2f} s (the kinematic channel of the diagnosis), with the "
+                     "nominal model (orange) and the corrected one (blue, sensor effects of "
+                     "[model_extensions] undone); {}.",
+                     o.diagnosis_options.window_s, val_words)});
+    rf.residual_stats["gyro_vs_encoders (rad/s)"] = {statsIn(rb, f.val0, f.val1),
+                                                     statsIn(ra, f.val0, f.val1)};
+  }
+  // Motor currents.
+  {
+    const auto cb = currentResiduals(raw, input_cfg, o);
+    const auto ca = currentResiduals(corrected, corrected_adj, o, in_model);
+    for (int s = 0; s < 2; ++s) {
+      const std::string side = s == 0 ? "right" : "left";
+      TimeFigure f = base;
+      f.title = fmt::format(
+          "Residual {} motor current (measured - model (6)), nominal vs corrected", side);
+      f.ylabel = fmt::format("i_{} - model current (A)", s == 0 ? "R" : "L");
+      f.unit = "A";
+      f.before = &cb[s];
+      f.after = &ca[s];
+      f.xnote =
+          fmt::format("both currents zero-phase low-pass {:.1f} Hz", o.diagnosis_options.cutoff_hz);
+      const std::string stem = "residual_current_" + side;
+      drawTimeFigure(f, out(file(stem)), o.width, o.height);
+      rf.figures.push_back(
+          {file(stem),
+           fmt::format("{} motor: measured current minus the current the drive model needs for "
+                       "the motion the encoders saw (zero-phase filtered at {:.1f} Hz), with the "
+                       "nominal model (orange) and the corrected one (blue: drive-train extension "
+                       "currents removed{}); {}.",
+                       s == 0 ? "Right" : "Left", o.diagnosis_options.cutoff_hz, in_model_words,
+                       val_words)});
+      rf.residual_stats["current_" + side + " (A)"] = {statsIn(cb[s], f.val0, f.val1),
+                                                       statsIn(ca[s], f.val0, f.val1)};
+    }
+  }
+  trajectoryFigures(before, after, t0, name, suffix, o, rf);
   return rf;
 }
 
@@ -715,7 +739,7 @@ void applyCorrection(const io::Recording& rec, const config::WheelchairConfig& c
 }
 
 ResidualSeries gyroEncoderResidual(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                                   double window_s) {
+                                   double window_s, double max_gap_s) {
   ResidualSeries out;
   const auto dr =
       estimation::deadReckoningEncoders(rec.encoders, cfg.encoders.params, cfg.vehicle.geom);
@@ -728,7 +752,7 @@ ResidualSeries gyroEncoderResidual(const io::Recording& rec, const config::Wheel
     if (i)
       G[i] = G[i - 1] + 0.5 * (imu[i].gyro_z_rad_s + imu[i - 1].gyro_z_rad_s) * (tg[i] - tg[i - 1]);
   }
-  const double max_gap = 0.25;
+  const double max_gap = max_gap_s;
   std::size_t a = 0;
   while (a + 1 < dr.size()) {
     std::size_t b = a + 1;
@@ -753,67 +777,75 @@ ResidualSeries gyroEncoderResidual(const io::Recording& rec, const config::Wheel
 
 std::array<ResidualSeries, 2> currentResiduals(const io::Recording& rec,
                                                const config::WheelchairConfig& cfg,
-                                               const DiagnosisFigureOptions& o, double slope_rad,
-                                               double downhill_heading_rad) {
+                                               const DiagnosisFigureOptions& o,
+                                               const std::vector<effects::EffectSpec>& in_model) {
   std::array<ResidualSeries, 2> out;
-  const auto enc = sortedUnique(rec.encoders, [](const io::EncoderSample& s) { return s.t_s; });
-  const auto mot = sortedUnique(rec.motors, [](const io::MotorSample& s) { return s.t_s; });
-  if (enc.size() < 3 || mot.size() < 10) return out;
-  const auto& g = cfg.vehicle.geom;
-  const double r = g.wheel_radius_m, lw = g.track_width_m;
-  const auto un = sensors::unwrapTicks(enc);
-  std::vector<double> te = un.t_s, sR(te.size()), sL(te.size());
-  for (std::size_t i = 0; i < te.size(); ++i) {
-    sR[i] = r * sensors::ticksToWheelAngle(un.right[i] - un.right[0], cfg.encoders.params);
-    sL[i] = r * sensors::ticksToWheelAngle(un.left[i] - un.left[0], cfg.encoders.params);
-  }
-  std::vector<double> tm(mot.size()), iR(mot.size()), iL(mot.size());
-  for (std::size_t i = 0; i < mot.size(); ++i)
-    tm[i] = mot[i].t_s, iR[i] = mot[i].current_right_A, iL[i] = mot[i].current_left_A;
-  model::DriveTrain dt = model::DriveTrain::symmetric(cfg.vehicle);
-  dt.slope_rad = slope_rad;
-  dt.downhill_heading_rad = downhill_heading_rad;
-  const double fs = o.diagnosis_options.grid_rate_hz,
-               fc =
-                   std::min(o.diagnosis_options.cutoff_hz, 0.45 * o.diagnosis_options.grid_rate_hz);
-  for (const auto& se : splitGaps(te, o.diagnosis_options.max_gap_s))
-    for (const auto& sm : splitGaps(tm, o.diagnosis_options.max_gap_s)) {
-      const double lo = std::max(se.first, sm.first) + o.diagnosis_options.edge_trim_s;
-      const double hi = std::min(se.second, sm.second) - o.diagnosis_options.edge_trim_s;
-      if (hi - lo < 3.0) continue;
-      const double margin = std::min(o.diagnosis_options.edge_trim_s, 1.0);
-      const double glo = lo - margin, ghi = hi + margin;
-      const int n = static_cast<int>(std::floor((ghi - glo) * fs)) + 1;
-      if (n < 20) continue;
-      std::vector<double> tgr(n);
-      for (int i = 0; i < n; ++i) tgr[i] = glo + i / fs;
-      const auto pR = sensors::resampleLinear(te, sR, tgr),
-                 pL = sensors::resampleLinear(te, sL, tgr);
-      const auto uR = sensors::filtfiltButter2(sensors::centralDerivative(tgr, pR), fc, fs);
-      const auto uL = sensors::filtfiltButter2(sensors::centralDerivative(tgr, pL), fc, fs);
-      const auto udR = sensors::centralDerivative(tgr, uR),
-                 udL = sensors::centralDerivative(tgr, uL);
-      std::vector<double> tmi, iRs, iLs;
-      for (std::size_t i = 0; i < tm.size(); ++i)
-        if (tm[i] >= glo - 2 && tm[i] <= ghi + 2)
-          tmi.push_back(tm[i]), iRs.push_back(iR[i]), iLs.push_back(iL[i]);
-      if (tmi.size() < 10) continue;
-      const auto iRf = sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, iRs, fc), tgr);
-      const auto iLf = sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, iLs, fc), tgr);
-      for (int i = 0; i < n; ++i) {
-        if (tgr[i] < lo || tgr[i] > hi) continue;
-        const model::MotionState st{0.5 * (uR[i] + uL[i]), (uR[i] - uL[i]) / lw,
-                                    (pR[i] - pL[i]) / lw};
-        const Eigen::Vector2d ip = dt.currents(st, 0.5 * (udR[i] + udL[i]), (udR[i] - udL[i]) / lw);
-        out[0].t_s.push_back(tgr[i]), out[0].r.push_back(iRf[i] - ip(0));
-        out[1].t_s.push_back(tgr[i]), out[1].r.push_back(iLf[i] - ip(1));
-      }
-      // Break the line between segments.
-      for (auto& s : out)
-        if (!s.t_s.empty()) s.t_s.push_back(s.t_s.back()), s.r.push_back(NAN);
+  effects::TruthModel m;
+  m.drive = model::DriveTrain::symmetric(cfg.vehicle);
+  effects::actOnTruth(modelOnlyEffects(in_model), m);
+  const model::DriveTrain& dt = m.drive;
+  const double lw = cfg.vehicle.geom.track_width_m;
+  const auto& d = o.diagnosis_options;
+  signals::DriveSignalOptions so;
+  so.grid_rate_hz = d.grid_rate_hz, so.cutoff_hz = d.cutoff_hz, so.max_gap_s = d.max_gap_s;
+  so.edge_trim_s = d.edge_trim_s;
+  // The diagnosis' own conditioning (signals::prepare), so the figure shows its residual.
+  for (const signals::DriveSegment& seg : signals::prepare(rec, cfg, so)) {
+    const auto &p = seg.p, &u = seg.u_f, &a = seg.a_f;
+    for (int i = seg.i0; i < seg.i1; ++i) {
+      const model::MotionState st{0.5 * (u[0][i] + u[1][i]), (u[0][i] - u[1][i]) / lw,
+                                  (p[0][i] - p[1][i]) / lw};
+      const Eigen::Vector2d ip =
+          dt.currents(st, 0.5 * (a[0][i] + a[1][i]), (a[0][i] - a[1][i]) / lw);
+      for (int side = 0; side < 2; ++side)
+        out[side].t_s.push_back(seg.t[i]), out[side].r.push_back(seg.i_f[side][i] - ip(side));
     }
+    // Break the line between segments.
+    for (auto& s : out)
+      if (!s.t_s.empty()) s.t_s.push_back(s.t_s.back()), s.r.push_back(NAN);
+  }
   return out;
 }
+
+namespace {
+
+/// "Residuals and trajectories in the figures": the statistics of each recording's figures.
+std::string figureStatsMarkdown(const std::vector<RecordingFigures>& recs, bool heldout) {
+  std::string md;
+  bool any_traj = false;
+  for (const auto& r : recs) any_traj |= !r.traj.empty() || !r.residual_stats.empty();
+  if (any_traj) {
+    md += "## Residuals and trajectories in the figures\n\n";
+    for (const auto& r : recs) {
+      if (!r.drawn) continue;
+      md += "**" + fs::path(r.path).filename().string() + "**" +
+            (heldout ? " (statistics over the held-out part)" : "") + "\n\n";
+      if (!r.residual_stats.empty()) {
+        md +=
+            "| residual | mean before | mean after | RMS before | RMS after |\n"
+            "|---|---:|---:|---:|---:|\n";
+        for (const auto& [ch, st] : r.residual_stats)
+          md += fmt::format("| {} | {} | {} | {} | {} |\n", ch, num(st.first.mean, 4),
+                            num(st.second.mean, 4), num(st.first.rms, 4), num(st.second.rms, 4));
+        md += "\n";
+      }
+      if (!r.traj.empty()) {
+        md += "Against the ground truth (" + r.gt_note +
+              "), whole recording:\n\n"
+              "| variant | ATE RMSE (m) before | after | terminal error (m) before | after |\n"
+              "|---|---:|---:|---:|---:|\n";
+        for (const auto& t : r.traj)
+          md += fmt::format("| {} | {} | {} | {} | {} |\n", t.variant, num(t.before.ate_rmse_m),
+                            num(t.after.ate_rmse_m), num(t.before.terminal_error_m),
+                            num(t.after.terminal_error_m));
+        md += "\n";
+      }
+    }
+  }
+  return md;
+}
+
+}  // namespace
 
 DiagnosisFigureResult writeDiagnosisFigures(const json& report,
                                             const config::WheelchairConfig& input_cfg,
@@ -851,10 +883,10 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
   }
   const auto ext = estimation::ModelExtensions::fromConfig(corrected_cfg.ini());
   for (const auto& e : ext.effects)
-    if (e.id == "actuator_lag")
-      res.notes.push_back(
-          "actuator_lag is not applied to the recordings in these figures (it "
-          "needs the command history)");
+    if (actsOnCommands(e))
+      res.notes.push_back(e.id +
+                          " is not applied to the recordings in these figures (it "
+                          "needs the command history)");
 
   std::vector<const json*> stages;
   findStages(report, stages);
@@ -906,36 +938,7 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
   if (!val.empty()) md += "## Validation\n\n" + val;
   for (const auto* s : stages) md += commandResponseMarkdown(*s, !top_drift);
 
-  bool any_traj = false;
-  for (const auto& r : recs) any_traj |= !r.traj.empty() || !r.residual_stats.empty();
-  if (any_traj) {
-    md += "## Residuals and trajectories in the figures\n\n";
-    for (const auto& r : recs) {
-      if (!r.drawn) continue;
-      md += "**" + fs::path(r.path).filename().string() + "**" +
-            (heldout ? " (statistics over the held-out part)" : "") + "\n\n";
-      if (!r.residual_stats.empty()) {
-        md +=
-            "| residual | mean before | mean after | RMS before | RMS after |\n"
-            "|---|---:|---:|---:|---:|\n";
-        for (const auto& [ch, st] : r.residual_stats)
-          md += fmt::format("| {} | {} | {} | {} | {} |\n", ch, num(st.first.mean, 4),
-                            num(st.second.mean, 4), num(st.first.rms, 4), num(st.second.rms, 4));
-        md += "\n";
-      }
-      if (!r.traj.empty()) {
-        md += "Against the ground truth (" + r.gt_note +
-              "), whole recording:\n\n"
-              "| variant | ATE RMSE (m) before | after | terminal error (m) before | after |\n"
-              "|---|---:|---:|---:|---:|\n";
-        for (const auto& t : r.traj)
-          md += fmt::format("| {} | {} | {} | {} | {} |\n", t.variant, num(t.before.ate_rmse_m),
-                            num(t.after.ate_rmse_m), num(t.before.terminal_error_m),
-                            num(t.after.terminal_error_m));
-        md += "\n";
-      }
-    }
-  }
+  md += figureStatsMarkdown(recs, heldout);
   md += "## Figures\n\n";
   for (const auto& r : recs)
     for (const auto& [f, caption] : r.figures)

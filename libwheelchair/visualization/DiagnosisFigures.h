@@ -39,6 +39,8 @@
 //                                  {"a.rawlog"}, {"b.rawlog"}, o);
 #pragma once
 
+#include "libwheelchair/effects/Effect.h"
+
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/io/Recording.h"
@@ -87,18 +89,19 @@ struct ResidualSeries {
 };
 
 /// Gyro minus encoder angular velocity (rad/s), each the mean over consecutive windows of
-/// encoder samples of about window_s: (integral of gyro_z - odometric heading change) / T.
+/// encoder samples of about window_s: (integral of gyro_z - odometric heading change) / T;
+/// windows with an encoder gap over max_gap_s ([diagnosis] max_gap_s) are left out.
 ResidualSeries gyroEncoderResidual(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                                   double window_s);
+                                   double window_s, double max_gap_s);
 
 /// Per motor (0 right, 1 left): measured current minus the drive model's current for the
-/// motion seen by the encoders (model::DriveTrain of cfg's [vehicle], plus a floor slope when
-/// slope_rad != 0), both zero-phase filtered at cutoff_hz on a grid of grid_rate_hz.
-std::array<ResidualSeries, 2> currentResiduals(const io::Recording& rec,
-                                               const config::WheelchairConfig& cfg,
-                                               const DiagnosisFigureOptions& options,
-                                               double slope_rad = 0.0,
-                                               double downhill_heading_rad = 0.0);
+/// motion seen by the encoders, on the diagnosis' own signals (signals::prepare with the
+/// [diagnosis] grid, cut-off, gap and edge trim): model::DriveTrain of cfg's [vehicle] with
+/// the effects of `in_model` that change the drive model without an inverse on the data
+/// (ground_slope) acting on it (effects/ registry).
+std::array<ResidualSeries, 2> currentResiduals(
+    const io::Recording& rec, const config::WheelchairConfig& cfg,
+    const DiagnosisFigureOptions& options, const std::vector<effects::EffectSpec>& in_model = {});
 
 /// The recording and configuration the corrected model sees: [model_extensions] of
 /// `corrected_cfg` applied as the filter applies them (estimation::ModelExtensions).

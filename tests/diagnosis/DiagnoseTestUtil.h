@@ -21,8 +21,8 @@ inline simulation::SimulationResult simulateWith(const std::string& scenario, ui
   simulation::SimulationOptions so;
   so.loadFromConfig(cfg.ini());
   if (record_ground_truth) so.record_ground_truth = true;  // else as the configuration says
-  std::vector<simulation::EffectSpec> e;
-  for (auto& s : effects) e.push_back(simulation::parseValidEffect(s));
+  std::vector<effects::EffectSpec> e;
+  for (auto& s : effects) e.push_back(effects::parseValidEffect(s));
   return simulation::simulate(cfg, scenario, seed, duration_s, e, so);
 }
 

@@ -94,7 +94,7 @@ TEST(Diagnose, PaperCaseUnequalMotorsAndFaultyEncoder) {
   auto cfg2 = diagnosis::correctedConfig(config::WheelchairConfig(), r);
   auto ext = estimation::ModelExtensions::fromConfig(cfg2.ini()).effects;
   ASSERT_EQ(ext.size(), 2u);
-  for (auto& e : ext) EXPECT_NO_THROW(simulation::validateEffect(e));
+  for (auto& e : ext) EXPECT_NO_THROW(effects::validateEffect(e));
 }
 
 // Missing streams: no gyro -> stage 1 skipped; no currents -> stage 2 skipped; no crash and no

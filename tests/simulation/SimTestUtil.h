@@ -14,8 +14,8 @@ inline SimulationResult run(const std::string& scenario, uint64_t seed,
                             const std::vector<std::string>& effects = {}, double duration_s = 0,
                             SimulationOptions opt = SimulationOptions{}) {
   static const config::WheelchairConfig cfg;
-  std::vector<EffectSpec> e;
-  for (const auto& t : effects) e.push_back(parseValidEffect(t));
+  std::vector<effects::EffectSpec> e;
+  for (const auto& t : effects) e.push_back(effects::parseValidEffect(t));
   return simulate(cfg, scenario, seed, duration_s, e, opt);
 }
 

@@ -24,8 +24,8 @@ const config::WheelchairConfig& nominal() {
   return cfg;
 }
 
-std::vector<EffectSpec> mujocoEffects(const std::vector<std::string>& texts) {
-  std::vector<EffectSpec> e;
+std::vector<effects::EffectSpec> mujocoEffects(const std::vector<std::string>& texts) {
+  std::vector<effects::EffectSpec> e;
   for (const auto& t : texts) e.push_back(parseEngineEffect(t, "mujoco"));
   return e;
 }
@@ -297,7 +297,7 @@ TEST(MujocoEffects, EngineOnlyEffectsAreRefusedByTheModelEngine) {
   EXPECT_THROW(parseEngineEffect("gyro_bias:bias_rad_s=0.1", "bullet"), std::invalid_argument);
   EXPECT_NO_THROW(parseEngineEffect("gyro_bias:bias_rad_s=0.1", "mujoco"));
   SimulationOptions opt;  // engine model
-  EXPECT_THROW(simulate(nominal(), "three_task", 1, 2, {parseEffect("tyre_grip:mu=0.5")}, opt),
+  EXPECT_THROW(simulate(nominal(), "three_task", 1, 2, {effects::parseEffect("tyre_grip:mu=0.5")}, opt),
                std::invalid_argument);
 }
 

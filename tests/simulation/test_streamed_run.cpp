@@ -81,8 +81,8 @@ TEST(StreamedRun, SimulateToFilesGivesTheInMemoryBytes) {
   simulation::SimulationOptions opt;
   opt.loadFromConfig(cfg.ini(), "simulation");
   opt.record_ground_truth = true;
-  const std::vector<simulation::EffectSpec> effects = {
-      simulation::parseEffect("sonar_dropout:probability=0.15,burst_length=3")};
+  const std::vector<effects::EffectSpec> effects = {
+      effects::parseEffect("sonar_dropout:probability=0.15,burst_length=3")};
   const auto ref = simulation::simulate(cfg, "three_task", 4, 12, effects, opt);
   io::writeRawlog(ref.recording, dir / "ref.rawlog", cfg);
   ref.writeTruth(dir / "ref.truth.json");

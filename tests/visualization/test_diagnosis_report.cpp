@@ -115,8 +115,8 @@ TEST(DiagnosisReport, ResidualsShrinkWithTheCorrectedModel) {
       if (std::isfinite(v)) sq += v * v, ++n;
     return n ? std::sqrt(sq / n) : NAN;
   };
-  const auto gb = gyroEncoderResidual(raw, nominal, 0.2);
-  const auto ga = gyroEncoderResidual(fixed, fixed_cfg, 0.2);
+  const auto gb = gyroEncoderResidual(raw, nominal, 0.2, 0.25);
+  const auto ga = gyroEncoderResidual(fixed, fixed_cfg, 0.2, 0.25);
   ASSERT_GT(gb.r.size(), 100u);
   EXPECT_GT(rms(gb), 0.02);           // 5 % scale error on one wheel: ~0.07 rad/s when driving
   EXPECT_LT(rms(ga), 0.1 * rms(gb));  // gone, down to gyro noise
