@@ -309,6 +309,12 @@ int runFilter(const FilterCliOptions& o) {
         double(c.error_test_fails) / c.intervals);
   }
   for (const auto& w : res.warnings) fmt::print("warning: {}\n", w);
+  if (const auto& e = res.sensor_errors; e.present)
+    fmt::print(
+        "sensor errors at the end: encoder scale right {:.4f} +- {:.4f}, left {:.4f} +- {:.4f} "
+        "(reported / true), gyro bias {:.5f} +- {:.5f} rad/s\n",
+        e.encoder_scale_right, e.encoder_scale_right_sd, e.encoder_scale_left,
+        e.encoder_scale_left_sd, e.gyro_bias_rad_s, e.gyro_bias_sd_rad_s);
   if (res.n_estimates > 0) {
     const auto& f = res.final();
     fmt::print("final pose x = {:.3f} +- {:.3f} m, y = {:.3f} +- {:.3f} m, phi = {:.1f} deg\n",

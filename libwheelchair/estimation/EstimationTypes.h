@@ -114,6 +114,15 @@ class EstimateSink {
   virtual void add(const EstimateSample& s) = 0;
 };
 
+/// Sensor-error estimates of the physics filter (mean and 1 sigma; WheelchairEkf.h).
+struct SensorErrorEstimate {
+  bool present = false;  ///< the filter carries the sensor-error states
+  double t_s = 0;
+  double encoder_scale_right = 1, encoder_scale_right_sd = 0;  ///< reported / true (-)
+  double encoder_scale_left = 1, encoder_scale_left_sd = 0;    ///< reported / true (-)
+  double gyro_bias_rad_s = 0, gyro_bias_sd_rad_s = 0;
+};
+
 struct EstimationResult {
   std::string filter;  ///< "physics" or "baseline"
   /// All estimates (runEstimator without a sink); empty when they went to an EstimateSink.
@@ -124,6 +133,7 @@ struct EstimationResult {
   std::vector<RejectedMeasurement> rejected;
   std::vector<NisRecord> nis;         ///< every update attempt (runEstimator without a sink only)
   CvodeStats cvode;                   ///< physics filter only
+  SensorErrorEstimate sensor_errors;  ///< at the end of the run (physics filter with the states)
   std::vector<std::string> warnings;  ///< e.g. "no motor currents: input held at 0"
 
   const SensorStats& stats(Sensor s) const { return sensors[static_cast<int>(s)]; }

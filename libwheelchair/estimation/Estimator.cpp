@@ -515,7 +515,10 @@ EstimationResult runEstimatorImpl(const io::Recording& rec, const config::Wheelc
     }
   }
   if (!res.estimates.empty()) res.last = res.estimates.back();
-  if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) res.cvode = w->filter().stats();
+  if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) {
+    res.cvode = w->filter().stats();
+    res.sensor_errors = w->sensorErrors();
+  }
   return std::move(res);
 }
 
