@@ -196,6 +196,7 @@ void WheelchairEkf::start(double t0) {
   P(model::kIdxY, model::kIdxY) = opt_.initial_sigma_xy_m * opt_.initial_sigma_xy_m;
   P(model::kIdxPhi, model::kIdxPhi) = opt_.initial_sigma_phi_rad * opt_.initial_sigma_phi_rad;
   ekf_.reset(t0, x, P);
+  health_ = HealthMonitor(t0);
   // Obstacle at its most likely place: configured position (also the placeholder until the
   // first valid sonar reading in first_sonar mode).
   setObstacle(configObstacle(), configObstacleCov());
@@ -272,6 +273,16 @@ void WheelchairEkf::resetAccumulators(double t) {
   acc_valid_ = true;
 }
 
+void WheelchairEkf::reopenEncoderScales() {
+  Eigen::MatrixXd P = ekf_.P();
+  P.middleRows<2>(kIdxEncScaleS).setZero();
+  P.middleCols<2>(kIdxEncScaleS).setZero();
+  const double s2 = opt_.encoder_scale_sigma * opt_.encoder_scale_sigma;
+  P(kIdxEncScaleS, kIdxEncScaleS) = 0.5 * s2;
+  P(kIdxEncScaleD, kIdxEncScaleD) = 2.0 * s2;
+  ekf_.setCovariance(P);
+}
+
 void WheelchairEkf::encoderStart(double t) {
   if (!opt_.use_encoders) return;
   resetAccumulators(t);
@@ -325,6 +336,14 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     r = ekf_.update(z - a, da, encoderNoise(dt), g);
   }
   record(Sensor::Encoders, iv.t1_s, r, g);
+  if (n > kPhysicsStateDim && opt_.estimate_encoder_scales) {
+    // Health monitor: CUSUM on the z_omega innovation (accepted or gated); an alarm re-opens
+    // the scales, so the next updates estimate the fault instead of rejecting the encoders.
+    if (r.S.rows() == 2 && r.S(1, 1) > 0 &&
+        health_.encoderInnovation(iv.t1_s, r.innovation(1) / std::sqrt(r.S(1, 1))))
+      reopenEncoderScales();
+    health_.scales(iv.t1_s, sensorErrors());
+  }
   wrap();
   resetAccumulators(iv.t1_s);
 }
@@ -407,6 +426,12 @@ SensorErrorEstimate WheelchairEkf::sensorErrors() const {
   e.encoder_scale_right_sd = std::sqrt(std::max(0.0, vs + 0.25 * vd + c));
   e.encoder_scale_left = x(kIdxEncScaleS) - 0.5 * x(kIdxEncScaleD);
   e.encoder_scale_left_sd = std::sqrt(std::max(0.0, vs + 0.25 * vd - c));
+  // k_R / k_L = (k_s + k_d / 2) / (k_s - k_d / 2): gradient (-k_d, 2 k_s) / (k_s - k_d / 2)^2.
+  const double ks = x(kIdxEncScaleS), kd = x(kIdxEncScaleD), den = ks - 0.5 * kd;
+  const Eigen::Vector2d gr(-kd / (den * den), ks / (den * den));
+  e.encoder_scale_ratio = (ks + 0.5 * kd) / den;
+  e.encoder_scale_ratio_sd = std::sqrt(
+      std::max(0.0, double(gr.transpose() * P.block<2, 2>(kIdxEncScaleS, kIdxEncScaleS) * gr)));
   e.gyro_bias_rad_s = x(kIdxGyroBias);
   e.gyro_bias_sd_rad_s = sd(kIdxGyroBias);
   return e;

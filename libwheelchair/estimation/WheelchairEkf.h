@@ -41,6 +41,7 @@
 
 #include "libwheelchair/estimation/CdEkf.h"
 #include "libwheelchair/estimation/Estimator.h"
+#include "libwheelchair/estimation/HealthMonitor.h"
 #include "libwheelchair/model/FilterModel.h"
 
 #include <memory>
@@ -102,6 +103,8 @@ class WheelchairEkf : public Estimator {
   /// The full filter (9 states, 12 with the sensor-error states; covariance, CVODE counters).
   const CdEkf& filter() const { return ekf_; }
   SensorErrorEstimate sensorErrors() const;
+  /// Model-health events so far (estimate_encoder_scales on; HealthMonitor.h).
+  const std::vector<HealthEvent>& healthEvents() const { return health_.events(); }
   const model::FilterModel& filterModel() const { return pm_.filterModel(); }
 
  protected:
@@ -116,6 +119,9 @@ class WheelchairEkf : public Estimator {
   model::FilterState head() const;
   void wrap();
   void resetAccumulators(double t_s);
+  /// Sets the encoder scale states' covariance back to the prior (cross-covariances 0): the
+  /// fault hypothesis after a health-monitor alarm.
+  void reopenEncoderScales();
   /// Keeps in the scale columns of the encoder Jacobian H only the entries the update may
   /// learn from and adds the others' variance to R (see the .cpp: excitation, motor model).
   void learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::Dynamic>& da,
@@ -145,6 +151,7 @@ class WheelchairEkf : public Estimator {
   Eigen::VectorXd xs_;  // scratch state
   WheelchairProcessModel pm_;
   CdEkf ekf_;
+  HealthMonitor health_;
   bool obstacle_initialised_ = false;
   double acc_start_s_ = -1e300;
   bool acc_valid_ = false;

@@ -42,6 +42,7 @@ const std::map<std::string, Range>& ranges() {
       {"motor_asymmetry.friction_ratio", {0, 100, false}},
       {"motor_asymmetry.km_ratio", {0, 10, false}},
       {"encoder_scale.scale", {0, 10, false}},
+      {"encoder_scale.from_s", {0, 1e7, true}},
       {"gyro_bias.bias_rad_s", {-10, 10, true}},
       {"gyro_scale.scale", {0, 10, false}},
       {"coulomb_friction.current_A", {0, 100, true}},
@@ -77,7 +78,13 @@ const std::vector<EffectInfo>& effectCatalogue() {
        "Wrong encoder pulley ratio N_ep/N_mp on one side: the encoder reports scale times the "
        "true wheel rotation.",
        {{"side", "enum", "encoder affected", "", kSidesBoth},
-        {"scale", "-", "reported distance / true distance", "", {}}}},
+        {"scale", "-", "reported distance / true distance", "", {}},
+        {"from_s",
+         "s",
+         "time since the start from which the scale applies (a step fault; the count stays "
+         "continuous)",
+         "0",
+         {}}}},
       {"gyro_bias",
        "Constant offset of the gyro z reading.",
        {{"bias_rad_s", "rad/s", "added to every gyro z sample", "", {}}}},

@@ -109,6 +109,11 @@ struct Snap {
 /// Everything effects change on the sensor side.
 struct SensorEffects {
   double encoder_scale[2] = {1, 1};
+  /// encoder_scale from_s: before it the side reads true; from the first sample at or after
+  /// it the reported angle is anchor + scale (psi - anchor) (anchor: the true angle there).
+  double encoder_from_s[2] = {0, 0};
+  double encoder_anchor[2] = {0, 0};
+  bool encoder_anchored[2] = {false, false};
   double gyro_bias = 0, gyro_scale = 1;
   double delay[kNumStreams] = {0, 0, 0, 0, 0, 0};
   double dropout_probability = 0, dropout_burst = 3;
@@ -253,7 +258,10 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
         dt.side[s].torque_constant_Nm_A *= e.number("km_ratio");
       }
     } else if (e.id == "encoder_scale") {
-      for (int s : effectSides(e)) se.encoder_scale[s] *= e.number("scale");
+      for (int s : effectSides(e)) {
+        se.encoder_scale[s] *= e.number("scale");
+        se.encoder_from_s[s] = std::max(se.encoder_from_s[s], e.number("from_s"));
+      }
     } else if (e.id == "gyro_bias") {
       se.gyro_bias += e.number("bias_rad_s");
     } else if (e.id == "gyro_scale") {
@@ -473,10 +481,19 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
         switch (st) {
           case kEncoders: {
             // The counter holds whole edges: floor of the continuous count of (9).
+            const auto reported = [&](int w, double psi) {
+              if (se.encoder_from_s[w] <= 0) return se.encoder_scale[w] * psi;
+              if (tm < se.encoder_from_s[w]) return psi;
+              if (!se.encoder_anchored[w]) {
+                se.encoder_anchor[w] = psi;
+                se.encoder_anchored[w] = true;
+              }
+              return se.encoder_anchor[w] + se.encoder_scale[w] * (psi - se.encoder_anchor[w]);
+            };
             const auto tr = static_cast<int64_t>(
-                std::floor(sensors::wheelAngleToTicks(se.encoder_scale[0] * q.psiR, enc)));
+                std::floor(sensors::wheelAngleToTicks(reported(0, q.psiR), enc)));
             const auto tl = static_cast<int64_t>(
-                std::floor(sensors::wheelAngleToTicks(se.encoder_scale[1] * q.psiL, enc)));
+                std::floor(sensors::wheelAngleToTicks(reported(1, q.psiL), enc)));
             rec.encoders.push_back(
                 {stamp, sensors::toHardwareCounter(opt.encoder_initial_ticks_right + tr),
                  sensors::toHardwareCounter(opt.encoder_initial_ticks_left + tl)});
