@@ -20,6 +20,8 @@
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Metrics.h"
+#include "libwheelchair/evaluation/Nees.h"
+#include "libwheelchair/stats/Distributions.h"
 #include "libwheelchair/simulation/Effects.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Simulator.h"
@@ -46,6 +48,8 @@ struct RunMetrics {
   std::map<std::string, double> ate_m, terminal_m;
   /// EKF speed error relative to the true speed, mean over estimates while |v_true| > 0.3 m/s.
   double ekf_speed_error_rel = 0;
+  /// EKF position NEES against the truth at its 10 Hz samples (evaluation/Nees.h; truth only).
+  std::vector<double> ekf_nees;
   std::string error;
 };
 
@@ -90,6 +94,12 @@ RunMetrics runOne(const config::WheelchairConfig& cfg, uint64_t seed,
       }
     }
     out.ekf_speed_error_rel = n ? sum / n : 0.0;
+    if (against_truth) {
+      std::vector<evaluation::PositionEstimateStamped> pe;
+      for (const auto& e : est.ekf.estimates)
+        pe.push_back({e.t_s, e.x.segment<2>(2), e.P.block<2, 2>(2, 2)});
+      out.ekf_nees = evaluation::averageNees(pe, reference, evaluation::NeesOptions{}).nees;
+    }
     for (const auto& v : evaluation::variantNames()) {
       const auto m = evaluation::computeMetrics(est.trajectory(v), reference, mo);
       out.ate_m[v] = m.ate_rmse_m;
@@ -226,6 +236,28 @@ int main(int argc, char** argv) {
                         {"ate_se_m", a.se},
                         {"terminal_mean_m", t.mean},
                         {"terminal_se_m", t.se}};
+  }
+  if (against_truth && ok > 0) {
+    // Monte-Carlo NEES: at each 10 Hz truth time k the mean over the drives of NEES_k, for a
+    // consistent filter chi2(2 R) / R; the share of times inside its two-sided 95 % band.
+    std::size_t len = SIZE_MAX;
+    for (const auto& r : results)
+      if (r.error.empty()) len = std::min(len, r.ekf_nees.size());
+    const auto band = stats::chi2MeanBand(0.95, 2, ok);
+    double all = 0;
+    long inside = 0;
+    for (std::size_t k = 0; k < len; ++k) {
+      double m = 0;
+      for (const auto& r : results)
+        if (r.error.empty()) m += r.ekf_nees[k] / ok;
+      all += m / len;
+      inside += m >= band.first && m <= band.second;
+    }
+    fmt::print(
+        "EKF position NEES (Monte-Carlo over {} drives, {} times): mean {:.2f} (consistent: 2), "
+        "{:.0f} % of the times inside the 95 % band {:.2f}..{:.2f}\n",
+        ok, len, all, len ? 100.0 * inside / len : 0.0, band.first, band.second);
+    j["ekf_nees"] = {{"mean", all}, {"inside95", len ? double(inside) / len : 0.0}, {"times", len}};
   }
   const auto sp = summarise(speed_error);
   fmt::print(
