@@ -21,8 +21,10 @@
 #include "libwheelchair/effects/Effect.h"
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/evaluation/Metrics.h"
+#include "libwheelchair/evaluation/Nees.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Simulator.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -46,6 +48,8 @@ struct RunMetrics {
   std::map<std::string, double> ate_m, terminal_m;
   /// EKF speed error relative to the true speed, mean over estimates while |v_true| > 0.3 m/s.
   double ekf_speed_error_rel = 0;
+  /// EKF position NEES against the truth at its 10 Hz samples (evaluation/Nees.h; truth only).
+  std::vector<double> ekf_nees;
   std::string error;
 };
 
@@ -90,6 +94,12 @@ RunMetrics runOne(const config::WheelchairConfig& cfg, uint64_t seed,
       }
     }
     out.ekf_speed_error_rel = n ? sum / n : 0.0;
+    if (against_truth) {
+      std::vector<evaluation::PositionEstimateStamped> pe;
+      for (const auto& e : est.ekf.estimates)
+        pe.push_back({e.t_s, e.x.segment<2>(2), e.P.block<2, 2>(2, 2)});
+      out.ekf_nees = evaluation::averageNees(pe, reference, evaluation::NeesOptions{}).nees;
+    }
     for (const auto& v : evaluation::variantNames()) {
       const auto m = evaluation::computeMetrics(est.trajectory(v), reference, mo);
       out.ate_m[v] = m.ate_rmse_m;
@@ -193,6 +203,7 @@ struct Tally {
   std::map<std::string, std::vector<double>> ate, term, d_ate, d_term;
   std::map<std::string, int> wins_ate, wins_term;
   std::vector<double> speed_error;
+  std::vector<double> nees_mean;  ///< per truth time: mean position NEES over the drives
   int failed = 0;
 };
 
@@ -215,6 +226,17 @@ Tally tally(const std::vector<RunMetrics>& results) {
       t.wins_term[v] += r.terminal_m.at("ekf") < r.terminal_m.at(v);
     }
   }
+  std::size_t len = SIZE_MAX;
+  for (const auto& r : results)
+    if (r.error.empty()) len = std::min(len, r.ekf_nees.size());
+  const int ok = static_cast<int>(results.size()) - t.failed;
+  if (ok > 0)
+    for (std::size_t k = 0; k < len; ++k) {
+      double m = 0;
+      for (const auto& r : results)
+        if (r.error.empty()) m += r.ekf_nees[k] / ok;
+      t.nees_mean.push_back(m);
+    }
   return t;
 }
 
@@ -242,6 +264,23 @@ nlohmann::json report(const Args& args, Tally& t) {
                         {"ate_se_m", a.se},
                         {"terminal_mean_m", e.mean},
                         {"terminal_se_m", e.se}};
+  }
+  if (args.against_truth && ok > 0 && !t.nees_mean.empty()) {
+    // Monte-Carlo NEES: at each 10 Hz truth time k the mean over the drives of NEES_k, for a
+    // consistent filter chi2(2 R) / R; the share of times inside its two-sided 95 % band.
+    const std::size_t len = t.nees_mean.size();
+    const auto band = stats::chi2MeanBand(0.95, 2, ok);
+    double all = 0;
+    long inside = 0;
+    for (const double m : t.nees_mean) {
+      all += m / len;
+      inside += m >= band.first && m <= band.second;
+    }
+    fmt::print(
+        "EKF position NEES (Monte-Carlo over {} drives, {} times): mean {:.2f} (consistent: 2), "
+        "{:.0f} % of the times inside the 95 % band {:.2f}..{:.2f}\n",
+        ok, len, all, 100.0 * inside / len, band.first, band.second);
+    j["ekf_nees"] = {{"mean", all}, {"inside95", double(inside) / len}, {"times", len}};
   }
   const auto sp = summarise(t.speed_error);
   fmt::print(

@@ -32,6 +32,8 @@
 
 #include <mrpt/config/CConfigFile.h>
 
+#include <nlohmann/json.hpp>
+
 #include <fmt/core.h>
 
 #include <atomic>
@@ -52,6 +54,7 @@ namespace {
 
 struct FilterCliOptions {
   std::string input, config_path, trajectory, estimates, filter, obstacle_form, frame = "map";
+  std::string health;  ///< model-health events (JSON lines)
   bool variants = false, pozyx = false, no_progress = false, salvage = false;
 };
 
@@ -249,6 +252,12 @@ int runFilter(const FilterCliOptions& o) {
   if (o.pozyx) cfg.set("estimator", "use_pozyx", "1");
   estimation::EkfOptions opt;
   opt.loadFromConfig(cfg.ini());
+  if (!o.health.empty() && !opt.estimate_encoder_scales) {
+    // The monitor estimates the faults through the sensor-error states.
+    cfg.set("estimator", "estimate_encoder_scales", "1");
+    opt.estimate_encoder_scales = true;
+    fmt::print("note: --health switches estimate_encoder_scales on\n");
+  }
   opt.resolveSensorDefaults(cfg);
 
   using io::StreamKind;
@@ -276,6 +285,8 @@ int runFilter(const FilterCliOptions& o) {
   std::optional<estimation::EstimatesCsvWriter> csv;
   if (!o.trajectory.empty()) tum.emplace(o.trajectory);
   if (!o.estimates.empty()) csv.emplace(o.estimates);
+  std::optional<util::AtomicFile> health;
+  if (!o.health.empty()) health.emplace(o.health);
   estimation::EstimateFanOut sinks({tum ? &*tum : nullptr, csv ? &*csv : nullptr});
   const auto t0 = std::chrono::steady_clock::now();
   const estimation::EstimationResult res = [&] {
@@ -321,6 +332,26 @@ int runFilter(const FilterCliOptions& o) {
         double(c.error_test_fails) / c.intervals);
   }
   for (const auto& w : res.warnings) fmt::print("warning: {}\n", w);
+  if (const auto& e = res.sensor_errors; e.present)
+    fmt::print(
+        "sensor errors at the end: encoder scale right {:.4f} +- {:.4f}, left {:.4f} +- {:.4f} "
+        "(reported / true), gyro bias {:.5f} +- {:.5f} rad/s\n",
+        e.encoder_scale_right, e.encoder_scale_right_sd, e.encoder_scale_left,
+        e.encoder_scale_left_sd, e.gyro_bias_rad_s, e.gyro_bias_sd_rad_s);
+  for (const auto& e : res.health)
+    fmt::print("health: t = {:.1f} s: {}\n", e.t_s - sum.start_s, e.text);
+  if (health) {
+    for (const auto& e : res.health)
+      health->stream() << nlohmann::json{{"t_s", e.t_s},         {"sensor", e.sensor},
+                                         {"kind", e.kind},       {"effect", e.effect},
+                                         {"side", e.side},       {"parameter", e.parameter},
+                                         {"value", e.value},     {"sd", e.sd},
+                                         {"since_s", e.since_s}, {"text", e.text}}
+                              .dump()
+                       << "\n";
+    health->commit();
+    fmt::print("health events (JSON lines): {} ({} events)\n", o.health, res.health.size());
+  }
   if (res.n_estimates > 0) {
     const auto& f = res.final();
     fmt::print("final pose x = {:.3f} +- {:.3f} m, y = {:.3f} +- {:.3f} m, phi = {:.1f} deg\n",
@@ -403,6 +434,9 @@ const RegisterCommand reg{Command{
           ->check(CLI::IsMember({"cartesian", "polar"}));
       sub.add_flag("--pozyx", o->pozyx, "Also fuse Pozyx positions (off: they are ground truth)");
       sub.add_flag("--salvage", o->salvage, kSalvageHelp);
+      sub.add_option("--health", o->health,
+                     "Model-health events as JSON lines {t_s, sensor, kind, effect, side, "
+                     "parameter, value, sd, since_s, text} (switches estimate_encoder_scales on)");
       return [o] { return runFilter(*o); };
     }}};
 

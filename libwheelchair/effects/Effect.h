@@ -80,6 +80,10 @@ int streamIndex(const std::string& name);
 /// What effects change on the sensor side of the truth simulator.
 struct SensorDistortion {
   double encoder_scale[2] = {1, 1};  ///< reported / true wheel rotation (right, left)
+  /// encoder_scale from_s (s since the start; 0: from the start): a step fault; before it the
+  /// side reads true, from the first sample at or after it the reported angle is
+  /// anchor + scale (psi - anchor), anchor the true angle there (the count stays continuous).
+  double encoder_from_s[2] = {0, 0};
   double gyro_bias_rad_s = 0, gyro_scale = 1;
   double delay_s[6] = {0, 0, 0, 0, 0, 0};  ///< stamp lag per stream (streamNames order)
   double dropout_probability = 0, dropout_burst = 3;

@@ -1,6 +1,10 @@
-// encoder_scale(side, scale): a wrong encoder pulley ratio N_ep/N_mp on one side (or both).
-//   truth      that encoder counts scale x the true wheel rotation
-//   inverse    that side's unwrapped cumulative ticks / scale (re-wrapped; < 1 tick error)
+// encoder_scale(side, scale[, from_s]): a wrong encoder pulley ratio N_ep/N_mp on one side
+// (or both), from the start or (from_s > 0) as a step fault from_s s after the start.
+//   truth      that encoder counts scale x the true wheel rotation (after from_s: its count
+//              at from_s + scale x the rotation since then)
+//   inverse    that side's unwrapped cumulative ticks / scale (re-wrapped; < 1 tick error);
+//              with from_s, only the ticks counted after from_s s past the first encoder
+//              sample are divided
 //   residual   stage 1 window, gyro scale g = 1: y = int(gyro) - (dR - dL)/l_w with
 //              dR = scale dR_true: column dR/l_w (right) or -dL/l_w (left), coefficient
 //              1/scale - 1 (the diagnosis reports scale = g / (1 + b_g + b))
@@ -9,6 +13,7 @@
 #include <fmt/format.h>
 #include "libwheelchair/sensors/Encoders.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace wheelchair::effects {
@@ -19,7 +24,10 @@ constexpr double kRad2Deg = 180.0 / M_PI;
 struct EncoderScaleParams {
   std::vector<int> sides;
   double scale = 1;
-  static EncoderScaleParams of(const EffectSpec& e) { return {effectSides(e), e.number("scale")}; }
+  double from_s = 0;  ///< s since the start; 0: from the start
+  static EncoderScaleParams of(const EffectSpec& e) {
+    return {effectSides(e), e.number("scale"), e.has("from_s") ? e.number("from_s") : 0.0};
+  }
 };
 
 class EncoderScale final : public Effect {
@@ -30,22 +38,42 @@ class EncoderScale final : public Effect {
         "Wrong encoder pulley ratio N_ep/N_mp on one side: the encoder reports scale times the "
         "true wheel rotation.",
         {{"side", "enum", "encoder affected", "", sideChoicesBoth()},
-         {"scale", "-", "reported distance / true distance", "", {}, false, 0, 10, false}}};
+         {"scale", "-", "reported distance / true distance", "", {}, false, 0, 10, false},
+         {"from_s",
+          "s",
+          "time since the start from which the scale applies (a step fault; the count stays "
+          "continuous)",
+          "0",
+          {},
+          false,
+          0,
+          1e7,
+          true}}};
     return i;
   }
   void actOnTruth(const EffectSpec& e, TruthModel& t) const override {
     const auto p = EncoderScaleParams::of(e);
-    for (int s : p.sides) t.sensors.encoder_scale[s] *= p.scale;
+    for (int s : p.sides) {
+      t.sensors.encoder_scale[s] *= p.scale;
+      t.sensors.encoder_from_s[s] = std::max(t.sensors.encoder_from_s[s], p.from_s);
+    }
   }
   CorrectionPhase correctionPhase() const override { return CorrectionPhase::sensor; }
   void correct(const EffectSpec& e, io::Recording& rec, const CorrectionContext&) const override {
     const auto p = EncoderScaleParams::of(e);
     if (!(p.scale > 0)) return;
+    if (rec.encoders.empty()) return;
+    const double t_step = rec.encoders.front().t_s + p.from_s;
     for (const int side : p.sides) {
       sensors::TickUnwrapper unwrap;
+      bool anchored = p.from_s <= 0;
+      double anchor = 0;  // cumulative ticks at the step (0: scaled from the start)
       for (auto& s : rec.encoders) {
         int32_t& raw = side == 0 ? s.right_ticks : s.left_ticks;
-        raw = sensors::toHardwareCounter(std::llround(unwrap.unwrap(raw) / p.scale));
+        const double c = static_cast<double>(unwrap.unwrap(raw));
+        if (!anchored && s.t_s < t_step) continue;  // before the step: true already
+        if (!anchored) anchor = c, anchored = true;
+        raw = sensors::toHardwareCounter(std::llround(anchor + (c - anchor) / p.scale));
       }
     }
   }

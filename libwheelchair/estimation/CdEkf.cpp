@@ -386,6 +386,8 @@ void CdEkf::evalRhs(double tau, const double* y, double* ydot) {
   for (int i = 0; i < n; ++i) ydot[i] = wxd_(i);
   if (n == 9)  // the wheelchair filter
     riccatiPacked<9>(n, y + n, wF_.data(), qPacked_.data(), ydot + n, wP_.data(), wFP_.data());
+  else if (n == 12)  // the wheelchair filter with its sensor-error states
+    riccatiPacked<12>(n, y + n, wF_.data(), qPacked_.data(), ydot + n, wP_.data(), wFP_.data());
   else
     riccatiPacked<0>(n, y + n, wF_.data(), qPacked_.data(), ydot + n, wP_.data(), wFP_.data());
 }
@@ -671,9 +673,11 @@ UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::V
   // Every sensor of the chair gives m <= 2 (encoder pair, gyro, sonar, Pozyx x/y): S is
   // inverted in closed form and the work matrices live on the stack; the LDLT path's
   // allocations and triangular-solve set-up were most of the update's cost. The physics
-  // filter's n = 9 gets fully fixed sizes.
+  // filter's n = 9 (12 with its sensor-error states) gets fully fixed sizes.
   if (n == 9 && m == 1) return josephSmall<9, 1>(x, P, y, H, R, gate);
   if (n == 9 && m == 2) return josephSmall<9, 2>(x, P, y, H, R, gate);
+  if (n == 12 && m == 1) return josephSmall<12, 1>(x, P, y, H, R, gate);
+  if (n == 12 && m == 2) return josephSmall<12, 2>(x, P, y, H, R, gate);
   if (m >= 1 && m <= 2 && n <= kMaxN)
     return josephSmall<Eigen::Dynamic, Eigen::Dynamic>(x, P, y, H, R, gate);
   return josephUpdateLdlt(x, P, y, H, R, gate);

@@ -83,6 +83,20 @@ config::Options EkfOptions::options(const std::string& section) {
       .real("pozyx_anchor_x_m", pozyx_anchor_x_m, "anchor frame x (m)")
       .real("pozyx_anchor_y_m", pozyx_anchor_y_m, "anchor frame y (m)")
       .real("pozyx_anchor_yaw_deg", pozyx_anchor_yaw_deg, "anchor frame yaw (deg)")
+      .flag("estimate_encoder_scales", estimate_encoder_scales,
+            "estimate the per-wheel encoder scales (states k_R, k_L)")
+      .real("encoder_scale_right", encoder_scale_right,
+            "right encoder scale prior mean (reported / true distance, -)", pos)
+      .real("encoder_scale_left", encoder_scale_left,
+            "left encoder scale prior mean (reported / true distance, -)", pos)
+      .real("encoder_scale_sigma", encoder_scale_sigma, "encoder scale prior 1 sigma (-)", pos)
+      .real("q_encoder_scale_1_s", q_encoder_scale_1_s,
+            "random-walk density of each encoder scale (1/s)", nonneg)
+      .flag("estimate_gyro_bias", estimate_gyro_bias, "estimate the gyro z bias (state b_g)")
+      .real("gyro_bias_rad_s", gyro_bias_rad_s, "gyro bias prior mean (rad/s)")
+      .real("gyro_bias_sigma_rad_s", gyro_bias_sigma_rad_s, "gyro bias prior 1 sigma (rad/s)", pos)
+      .real("q_gyro_bias_rad2_s3", q_gyro_bias_rad2_s3,
+            "random-walk density of the gyro bias (rad^2/s^3)", nonneg)
       .real("initial_sigma_v_m_s", initial_sigma_v_m_s, "initial 1 sigma of v (m/s)", pos)
       .real("initial_sigma_omega_rad_s", initial_sigma_omega_rad_s,
             "initial 1 sigma of omega (rad/s)", pos)
@@ -156,6 +170,8 @@ void EkfOptions::validate() const {
                       {q_obstacle_m2_s, "q_obstacle_m2_s"},
                       {q_obstacle_bearing_rad2_s, "q_obstacle_bearing_rad2_s"},
                       {encoder_extra_noise_m_s, "encoder_extra_noise_m_s"},
+                      {q_encoder_scale_1_s, "q_encoder_scale_1_s"},
+                      {q_gyro_bias_rad2_s3, "q_gyro_bias_rad2_s3"},
                       {baseline_q_v_m2_s3, "baseline_q_v_m2_s3"},
                       {baseline_q_omega_rad2_s3, "baseline_q_omega_rad2_s3"},
                       {baseline_q_xy_m2_s, "baseline_q_xy_m2_s"},
@@ -167,7 +183,11 @@ void EkfOptions::validate() const {
                       {initial_sigma_omega_rad_s, "initial_sigma_omega_rad_s"},
                       {initial_sigma_xy_m, "initial_sigma_xy_m"},
                       {initial_sigma_phi_rad, "initial_sigma_phi_rad"},
-                      {initial_obstacle_range_sigma_m, "initial_obstacle_range_sigma_m"}})
+                      {initial_obstacle_range_sigma_m, "initial_obstacle_range_sigma_m"},
+                      {encoder_scale_right, "encoder_scale_right"},
+                      {encoder_scale_left, "encoder_scale_left"},
+                      {encoder_scale_sigma, "encoder_scale_sigma"},
+                      {gyro_bias_sigma_rad_s, "gyro_bias_sigma_rad_s"}})
     pos(v, k);
 }
 

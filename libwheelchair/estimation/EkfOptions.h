@@ -74,6 +74,24 @@ struct EkfOptions {
   /// Pozyx anchor frame: p_anchor = R(yaw) p_start + (x, y) (m, m, deg).
   double pozyx_anchor_x_m = 0, pozyx_anchor_y_m = 0, pozyx_anchor_yaw_deg = 0;
 
+  // --- sensor-error states (physics filter; docs/estimation.md "Sensor-error states") -------
+  /// Estimate the per-wheel encoder scales k_R, k_L (reported / true distance) as random walks.
+  bool estimate_encoder_scales = false;
+  double encoder_scale_right = 1.0, encoder_scale_left = 1.0;  ///< prior means (-)
+  double encoder_scale_sigma = 0.05;                           ///< prior 1 sigma of each scale (-)
+  double q_encoder_scale_1_s = 1e-7;  ///< random-walk density of each scale (1/s)
+  /// Estimate an additive gyro z bias b_g (z = omega + b_g) as a random walk.
+  bool estimate_gyro_bias = false;
+  double gyro_bias_rad_s = 0.0;         ///< prior mean (rad/s)
+  double gyro_bias_sigma_rad_s = 0.01;  ///< prior 1 sigma (rad/s)
+  double q_gyro_bias_rad2_s3 = 1e-8;    ///< random-walk density (rad^2/s^3)
+  /// Whether the physics filter carries the three sensor-error states: an estimate flag is on
+  /// or a prior mean is not nominal (then a fixed, configured calibration).
+  bool sensorErrorStates() const {
+    return estimate_encoder_scales || estimate_gyro_bias || encoder_scale_right != 1.0 ||
+           encoder_scale_left != 1.0 || gyro_bias_rad_s != 0.0;
+  }
+
   // --- initialisation ---------------------------------------------------------------------
   double initial_sigma_v_m_s = 0.02;
   double initial_sigma_omega_rad_s = 0.02;

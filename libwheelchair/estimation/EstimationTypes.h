@@ -64,6 +64,7 @@ struct SensorStats {
   long dropouts = 0;           ///< invalid readings (sonar 0 / out of range, encoder gaps)
   long skipped = 0;            ///< not used by choice (sensor disabled)
   long reinitialisations = 0;  ///< sonar: obstacle re-initialised after repeated rejections
+  long dropout_episodes = 0;   ///< runs of consecutive dropouts (a failing sensor's episodes)
   // NIS over the ACCEPTED updates.
   long nis_count = 0;
   double nis_sum = 0;
@@ -114,6 +115,31 @@ class EstimateSink {
   virtual void add(const EstimateSample& s) = 0;
 };
 
+/// Sensor-error estimates of the physics filter (mean and 1 sigma; WheelchairEkf.h).
+struct SensorErrorEstimate {
+  bool present = false;  ///< the filter carries the sensor-error states
+  double t_s = 0;
+  double encoder_scale_right = 1, encoder_scale_right_sd = 0;  ///< reported / true (-)
+  double encoder_scale_left = 1, encoder_scale_left_sd = 0;    ///< reported / true (-)
+  double encoder_scale_ratio = 1, encoder_scale_ratio_sd = 0;  ///< k_R / k_L (-)
+  double gyro_bias_rad_s = 0, gyro_bias_sd_rad_s = 0;
+};
+
+/// A model-health event of the physics filter (estimation/HealthMonitor.h): what the online
+/// counterpart of `diagnose` found, in its effect words (effect "encoder_scale", parameter
+/// "scale", side "left": reported / true distance).
+struct HealthEvent {
+  double t_s = 0;      ///< when it was found (recording clock)
+  std::string sensor;  ///< "encoders", "gyro", "sonar"
+  std::string kind;    ///< "estimate" | "inconsistent" | "dropouts"
+  std::string effect;  ///< diagnose's effect id ("encoder_scale", "gyro_bias"); "" for others
+  std::string side;    ///< "right" | "left" | ""
+  std::string parameter;
+  double value = 0, sd = 0;  ///< the parameter and its 1 sigma
+  double since_s = 0;        ///< estimated onset (recording clock)
+  std::string text;          ///< one readable line
+};
+
 struct EstimationResult {
   std::string filter;  ///< "physics" or "baseline"
   /// All estimates (runEstimator without a sink); empty when they went to an EstimateSink.
@@ -124,6 +150,8 @@ struct EstimationResult {
   std::vector<RejectedMeasurement> rejected;
   std::vector<NisRecord> nis;         ///< every update attempt (runEstimator without a sink only)
   CvodeStats cvode;                   ///< physics filter only
+  SensorErrorEstimate sensor_errors;  ///< at the end of the run (physics filter with the states)
+  std::vector<HealthEvent> health;    ///< model-health events, in time order
   std::vector<std::string> warnings;  ///< e.g. "no motor currents: input held at 0"
 
   const SensorStats& stats(Sensor s) const { return sensors[static_cast<int>(s)]; }

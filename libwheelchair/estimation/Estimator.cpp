@@ -271,8 +271,11 @@ void Estimator::sonar(double t, double range) {
   }
   if (!std::isfinite(range) || range <= 0 || range < sonar_min_m_ || range > sonar_max_m_) {
     ++st.dropouts;  // no echo / failed reading: the obstacle coasts on the model
+    if (!sonar_failing_) ++st.dropout_episodes;
+    sonar_failing_ = true;
     return;
   }
+  sonar_failing_ = false;
   if (!obstacleInitialised()) {
     initObstacleFromSonar(range);
     ++st.used;
@@ -653,7 +656,25 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
     E = N;
   }
   if (!res.estimates.empty()) res.last = res.estimates.back();
-  if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) res.cvode = w->filter().stats();
+  if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) {
+    res.cvode = w->filter().stats();
+    res.sensor_errors = w->sensorErrors();
+    res.health = w->healthEvents();
+  }
+  if (const SensorStats& so = res.stats(Sensor::Sonar); so.dropout_episodes > 0) {
+    HealthEvent e;  // a failing sensor: excluded while it fails, its episodes counted
+    e.t_s = est->time();
+    e.sensor = "sonar";
+    e.kind = "dropouts";
+    e.parameter = "episodes";
+    e.value = static_cast<double>(so.dropout_episodes);
+    e.since_s = t0;
+    e.text = fmt::format(
+        "sonar gave no valid range (0 or out of range) {} times in {} episodes, "
+        "excluded while it did",
+        so.dropouts, so.dropout_episodes);
+    res.health.push_back(e);
+  }
   return std::move(res);
 }
 

@@ -142,6 +142,7 @@ class Estimator {
  private:
   mutable std::map<int, double> gates_;
   int consecutive_sonar_rejections_ = 0;
+  bool sonar_failing_ = false;  ///< the last sonar reading was a dropout (episode counting)
   bool keep_nis_records_ = true;
 };
 

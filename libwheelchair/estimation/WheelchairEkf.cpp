@@ -4,6 +4,8 @@
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/model/VehicleParams.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace wheelchair::estimation {
@@ -16,9 +18,12 @@ using model::ObstacleForm;
 
 WheelchairProcessModel::WheelchairProcessModel(const model::FilterModel& fm,
                                                const Eigen::Matrix<double, 7, 1>& q,
-                                               double current_density)
-    : fm_(fm) {
-  Q_.setZero();
+                                               double current_density,
+                                               const Eigen::VectorXd& error_q)
+    : fm_(fm), n_(kPhysicsStateDim + static_cast<int>(error_q.size())) {
+  Q_.setZero(n_, n_);
+  if (error_q.size() > 0)
+    Q_.bottomRightCorner(error_q.size(), error_q.size()) = error_q.asDiagonal();
   Q_.topLeftCorner<7, 7>() = q.asDiagonal();
   // Current-sensor noise enters like process noise through G = df/du.
   const model::FilterInputJacobian G = fm_.G();
@@ -29,15 +34,16 @@ namespace {
 
 // The accumulators s_v, s_omega on top of the 7-state model: sdot = (v, omega), no other
 // dependence.
+// The sensor-error states (if any) are random walks: zero rate, zero Jacobian rows.
 void augmentRate(const Eigen::VectorXd& x, const FilterState& xd7, Eigen::VectorXd& xdot) {
-  xdot.resize(kPhysicsStateDim);
+  xdot.setZero(x.size());
   xdot.head<7>() = xd7;
   xdot(kIdxSv) = x(model::kIdxV);
   xdot(kIdxSomega) = x(model::kIdxOmega);
 }
 
-void augmentJacobian(const model::FilterStateJacobian& F7, Eigen::MatrixXd& F) {
-  F.setZero(kPhysicsStateDim, kPhysicsStateDim);
+void augmentJacobian(int n, const model::FilterStateJacobian& F7, Eigen::MatrixXd& F) {
+  F.setZero(n, n);
   F.topLeftCorner<7, 7>() = F7;
   F(kIdxSv, model::kIdxV) = 1.0;
   F(kIdxSomega, model::kIdxOmega) = 1.0;
@@ -52,7 +58,7 @@ void WheelchairProcessModel::f(const Eigen::VectorXd& x, const Eigen::VectorXd& 
 
 void WheelchairProcessModel::F(const Eigen::VectorXd& x, const Eigen::VectorXd& /*u*/,
                                Eigen::MatrixXd& F) const {
-  augmentJacobian(fm_.F(x.head<7>()), F);
+  augmentJacobian(n_, fm_.F(x.head<7>()), F);
 }
 
 void WheelchairProcessModel::fAndF(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
@@ -61,7 +67,7 @@ void WheelchairProcessModel::fAndF(const Eigen::VectorXd& x, const Eigen::Vector
   model::FilterStateJacobian F7;
   fm_.fAndF(x.head<7>(), model::FilterInput(u(0), u(1)), xd7, F7);
   augmentRate(x, xd7, xdot);
-  augmentJacobian(F7, F);
+  augmentJacobian(n_, F7, F);
 }
 
 void WheelchairProcessModel::Q(const Eigen::VectorXd&, const Eigen::VectorXd&,
@@ -132,18 +138,35 @@ Eigen::Matrix<double, 7, 1> processNoiseDiag(const EkfOptions& o) {
   return q;
 }
 
+/// Random-walk densities of (k_R, k_L, b_g) (empty: no sensor-error states); a group that is
+/// not estimated gets 0 (it stays at its prior mean).
+Eigen::VectorXd errorStateNoise(const EkfOptions& o) {
+  if (!o.sensorErrorStates()) return {};
+  const double qk = o.estimate_encoder_scales ? o.q_encoder_scale_1_s : 0.0;
+  // Independent walks of k_R, k_L of density q: k_s gets q / 2, k_d 2 q, uncorrelated.
+  return Eigen::Vector3d(0.5 * qk, 2.0 * qk, o.estimate_gyro_bias ? o.q_gyro_bias_rad2_s3 : 0.0);
+}
+
 }  // namespace
+
+Eigen::Vector2d scaledEncoderSpeeds(const Eigen::Vector2d& a, double k_s, double k_d, double lw,
+                                    Eigen::Matrix2d* dz_da, Eigen::Matrix2d* dz_dk) {
+  if (dz_da) *dz_da << k_s, 0.25 * lw * k_d, k_d / lw, k_s;
+  if (dz_dk) *dz_dk << a(0), 0.25 * lw * a(1), a(1), a(0) / lw;
+  return {k_s * a(0) + 0.25 * lw * k_d * a(1), k_d / lw * a(0) + k_s * a(1)};
+}
 
 WheelchairEkf::WheelchairEkf(const config::WheelchairConfig& cfg, const EkfOptions& opt,
                              const InputSignal* input)
     : Estimator(cfg, opt),
       input_(input),
       zero_input_(opt.input_interpolation),
-      pm_(makeFilterModel(cfg, opt_), processNoiseDiag(opt_), opt_.current_noise_density_A2_s),
+      pm_(makeFilterModel(cfg, opt_), processNoiseDiag(opt_), opt_.current_noise_density_A2_s,
+          errorStateNoise(opt_)),
       ekf_(pm_, opt_.cvode) {
   if (!input_) input_ = &zero_input_;
   u_in_.signal = input_;
-  xs_.resize(kPhysicsStateDim);
+  xs_.resize(pm_.stateDim());
 }
 
 FilterState WheelchairEkf::head() const {
@@ -151,8 +174,21 @@ FilterState WheelchairEkf::head() const {
 }
 
 void WheelchairEkf::start(double t0) {
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(kPhysicsStateDim);
-  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(kPhysicsStateDim, kPhysicsStateDim);
+  const int n = pm_.stateDim();
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
+  Eigen::MatrixXd P = Eigen::MatrixXd::Zero(n, n);
+  if (n > kPhysicsStateDim) {
+    // Independent priors N(k_R, s^2), N(k_L, s^2) are independent in (k_s, k_d) too:
+    // var k_s = s^2 / 2, var k_d = 2 s^2.
+    x(kIdxEncScaleS) = 0.5 * (opt_.encoder_scale_right + opt_.encoder_scale_left);
+    x(kIdxEncScaleD) = opt_.encoder_scale_right - opt_.encoder_scale_left;
+    x(kIdxGyroBias) = opt_.gyro_bias_rad_s;
+    const double sk = opt_.estimate_encoder_scales ? opt_.encoder_scale_sigma : 0.0;
+    const double sb = opt_.estimate_gyro_bias ? opt_.gyro_bias_sigma_rad_s : 0.0;
+    P(kIdxEncScaleS, kIdxEncScaleS) = 0.5 * sk * sk;
+    P(kIdxEncScaleD, kIdxEncScaleD) = 2.0 * sk * sk;
+    P(kIdxGyroBias, kIdxGyroBias) = sb * sb;
+  }
   P(model::kIdxV, model::kIdxV) = opt_.initial_sigma_v_m_s * opt_.initial_sigma_v_m_s;
   P(model::kIdxOmega, model::kIdxOmega) =
       opt_.initial_sigma_omega_rad_s * opt_.initial_sigma_omega_rad_s;
@@ -160,6 +196,7 @@ void WheelchairEkf::start(double t0) {
   P(model::kIdxY, model::kIdxY) = opt_.initial_sigma_xy_m * opt_.initial_sigma_xy_m;
   P(model::kIdxPhi, model::kIdxPhi) = opt_.initial_sigma_phi_rad * opt_.initial_sigma_phi_rad;
   ekf_.reset(t0, x, P);
+  health_ = HealthMonitor(t0);
   // Obstacle at its most likely place: configured position (also the placeholder until the
   // first valid sonar reading in first_sonar mode).
   setObstacle(configObstacle(), configObstacleCov());
@@ -236,6 +273,16 @@ void WheelchairEkf::resetAccumulators(double t) {
   acc_valid_ = true;
 }
 
+void WheelchairEkf::reopenEncoderScales() {
+  Eigen::MatrixXd P = ekf_.P();
+  P.middleRows<2>(kIdxEncScaleS).setZero();
+  P.middleCols<2>(kIdxEncScaleS).setZero();
+  const double s2 = opt_.encoder_scale_sigma * opt_.encoder_scale_sigma;
+  P(kIdxEncScaleS, kIdxEncScaleS) = 0.5 * s2;
+  P(kIdxEncScaleD, kIdxEncScaleD) = 2.0 * s2;
+  ekf_.setCovariance(P);
+}
+
 void WheelchairEkf::encoderStart(double t) {
   if (!opt_.use_encoders) return;
   resetAccumulators(t);
@@ -259,30 +306,84 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     return;
   }
   const Eigen::Vector2d z(iv.v_m_s, iv.omega_rad_s);
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, kPhysicsStateDim);
+  const int n = pm_.stateDim();
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, n);
   Eigen::Vector2d h;
   const Eigen::VectorXd& x = ekf_.x();
+  // a = the true mean speeds the encoders see and d a / d x.
+  Eigen::Vector2d a;
+  Eigen::Matrix<double, 2, Eigen::Dynamic> da = Eigen::MatrixXd::Zero(2, n);
   if (opt_.encoder_model == EncoderMeasurementModel::Mean) {
-    h << x(kIdxSv) / dt, x(kIdxSomega) / dt;
-    H(0, kIdxSv) = 1.0 / dt;
-    H(1, kIdxSomega) = 1.0 / dt;
+    a << x(kIdxSv) / dt, x(kIdxSomega) / dt;
+    da(0, kIdxSv) = 1.0 / dt;
+    da(1, kIdxSomega) = 1.0 / dt;
   } else {
-    h << model::FilterModel::hV(x.head<7>()), model::FilterModel::hOmega(x.head<7>());
-    H.block<1, 7>(0, 0) = model::FilterModel::HV();
-    H.block<1, 7>(1, 0) = model::FilterModel::HOmega();
+    a << model::FilterModel::hV(x.head<7>()), model::FilterModel::hOmega(x.head<7>());
+    da.block<1, 7>(0, 0) = model::FilterModel::HV();
+    da.block<1, 7>(1, 0) = model::FilterModel::HOmega();
   }
   const double g = gate(2);
-  const UpdateResult r = ekf_.update(z - h, H, encoderNoise(dt), g);
+  UpdateResult r;
+  if (n > kPhysicsStateDim) {
+    Eigen::Matrix2d dz_da, dz_dk;
+    h = scaledEncoderSpeeds(a, x(kIdxEncScaleS), x(kIdxEncScaleD), track_width_m_, &dz_da, &dz_dk);
+    H = dz_da * da;
+    H.block<2, 2>(0, kIdxEncScaleS) = dz_dk;
+    Eigen::Matrix2d R = encoderNoise(dt);
+    learnableScaleColumns(da, a, H, R);
+    r = ekf_.update(z - h, H, R, g);
+  } else {
+    r = ekf_.update(z - a, da, encoderNoise(dt), g);
+  }
   record(Sensor::Encoders, iv.t1_s, r, g);
+  if (n > kPhysicsStateDim && opt_.estimate_encoder_scales) {
+    // Health monitor: CUSUM on the z_omega innovation (accepted or gated); an alarm re-opens
+    // the scales, so the next updates estimate the fault instead of rejecting the encoders.
+    if (r.S.rows() == 2 && r.S(1, 1) > 0 &&
+        health_.encoderInnovation(iv.t1_s, r.innovation(1) / std::sqrt(r.S(1, 1))))
+      reopenEncoderScales();
+    health_.scales(iv.t1_s, sensorErrors());
+  }
   wrap();
   resetAccumulators(iv.t1_s);
 }
 
+void WheelchairEkf::learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::Dynamic>& da,
+                                          const Eigen::Vector2d& a, Eigen::MatrixXd& H,
+                                          Eigen::Matrix2d& R) const {
+  // Rows z_v, z_omega; scale columns dz/d(k_s, k_d) = [[a_v, l_w a_omega / 4],
+  // [a_omega, a_v / l_w]] (header). A scale LEARNS from an entry only through an excited
+  // regressor, |a_j| > kExcitationSigmas sd(a_j): else the filter reads the regressor's own
+  // noise as a scale (errors-in-variables shrinkage of k towards 0, e.g. gyro noise against the
+  // encoders' exact 0 at standstill). An unexcited entry is CONSIDERED: zero in H, its
+  // variance added to R. k_s never learns from z_v, whose regressor a_v is known only through
+  // the motor model (6): its errors (~9 % at cruise speed on the simulator's drives) would
+  // become a scale; and z_v treats k_s as known (no inflation of R), else the motor model
+  // would take v over from the encoders. The absolute scale comes from z_omega against the
+  // gyro while turning (docs/estimation.md, "Sensor-error states").
+  constexpr double kExcitationSigmas = 5.0;
+  const Eigen::MatrixXd& P = ekf_.P();
+  const Eigen::Matrix2d Paa = da * P * da.transpose();
+  const bool v_excited = std::fabs(a(0)) > kExcitationSigmas * std::sqrt(std::max(0.0, Paa(0, 0)));
+  const bool w_excited = std::fabs(a(1)) > kExcitationSigmas * std::sqrt(std::max(0.0, Paa(1, 1)));
+  Eigen::Matrix2d learn;  // rows z_v, z_omega; columns k_s, k_d
+  learn << 0.0, w_excited ? 1.0 : 0.0, w_excited ? 1.0 : 0.0, v_excited ? 1.0 : 0.0;
+  const Eigen::Matrix2d Hk = H.block<2, 2>(0, kIdxEncScaleS);
+  Eigen::Matrix2d Hc = Hk - Hk.cwiseProduct(learn);  // considered entries
+  Hc(0, 0) = 0.0;                                    // k_s in z_v: taken as known
+  R += Hc * P.block<2, 2>(kIdxEncScaleS, kIdxEncScaleS) * Hc.transpose();
+  H.block<2, 2>(0, kIdxEncScaleS) = Hk.cwiseProduct(learn);
+}
+
 UpdateResult WheelchairEkf::gyroUpdate(double z, double R, double g) {
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, kPhysicsStateDim);
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, pm_.stateDim());
   H.block<1, 7>(0, 0) = model::FilterModel::HOmega();
   Eigen::VectorXd y(1);
   y(0) = z - model::FilterModel::hOmega(head());
+  if (pm_.stateDim() > kPhysicsStateDim) {  // z = omega + b_g
+    H(0, kIdxGyroBias) = 1.0;
+    y(0) -= ekf_.x()(kIdxGyroBias);
+  }
   const UpdateResult r = ekf_.update(y, H, Eigen::MatrixXd::Constant(1, 1, R), g);
   wrap();
   return r;
@@ -290,7 +391,7 @@ UpdateResult WheelchairEkf::gyroUpdate(double z, double R, double g) {
 
 UpdateResult WheelchairEkf::sonarUpdate(double z, double R, double g) {
   const FilterState x7 = head();
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, kPhysicsStateDim);
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, pm_.stateDim());
   H.block<1, 7>(0, 0) = filterModel().HSonar(x7);
   Eigen::VectorXd y(1);
   y(0) = z - filterModel().hSonar(x7);
@@ -302,12 +403,38 @@ UpdateResult WheelchairEkf::sonarUpdate(double z, double R, double g) {
 UpdateResult WheelchairEkf::pozyxUpdate(const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
                                         double g) {
   const FilterState x7 = head();
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, kPhysicsStateDim);
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, pm_.stateDim());
   H.block<2, 7>(0, 0) = filterModel().HPozyx(x7);
   const Eigen::VectorXd y = z - filterModel().hPozyx(x7);
   const UpdateResult r = ekf_.update(y, H, R, g);
   wrap();
   return r;
+}
+
+SensorErrorEstimate WheelchairEkf::sensorErrors() const {
+  SensorErrorEstimate e;
+  if (pm_.stateDim() <= kPhysicsStateDim) return e;
+  const Eigen::VectorXd& x = ekf_.x();
+  const Eigen::MatrixXd& P = ekf_.P();
+  auto sd = [&](int i) { return std::sqrt(std::max(0.0, P(i, i))); };
+  e.present = true;
+  e.t_s = ekf_.time();
+  // k_R = k_s + k_d / 2, k_L = k_s - k_d / 2.
+  const double vs = P(kIdxEncScaleS, kIdxEncScaleS), vd = P(kIdxEncScaleD, kIdxEncScaleD);
+  const double c = P(kIdxEncScaleS, kIdxEncScaleD);
+  e.encoder_scale_right = x(kIdxEncScaleS) + 0.5 * x(kIdxEncScaleD);
+  e.encoder_scale_right_sd = std::sqrt(std::max(0.0, vs + 0.25 * vd + c));
+  e.encoder_scale_left = x(kIdxEncScaleS) - 0.5 * x(kIdxEncScaleD);
+  e.encoder_scale_left_sd = std::sqrt(std::max(0.0, vs + 0.25 * vd - c));
+  // k_R / k_L = (k_s + k_d / 2) / (k_s - k_d / 2): gradient (-k_d, 2 k_s) / (k_s - k_d / 2)^2.
+  const double ks = x(kIdxEncScaleS), kd = x(kIdxEncScaleD), den = ks - 0.5 * kd;
+  const Eigen::Vector2d gr(-kd / (den * den), ks / (den * den));
+  e.encoder_scale_ratio = (ks + 0.5 * kd) / den;
+  e.encoder_scale_ratio_sd = std::sqrt(
+      std::max(0.0, double(gr.transpose() * P.block<2, 2>(kIdxEncScaleS, kIdxEncScaleS) * gr)));
+  e.gyro_bias_rad_s = x(kIdxGyroBias);
+  e.gyro_bias_sd_rad_s = sd(kIdxGyroBias);
+  return e;
 }
 
 EstimateSample WheelchairEkf::estimate() const {

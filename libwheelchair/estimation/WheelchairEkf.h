@@ -10,6 +10,29 @@
 //                their covariance rows/columns zeroed) after each encoder sample.
 // The first seven components and all maths on them come from model::FilterModel.
 //
+// Sensor-error states (EkfOptions::sensorErrorStates(); docs/estimation.md), appended as
+// components 9-11 when on:
+//   k_s, k_d     common scale and scale difference of the encoders, k_s = (k_R + k_L) / 2,
+//                k_d = k_R - k_L, with k_R, k_L the per-wheel scales (reported / true rim
+//                distance, -): the encoders report the rim speeds u_R = k_R (v + omega l_w / 2),
+//                u_L = k_L (v - omega l_w / 2), so with a = the true mean (v, omega) over the
+//                interval (accumulators / dt):
+//                  z_v     = k_s a_v + k_d l_w a_omega / 4
+//                  z_omega = k_s a_omega + k_d a_v / l_w
+//   b_g          additive gyro z bias (rad/s): z_gyro = omega + b_g
+// each a random walk (kdot = w, E[w w'] = q delta) with prior N(mean, sigma^2) from [estimator].
+// A group that is not estimated has prior sigma 0 and q 0: it stays at its configured mean
+// (a fixed calibration). Observability (no other absolute speed reference): the gyro gives
+// omega, so z_omega - omega reveals k_R - k_L as soon as the chair moves (straight driving
+// gives the RATIO k_R / k_L); the common scale (k_R + k_L) / 2 needs both rim speeds in
+// different proportions, i.e. turning with a forward speed: the two rows then give two
+// independent combinations. On a straight-only drive the common scale is only weakly
+// constrained through the motor model (6) (currents -> speed), and at standstill nothing is
+// observable except b_g (omega = 0 is known from the encoders): the scale states keep their
+// prior (tests/estimation/test_sensor_error_states.cpp). A gyro SCALE is not a state: with the
+// encoders the only yaw-rate reference, it trades off exactly with the common encoder scale
+// (it needs an absolute heading or position reference such as Pozyx).
+//
 // Example:
 //   InputSignal u;  u.setSamples(rec.motors);
 //   WheelchairEkf ekf(cfg, opt, &u);
@@ -18,6 +41,7 @@
 
 #include "libwheelchair/estimation/CdEkf.h"
 #include "libwheelchair/estimation/Estimator.h"
+#include "libwheelchair/estimation/HealthMonitor.h"
 #include "libwheelchair/model/FilterModel.h"
 
 #include <memory>
@@ -27,15 +51,28 @@ namespace wheelchair::estimation {
 constexpr int kPhysicsStateDim = 9;
 constexpr int kIdxSv = 7;
 constexpr int kIdxSomega = 8;
+constexpr int kNumSensorErrorStates = 3;
+constexpr int kIdxEncScaleS = 9;   ///< k_s = (k_R + k_L) / 2 (-)
+constexpr int kIdxEncScaleD = 10;  ///< k_d = k_R - k_L (-)
+constexpr int kIdxGyroBias = 11;   ///< b_g (rad/s)
+
+/// Encoder mean speeds z = (z_v, z_omega) reported for true mean speeds a = (a_v, a_omega)
+/// with scales k_s, k_d and track width l_w (header comment), and the Jacobians d z / d a and
+/// d z / d (k_s, k_d). Example: a = (0.5, 0), k_s = 0.975, k_d = 0.05 -> z = (0.4875, 0.0455).
+Eigen::Vector2d scaledEncoderSpeeds(const Eigen::Vector2d& a, double k_s, double k_d,
+                                    double track_width_m, Eigen::Matrix2d* dz_da = nullptr,
+                                    Eigen::Matrix2d* dz_dk = nullptr);
 
 /// The augmented process model of WheelchairEkf: f, F = df/dx and
 /// Q = diag(q) + G Sigma_u G' (Sigma_u = current-noise density I_2) on the first 7 states;
 /// the accumulators have no process noise of their own (they integrate v and omega exactly).
+/// With `error_q` (3 random-walk densities of k_R, k_L, b_g) the state has the 3 sensor-error
+/// components, with f = 0, F = 0 and Q = diag(error_q) on them.
 class WheelchairProcessModel : public CdModel {
  public:
   WheelchairProcessModel(const model::FilterModel& fm, const Eigen::Matrix<double, 7, 1>& q_diag,
-                         double current_density_A2_s);
-  int stateDim() const override { return kPhysicsStateDim; }
+                         double current_density_A2_s, const Eigen::VectorXd& error_q = {});
+  int stateDim() const override { return n_; }
   void f(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::VectorXd& xdot) const override;
   void F(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& F) const override;
   void fAndF(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::VectorXd& xdot,
@@ -46,7 +83,8 @@ class WheelchairProcessModel : public CdModel {
 
  private:
   model::FilterModel fm_;
-  Eigen::Matrix<double, kPhysicsStateDim, kPhysicsStateDim> Q_;
+  int n_ = kPhysicsStateDim;
+  Eigen::MatrixXd Q_;
 };
 
 class WheelchairEkf : public Estimator {
@@ -62,8 +100,11 @@ class WheelchairEkf : public Estimator {
   void encoderStart(double t_s) override;
   void encoderInterval(const sensors::WheelSpeedInterval& iv) override;
 
-  /// The full 9-dimensional filter (state, covariance, CVODE counters).
+  /// The full filter (9 states, 12 with the sensor-error states; covariance, CVODE counters).
   const CdEkf& filter() const { return ekf_; }
+  SensorErrorEstimate sensorErrors() const;
+  /// Model-health events so far (estimate_encoder_scales on; HealthMonitor.h).
+  const std::vector<HealthEvent>& healthEvents() const { return health_.events(); }
   const model::FilterModel& filterModel() const { return pm_.filterModel(); }
 
  protected:
@@ -78,6 +119,14 @@ class WheelchairEkf : public Estimator {
   model::FilterState head() const;
   void wrap();
   void resetAccumulators(double t_s);
+  /// Sets the encoder scale states' covariance back to the prior (cross-covariances 0): the
+  /// fault hypothesis after a health-monitor alarm.
+  void reopenEncoderScales();
+  /// Keeps in the scale columns of the encoder Jacobian H only the entries the update may
+  /// learn from and adds the others' variance to R (see the .cpp: excitation, motor model).
+  void learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::Dynamic>& da,
+                             const Eigen::Vector2d& a, Eigen::MatrixXd& H,
+                             Eigen::Matrix2d& R) const;
   /// Sets the obstacle components to a body-frame Cartesian point with covariance, in the
   /// configured form; cross-covariances with the rest of the state are zeroed.
   void setObstacle(const Eigen::Vector2d& p_m, const Eigen::Matrix2d& cov_m2);
@@ -102,6 +151,7 @@ class WheelchairEkf : public Estimator {
   Eigen::VectorXd xs_;  // scratch state
   WheelchairProcessModel pm_;
   CdEkf ekf_;
+  HealthMonitor health_;
   bool obstacle_initialised_ = false;
   double acc_start_s_ = -1e300;
   bool acc_valid_ = false;

@@ -347,7 +347,7 @@ class SensorSuite {
         const double stamp = t0 + tm + se_.delay_s[st];
         switch (st) {
           case kEncoders:
-            put(encoders(stamp, q));
+            put(encoders(stamp, tm, q));
             break;
           case kImu:
             put(imu(stamp, q));
@@ -370,15 +370,26 @@ class SensorSuite {
   }
 
  private:
-  io::EncoderSample encoders(double stamp, const Snap& q) const {
+  /// Encoder counts at run time tm (s) of the true wheel angles in q.
+  io::EncoderSample encoders(double stamp, double tm, const Snap& q) {
     const sensors::EncoderParams& enc = cfg_.encoders.params;
     // The counter holds whole edges: floor of the continuous count of (9).
     const auto tr = static_cast<int64_t>(
-        std::floor(sensors::wheelAngleToTicks(se_.encoder_scale[0] * q.psiR, enc)));
+        std::floor(sensors::wheelAngleToTicks(reportedAngle(0, tm, q.psiR), enc)));
     const auto tl = static_cast<int64_t>(
-        std::floor(sensors::wheelAngleToTicks(se_.encoder_scale[1] * q.psiL, enc)));
+        std::floor(sensors::wheelAngleToTicks(reportedAngle(1, tm, q.psiL), enc)));
     return {stamp, sensors::toHardwareCounter(opt_.encoder_initial_ticks_right + tr),
             sensors::toHardwareCounter(opt_.encoder_initial_ticks_left + tl)};
+  }
+  /// The wheel angle side w's encoder reports for the true angle psi (rad) at run time tm (s):
+  /// scale x psi, or with a step fault (encoder_from_s) psi before it and
+  /// anchor + scale (psi - anchor) from the first sample at or after it.
+  double reportedAngle(int w, double tm, double psi) {
+    const double from_s = se_.encoder_from_s[w];
+    if (from_s <= 0) return se_.encoder_scale[w] * psi;
+    if (tm < from_s) return psi;
+    if (!anchored_[w]) anchor_rad_[w] = psi, anchored_[w] = true;
+    return anchor_rad_[w] + se_.encoder_scale[w] * (psi - anchor_rad_[w]);
   }
   io::ImuSample imu(double stamp, const Snap& q) {
     io::ImuSample is;
@@ -459,6 +470,8 @@ class SensorSuite {
   const MujocoChair* mj_;
   StreamClock clocks_[kNumStreams];
   Rng gyro_noise_, cur_noise_, vrc_noise_, sonar_noise_, sonar_fail_, pozyx_noise_, pozyx_out_;
+  double anchor_rad_[2] = {0, 0};  ///< true wheel angle at a step fault (encoder_from_s)
+  bool anchored_[2] = {false, false};
   bool in_burst_ = false;
 };
 
@@ -637,9 +650,10 @@ using nlohmann::json;
   X(omega_rad_s)                                                                              \
   X(wheel_speed_right_rad_s)                                                                  \
   X(wheel_speed_left_rad_s)                                                                   \
-  X(wheel_angle_right_rad) X(wheel_angle_left_rad) X(current_right_A) X(current_left_A)       \
-      X(voltage_right_V) X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) \
-          X(omega_ref_rad_s) X(supervisory_scale)
+  X(wheel_angle_right_rad)                                                                    \
+  X(wheel_angle_left_rad) X(current_right_A) X(current_left_A) X(voltage_right_V)             \
+      X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) X(omega_ref_rad_s) \
+          X(supervisory_scale)
 
 std::string fmtNum(double x) {
   char buf[40];

@@ -1,0 +1,56 @@
+// Live model-health monitor of the physics EKF (docs/estimation.md, "Health monitor"): the
+// online counterpart of `diagnose`, in its effect words.
+//
+// Detection: a two-sided CUSUM on the normalised innovation nu = y / sqrt(S) of the encoder
+// yaw-rate row z_omega (the row that compares the encoders with the gyro):
+//   g+ = max(0, g+ + nu - k),  g- = max(0, g- - nu - k),  alarm when g+ or g- > h
+// with drift k = 0.5 and threshold h = 12 (for a consistent filter nu ~ N(0, 1): the mean
+// run length to a false alarm is far beyond any drive; a 5 % scale step while moving at
+// 0.8 m/s gives nu ~ 5 and an alarm within a few samples). The onset is the last time the
+// alarming sum was 0. The caller then re-opens the encoder scale states (prior covariance),
+// so the fault is ESTIMATED and the encoders are kept, corrected, instead of rejected.
+// Estimation: after every encoder update the per-wheel scales k = value +- sd are reported as
+// an "estimate" event once sd < 0.005 and |k - 1| > max(3 sd, 0.01), and again when a later
+// estimate differs from the reported one by more than that (a new fault). Before a turn only
+// the RATIO k_R / k_L is known (straight driving): it is reported the same way (parameter
+// "scale_ratio", side ""), saying that the side needs a turn.
+// Example text: "left encoder reads 5.0 % short (+-0.3 %) since t = 12.4 s".
+#pragma once
+
+#include "libwheelchair/estimation/EstimationTypes.h"
+
+#include <string>
+#include <vector>
+
+namespace wheelchair::estimation {
+
+class HealthMonitor {
+ public:
+  /// t0_s: start of the recording (texts give times relative to it).
+  explicit HealthMonitor(double t0_s = 0) : t0_(t0_s), onset_s_(t0_s) {}
+
+  /// One encoder z_omega normalised innovation (accepted or gated). Returns true on an alarm
+  /// (then an "inconsistent" event has been added and the CUSUM restarted).
+  bool encoderInnovation(double t_s, double nu);
+  /// The scale estimates after an encoder update.
+  void scales(double t_s, const SensorErrorEstimate& e);
+
+  const std::vector<HealthEvent>& events() const { return events_; }
+
+ private:
+  /// side 0 right, 1 left, 2 the ratio k_R / k_L.
+  void report(double t_s, int side, double k, double sd);
+
+  double t0_;
+  double gp_ = 0, gm_ = 0;          // CUSUM sums
+  double zp_ = 0, zm_ = 0;          // last times they were 0
+  double onset_s_;                  // onset of the current fault hypothesis
+  double reported_[3] = {1, 1, 1};  // last reported scale per side, ratio (1: none)
+  double reported_sd_[3] = {0, 0, 0};
+  std::vector<HealthEvent> events_;
+};
+
+/// "left encoder reads 5.0 % short (+-0.3 %) since t = 12.4 s" (times relative to t0).
+std::string encoderScaleText(const std::string& side, double k, double sd, double since_rel_s);
+
+}  // namespace wheelchair::estimation

@@ -1,0 +1,91 @@
+// The live model-health monitor through the CLI (`wheelchair filter --health`,
+// estimation/HealthMonitor.h): a left encoder that goes 5 % short in the middle of a simulated
+// three-task drive (`simulate --effect encoder_scale:...,from_s=8`) is detected at once,
+// estimated, and reported with its side within 5 s of the turn that reveals the side.
+#include "../common/TestUtil.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+using namespace wheelchair;
+using test::cli;
+using test::TempDir;
+
+TEST(HealthCli, AMidDriveEncoderScaleStepIsDetectedEstimatedAndReported) {
+  TempDir tmp;
+  const std::string rec = tmp / "step.rawlog", truth = tmp / "step.truth.json";
+  const double step_s = 8.0;
+  const auto sim =
+      cli("simulate --scenario three_task --seed 7 --effect "
+          "encoder_scale:scale=0.95,side=left,from_s=8 -o " +
+          rec + " --truth " + truth);
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  const auto f = cli("filter " + rec + " --no-progress --health " + (tmp / "h.jsonl"));
+  ASSERT_EQ(f.exit_code, 0) << f.out;
+  EXPECT_NE(f.out.find("left encoder reads 5."), std::string::npos) << f.out;
+  EXPECT_NE(f.out.find("% short (+-"), std::string::npos) << f.out;
+
+  // The first turn after the step (truth): the motion that tells which encoder it is.
+  const nlohmann::json tj = nlohmann::json::parse(test::readFile(truth));
+  const auto& t = tj["trajectory"]["t_s"];
+  const auto& w = tj["trajectory"]["omega_rad_s"];
+  double turn_s = -1;
+  for (std::size_t i = 0; i < t.size(); ++i)
+    if (t[i].get<double>() > step_s && std::abs(w[i].get<double>()) > 0.1) {
+      turn_s = t[i].get<double>();
+      break;
+    }
+  ASSERT_GT(turn_s, step_s);
+
+  std::ifstream in(tmp / "h.jsonl");
+  std::string line;
+  std::vector<nlohmann::json> ev;
+  while (std::getline(in, line)) ev.push_back(nlohmann::json::parse(line));
+  ASSERT_FALSE(ev.empty());
+  bool detected = false, reported = false, sonar = false;
+  for (const auto& e : ev) {
+    for (const char* k : {"t_s", "sensor", "kind", "parameter", "value", "sd", "since_s", "text"})
+      ASSERT_TRUE(e.contains(k)) << e.dump();
+    if (e["kind"] == "inconsistent" && !detected) {
+      detected = true;
+      EXPECT_EQ(e["sensor"], "encoders");
+      EXPECT_NEAR(e["since_s"].get<double>(), step_s, 0.5) << e.dump();  // onset estimate
+      EXPECT_LT(e["t_s"].get<double>(), step_s + 1.0) << e.dump();       // straight driving
+    }
+    if (e["kind"] == "estimate" && e["side"] == "left" && !reported) {
+      reported = true;
+      EXPECT_EQ(e["effect"], "encoder_scale");  // diagnose's effect words
+      EXPECT_EQ(e["parameter"], "scale");
+      EXPECT_NEAR(e["value"].get<double>(), 0.95, std::max(3 * e["sd"].get<double>(), 0.005));
+      EXPECT_LT(e["t_s"].get<double>(), turn_s + 5.0) << e.dump();
+      EXPECT_NEAR(e["since_s"].get<double>(), step_s, 0.5) << e.dump();
+    }
+    if (e["kind"] == "estimate" && e["side"] == "right") ADD_FAILURE() << e.dump();
+    if (e["sensor"] == "sonar") sonar = true;
+  }
+  EXPECT_TRUE(detected);
+  EXPECT_TRUE(reported);
+  EXPECT_TRUE(sonar);  // its no-echo episodes are counted
+}
+
+TEST(HealthCli, CleanDriveReportsNoEncoderFaultAndBadPathFailsFirst) {
+  TempDir tmp;
+  const std::string rec = tmp / "clean.rawlog";
+  ASSERT_EQ(cli("simulate --scenario three_task --seed 7 -o " + rec).exit_code, 0);
+  const auto f = cli("filter " + rec + " --no-progress --health " + (tmp / "h.jsonl"));
+  ASSERT_EQ(f.exit_code, 0) << f.out;
+  EXPECT_EQ(f.out.find("encoder reads"), std::string::npos) << f.out;
+  EXPECT_EQ(f.out.find("inconsistent"), std::string::npos) << f.out;
+  const std::string text = test::readFile(tmp / "h.jsonl");
+  EXPECT_EQ(text.find("\"encoders\""), std::string::npos) << text;
+  const auto bad =
+      cli("filter " + rec + " --no-progress --health " + (tmp / "no/such/dir/h.jsonl"));
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_EQ(bad.out.find("health:"), std::string::npos) << bad.out;
+}

@@ -1,0 +1,174 @@
+// Sensor-error states of the physics CD-EKF (encoder scales k_s, k_d and gyro bias b_g;
+// WheelchairEkf.h, docs/estimation.md "Sensor-error states"): Jacobians against finite
+// differences, a faulty encoder estimated on a drive that excites it, and no invented scale
+// on drives that cannot excite it.
+#include "SyntheticDrive.h"
+
+#include "libwheelchair/estimation/Estimator.h"
+#include "libwheelchair/estimation/WheelchairEkf.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+using namespace wheelchair;
+using namespace wheelchair::estimation;
+using namespace wheelchair::estimation::test;
+
+namespace {
+
+EkfOptions withScales() {
+  EkfOptions opt;
+  opt.estimate_encoder_scales = true;
+  opt.output_rate_hz = 5;
+  return opt;
+}
+
+}  // namespace
+
+TEST(SensorErrorStates, EncoderModelJacobiansMatchFiniteDifferences) {
+  const double lw = 0.55, eps = 1e-6;
+  for (const Eigen::Vector2d& a : {Eigen::Vector2d(0.7, 0.3), Eigen::Vector2d(-0.2, 0.6)}) {
+    const double ks = 0.97, kd = 0.04;
+    Eigen::Matrix2d dz_da, dz_dk;
+    const Eigen::Vector2d z = scaledEncoderSpeeds(a, ks, kd, lw, &dz_da, &dz_dk);
+    // Per-wheel definition: u_R = k_R (v + omega l/2), u_L = k_L (v - omega l/2).
+    const double kR = ks + 0.5 * kd, kL = ks - 0.5 * kd;
+    const double uR = kR * (a(0) + 0.5 * lw * a(1)), uL = kL * (a(0) - 0.5 * lw * a(1));
+    EXPECT_NEAR(z(0), 0.5 * (uR + uL), 1e-12);
+    EXPECT_NEAR(z(1), (uR - uL) / lw, 1e-12);
+    for (int j = 0; j < 2; ++j) {
+      Eigen::Vector2d da = Eigen::Vector2d::Zero();
+      da(j) = eps;
+      const Eigen::Vector2d num =
+          (scaledEncoderSpeeds(a + da, ks, kd, lw) - scaledEncoderSpeeds(a - da, ks, kd, lw)) /
+          (2 * eps);
+      EXPECT_LT((num - dz_da.col(j)).cwiseAbs().maxCoeff(), 1e-8);
+    }
+    const Eigen::Vector2d num_s =
+        (scaledEncoderSpeeds(a, ks + eps, kd, lw) - scaledEncoderSpeeds(a, ks - eps, kd, lw)) /
+        (2 * eps);
+    const Eigen::Vector2d num_d =
+        (scaledEncoderSpeeds(a, ks, kd + eps, lw) - scaledEncoderSpeeds(a, ks, kd - eps, lw)) /
+        (2 * eps);
+    EXPECT_LT((num_s - dz_dk.col(0)).cwiseAbs().maxCoeff(), 1e-8);
+    EXPECT_LT((num_d - dz_dk.col(1)).cwiseAbs().maxCoeff(), 1e-8);
+  }
+}
+
+TEST(SensorErrorStates, ProcessJacobianOfTheAugmentedModelMatchesFiniteDifferences) {
+  model::FilterModelParams p;
+  p.ode = model::odeCoefficients(nominal().vehicle.geom, model::lumpedTheta(nominal().vehicle));
+  const model::FilterModel fm(p);
+  Eigen::Matrix<double, 7, 1> q = Eigen::Matrix<double, 7, 1>::Constant(1e-3);
+  const WheelchairProcessModel pm(fm, q, 1e-3, Eigen::Vector3d(1e-7, 4e-7, 1e-8));
+  ASSERT_EQ(pm.stateDim(), 12);
+  Eigen::VectorXd x(12);
+  x << 0.6, 0.2, 1.0, -0.5, 0.3, 2.0, 0.4, 0.01, 0.002, 0.98, 0.03, 0.002;
+  const Eigen::VectorXd u = Eigen::Vector2d(3.0, 2.0);
+  Eigen::MatrixXd F;
+  pm.F(x, u, F);
+  Eigen::VectorXd fp, fm_;
+  for (int j = 0; j < 12; ++j) {
+    const double eps = 1e-6;
+    Eigen::VectorXd xp = x, xm = x;
+    xp(j) += eps;
+    xm(j) -= eps;
+    pm.f(xp, u, fp);
+    pm.f(xm, u, fm_);
+    EXPECT_LT(((fp - fm_) / (2 * eps) - F.col(j)).cwiseAbs().maxCoeff(), 1e-6) << "column " << j;
+  }
+  Eigen::VectorXd xd;
+  pm.f(x, u, xd);
+  EXPECT_EQ(xd.tail<3>(), Eigen::Vector3d::Zero());  // random walks: no drift
+  Eigen::MatrixXd Q;
+  pm.Q(x, u, Q);
+  EXPECT_DOUBLE_EQ(Q(kIdxEncScaleS, kIdxEncScaleS), 1e-7);
+  EXPECT_DOUBLE_EQ(Q(kIdxEncScaleD, kIdxEncScaleD), 4e-7);
+  EXPECT_DOUBLE_EQ(Q(kIdxGyroBias, kIdxGyroBias), 1e-8);
+}
+
+TEST(SensorErrorStates, AShortLeftEncoderIsEstimatedOnACurvyDrive) {
+  SynthOptions so;
+  so.duration_s = 40.0;
+  so.currents = curvyCurrents(0.8, 2.0, 0.6);
+  so.left_encoder_scale = 0.95;
+  const SynthRun sr = synthesize(nominal(), so, 31);
+  const EstimationResult res = runEstimator(sr.rec, nominal(), withScales());
+  const SensorErrorEstimate& e = res.sensor_errors;
+  ASSERT_TRUE(e.present);
+  std::printf("[left encoder x0.95] k_R = %.4f +- %.4f, k_L = %.4f +- %.4f\n",
+              e.encoder_scale_right, e.encoder_scale_right_sd, e.encoder_scale_left,
+              e.encoder_scale_left_sd);
+  EXPECT_NEAR(e.encoder_scale_left, 0.95, std::max(3 * e.encoder_scale_left_sd, 0.005));
+  EXPECT_NEAR(e.encoder_scale_right, 1.0, std::max(3 * e.encoder_scale_right_sd, 0.005));
+  EXPECT_LT(e.encoder_scale_left_sd, 0.01);  // learnt, not the prior 0.05
+  // And it pays: the final pose is better than without the states.
+  EkfOptions off = withScales();
+  off.estimate_encoder_scales = false;
+  const EstimationResult res0 = runEstimator(sr.rec, nominal(), off);
+  auto err = [&](const EstimationResult& r) {
+    const TruthPoint& t = sr.at(r.final().t_s);
+    return std::hypot(r.final().x(2) - t.x, r.final().x(3) - t.y);
+  };
+  std::printf("final position error with the states %.3f m, without %.3f m\n", err(res), err(res0));
+  EXPECT_LT(err(res), err(res0));
+}
+
+TEST(SensorErrorStates, NoScaleIsInventedOnStraightOrStandingDrives) {
+  const EkfOptions opt = withScales();
+  const double prior_sd = opt.encoder_scale_sigma;
+  // Straight only (equal currents): the ratio k_R / k_L is observable and is 1; the common
+  // scale is not (no turning), so it must stay at its prior mean and keep about its prior sd.
+  // (No process noise in the truth: the generator's white accelerations would make the chair
+  // turn and so excite the scales.)
+  SynthOptions straight;
+  straight.q_v = straight.q_omega = 0.0;
+  straight.duration_s = 20.0;
+  straight.currents = curvyCurrents(0.3, 2.4, 0.0);  // i_R = i_L: no turning
+  // Standing still: nothing is observable.
+  SynthOptions standing;
+  standing.q_v = standing.q_omega = 0.0;
+  standing.duration_s = 20.0;
+  standing.currents = [](double) { return Eigen::Vector2d::Zero(); };
+  for (const auto* so : {&straight, &standing}) {
+    const SynthRun sr = synthesize(nominal(), *so, 5);
+    const EstimationResult res = runEstimator(sr.rec, nominal(), opt);
+    const SensorErrorEstimate& e = res.sensor_errors;
+    ASSERT_TRUE(e.present);
+    const double ks = 0.5 * (e.encoder_scale_right + e.encoder_scale_left);
+    std::printf("[%s] k_R = %.4f +- %.4f, k_L = %.4f +- %.4f\n",
+                so == &straight ? "straight" : "standing", e.encoder_scale_right,
+                e.encoder_scale_right_sd, e.encoder_scale_left, e.encoder_scale_left_sd);
+    // Within a small fraction of the prior sd: nothing was read into the common scale.
+    EXPECT_NEAR(ks, 1.0, 0.1 * prior_sd);
+    EXPECT_NEAR(e.encoder_scale_right, 1.0, e.encoder_scale_right_sd);
+    EXPECT_NEAR(e.encoder_scale_left, 1.0, e.encoder_scale_left_sd);
+    // The common scale keeps (about) its prior uncertainty: sd(k_R) >= sd(k_s) >= 0.9
+    // prior/sqrt(2).
+    EXPECT_GT(e.encoder_scale_right_sd, 0.9 * prior_sd / std::sqrt(2.0));
+  }
+}
+
+TEST(SensorErrorStates, GyroBiasIsEstimatedAndOffMeansTheOldFilter) {
+  SynthOptions so;
+  so.duration_s = 20.0;
+  so.currents = curvyCurrents(0.3, 2.0, 0.5);
+  const SynthRun sr = synthesize(nominal(), so, 9);
+  io::Recording biased = sr.rec;
+  for (auto& s : biased.imu) s.gyro_z_rad_s += 0.02;
+  EkfOptions opt;
+  opt.estimate_gyro_bias = true;
+  const EstimationResult res = runEstimator(biased, nominal(), opt);
+  ASSERT_TRUE(res.sensor_errors.present);
+  EXPECT_NEAR(res.sensor_errors.gyro_bias_rad_s, 0.02, 3 * res.sensor_errors.gyro_bias_sd_rad_s);
+  EXPECT_LT(res.sensor_errors.gyro_bias_sd_rad_s, 0.003);
+  // Everything off and nominal: the 9-state filter, bit-identical to a configuration that
+  // never heard of the states.
+  const EstimationResult a = runEstimator(sr.rec, nominal(), EkfOptions{});
+  EXPECT_FALSE(a.sensor_errors.present);
+  EkfOptions fixed;
+  fixed.encoder_scale_left = 0.95;  // a configured (fixed) calibration switches the states on
+  EXPECT_TRUE(fixed.sensorErrorStates());
+  EXPECT_FALSE(EkfOptions{}.sensorErrorStates());
+}
