@@ -20,12 +20,9 @@
 using namespace wheelchair;
 using namespace wheelchair::estimation;
 
-namespace {
+using wheelchair::estimation::test::nominal;
 
-const config::WheelchairConfig& nominal() {
-  static const config::WheelchairConfig cfg;
-  return cfg;
-}
+namespace {
 
 struct Collect : EstimateSink {
   std::vector<EstimateSample> v;
