@@ -230,6 +230,105 @@ int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progre
   return kExitOk;
 }
 
+// The run on the console: speed, the per-sensor NIS table and verdicts, CVODE statistics,
+// warnings, the final sensor errors, the health events and the final pose.
+void printRun(const estimation::EstimationResult& res, const estimation::EkfOptions& opt,
+              const io::RecordingSummary& sum, const std::string& input, double wall_s) {
+  const double duration_s = sum.end_s - sum.start_s;
+  long measurements = 0;
+  fmt::print("{}: {:.1f} s of recording, {} filter, processed in {:.3f} s ({:.0f}x real time)\n",
+             input, duration_s, res.filter, wall_s, wall_s > 0 ? duration_s / wall_s : 0.0);
+  fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10} {:>14} {:>8} {:>9}\n", "sensor", "used",
+             "rejected", "dropouts", "skipped", "mean NIS", "95% band", "mean ok", "in band");
+  for (int s = 0; s < estimation::kNumSensors; ++s) {
+    const auto& st = res.sensors[s];
+    measurements += st.used + st.rejected + st.dropouts;
+    if (!st.used && !st.rejected && !st.dropouts && !st.skipped) continue;
+    const auto band = st.meanNisBand95();
+    fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10.3f} {:>6.2f}..{:<6.2f} {:>8} {:>8.1f}%\n",
+               estimation::sensorName(static_cast<estimation::Sensor>(s)), st.used, st.rejected,
+               st.dropouts, st.skipped, st.meanNis(), band.first, band.second,
+               nisVerdict(st.meanNis(), band, st.nis_count), 100 * st.fractionInside95());
+  }
+  fmt::print(
+      "(mean NIS over the accepted updates; 95% band of that mean for a consistent filter; "
+      "'in band': share of single NIS values inside chi2(dof)'s two-sided 95% interval)\n");
+  for (const auto& v : estimation::sensorVerdicts(res, opt.gate_probability))
+    fmt::print("verdict: {}\n", v);
+  if (res.cvode.intervals > 0) {
+    const auto& c = res.cvode;
+    fmt::print(
+        "CVODE: {} intervals ({} restarts), {:.2f} steps, {:.2f} f-evaluations and {:.2f} "
+        "error-test failures per interval\n",
+        c.intervals, c.restarts, double(c.steps) / c.intervals, double(c.rhs_evals) / c.intervals,
+        double(c.error_test_fails) / c.intervals);
+  }
+  for (const auto& w : res.warnings) fmt::print("warning: {}\n", w);
+  if (const auto& e = res.sensor_errors; e.present)
+    fmt::print(
+        "sensor errors at the end: encoder scale right {:.4f} +- {:.4f}, left {:.4f} +- {:.4f} "
+        "(reported / true), gyro bias {:.5f} +- {:.5f} rad/s\n",
+        e.encoder_scale_right, e.encoder_scale_right_sd, e.encoder_scale_left,
+        e.encoder_scale_left_sd, e.gyro_bias_rad_s, e.gyro_bias_sd_rad_s);
+  for (const auto& e : res.health)
+    fmt::print("health: t = {:.1f} s: {}\n", e.t_s - sum.start_s, e.text);
+  if (res.n_estimates > 0) {
+    const auto& f = res.final();
+    fmt::print("final pose x = {:.3f} +- {:.3f} m, y = {:.3f} +- {:.3f} m, phi = {:.1f} deg\n",
+               f.x(2), f.sd(2), f.x(3), f.sd(3), f.x(4) * 180 / M_PI);
+  }
+}
+
+// The health events as JSON lines (one object per event), committed complete or not at all.
+void writeHealth(util::AtomicFile& file, const std::string& path,
+                 const estimation::EstimationResult& res) {
+  for (const auto& e : res.health)
+    file.stream() << nlohmann::json{{"t_s", e.t_s},         {"sensor", e.sensor},
+                                    {"kind", e.kind},       {"effect", e.effect},
+                                    {"side", e.side},       {"parameter", e.parameter},
+                                    {"value", e.value},     {"sd", e.sd},
+                                    {"since_s", e.since_s}, {"text", e.text}}
+                         .dump()
+                  << "\n";
+  file.commit();
+  fmt::print("health events (JSON lines): {} ({} events)\n", path, res.health.size());
+}
+
+// The paper's Fig. 5 variants (encoders only; encoder v + gyro omega) as TUM files next to
+// the trajectory, one at a time, each pose written as it is produced.
+void writeVariants(const FilterCliOptions& o, const io::RecordingSummary& sum,
+                   const config::WheelchairConfig& cfg, const std::optional<io::Recording>& rec) {
+  const std::string base = o.trajectory.empty() ? "filter.tum" : o.trajectory;
+  // One variant at a time, each pose written as it is produced (streamed from the rawlog
+  // unless the model extensions hold a corrected recording).
+  const auto writeVariant = [&](const std::string& path, bool with_gyro) {
+    evaluation::TumWriter tum(path);
+    const auto add = [&](const estimation::DeadReckoningSample& p) {
+      tum.add({p.t_s, p.x_m, p.y_m, p.phi_rad});
+    };
+    double d_path = 0;
+    if (rec) {
+      const auto& p = cfg.encoders.params;
+      const auto dr =
+          with_gyro
+              ? estimation::deadReckoningEncoderGyro(rec->encoders, rec->imu, p, cfg.vehicle.geom)
+              : estimation::deadReckoningEncoders(rec->encoders, p, cfg.vehicle.geom);
+      for (const auto& x : dr) add(x);
+      d_path = estimation::pathLength(dr);
+    } else {
+      d_path = estimation::deadReckonRawlog(o.input, sum, with_gyro, cfg.encoders.params,
+                                            cfg.vehicle.geom, add)
+                   .path_m;
+    }
+    tum.commit();
+    return d_path;
+  };
+  const double d_enc = writeVariant(withSuffix(base, "_encoders"), false);
+  const double d_encg = writeVariant(withSuffix(base, "_encoders_gyro"), true);
+  fmt::print("Fig. 5 variants: {} (d_path {:.2f} m), {} (d_path {:.2f} m)\n",
+             withSuffix(base, "_encoders"), d_enc, withSuffix(base, "_encoders_gyro"), d_encg);
+}
+
 int runFilter(const FilterCliOptions& o) {
   Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   progress.tick("reading");
@@ -302,61 +401,8 @@ int runFilter(const FilterCliOptions& o) {
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  const double duration_s = sum.end_s - sum.start_s;
-  long measurements = 0;
-  fmt::print("{}: {:.1f} s of recording, {} filter, processed in {:.3f} s ({:.0f}x real time)\n",
-             o.input, duration_s, res.filter, wall_s, wall_s > 0 ? duration_s / wall_s : 0.0);
-  fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10} {:>14} {:>8} {:>9}\n", "sensor", "used",
-             "rejected", "dropouts", "skipped", "mean NIS", "95% band", "mean ok", "in band");
-  for (int s = 0; s < estimation::kNumSensors; ++s) {
-    const auto& st = res.sensors[s];
-    measurements += st.used + st.rejected + st.dropouts;
-    if (!st.used && !st.rejected && !st.dropouts && !st.skipped) continue;
-    const auto band = st.meanNisBand95();
-    fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10.3f} {:>6.2f}..{:<6.2f} {:>8} {:>8.1f}%\n",
-               estimation::sensorName(static_cast<estimation::Sensor>(s)), st.used, st.rejected,
-               st.dropouts, st.skipped, st.meanNis(), band.first, band.second,
-               nisVerdict(st.meanNis(), band, st.nis_count), 100 * st.fractionInside95());
-  }
-  fmt::print(
-      "(mean NIS over the accepted updates; 95% band of that mean for a consistent filter; "
-      "'in band': share of single NIS values inside chi2(dof)'s two-sided 95% interval)\n");
-  for (const auto& v : estimation::sensorVerdicts(res, opt.gate_probability))
-    fmt::print("verdict: {}\n", v);
-  if (res.cvode.intervals > 0) {
-    const auto& c = res.cvode;
-    fmt::print(
-        "CVODE: {} intervals ({} restarts), {:.2f} steps, {:.2f} f-evaluations and {:.2f} "
-        "error-test failures per interval\n",
-        c.intervals, c.restarts, double(c.steps) / c.intervals, double(c.rhs_evals) / c.intervals,
-        double(c.error_test_fails) / c.intervals);
-  }
-  for (const auto& w : res.warnings) fmt::print("warning: {}\n", w);
-  if (const auto& e = res.sensor_errors; e.present)
-    fmt::print(
-        "sensor errors at the end: encoder scale right {:.4f} +- {:.4f}, left {:.4f} +- {:.4f} "
-        "(reported / true), gyro bias {:.5f} +- {:.5f} rad/s\n",
-        e.encoder_scale_right, e.encoder_scale_right_sd, e.encoder_scale_left,
-        e.encoder_scale_left_sd, e.gyro_bias_rad_s, e.gyro_bias_sd_rad_s);
-  for (const auto& e : res.health)
-    fmt::print("health: t = {:.1f} s: {}\n", e.t_s - sum.start_s, e.text);
-  if (health) {
-    for (const auto& e : res.health)
-      health->stream() << nlohmann::json{{"t_s", e.t_s},         {"sensor", e.sensor},
-                                         {"kind", e.kind},       {"effect", e.effect},
-                                         {"side", e.side},       {"parameter", e.parameter},
-                                         {"value", e.value},     {"sd", e.sd},
-                                         {"since_s", e.since_s}, {"text", e.text}}
-                              .dump()
-                       << "\n";
-    health->commit();
-    fmt::print("health events (JSON lines): {} ({} events)\n", o.health, res.health.size());
-  }
-  if (res.n_estimates > 0) {
-    const auto& f = res.final();
-    fmt::print("final pose x = {:.3f} +- {:.3f} m, y = {:.3f} +- {:.3f} m, phi = {:.1f} deg\n",
-               f.x(2), f.sd(2), f.x(3), f.sd(3), f.x(4) * 180 / M_PI);
-  }
+  printRun(res, opt, sum, o.input, wall_s);
+  if (health) writeHealth(*health, o.health, res);
 
   if (tum) {
     tum->commit();
@@ -372,37 +418,7 @@ int runFilter(const FilterCliOptions& o) {
     cfg.save(cfg_path);
     fmt::print("configuration used: {}\n", cfg_path);
   }
-  if (o.variants) {
-    const std::string base = o.trajectory.empty() ? "filter.tum" : o.trajectory;
-    // One variant at a time, each pose written as it is produced (streamed from the rawlog
-    // unless the model extensions hold a corrected recording).
-    const auto writeVariant = [&](const std::string& path, bool with_gyro) {
-      evaluation::TumWriter tum(path);
-      const auto add = [&](const estimation::DeadReckoningSample& p) {
-        tum.add({p.t_s, p.x_m, p.y_m, p.phi_rad});
-      };
-      double d_path = 0;
-      if (rec) {
-        const auto& p = cfg.encoders.params;
-        const auto dr =
-            with_gyro
-                ? estimation::deadReckoningEncoderGyro(rec->encoders, rec->imu, p, cfg.vehicle.geom)
-                : estimation::deadReckoningEncoders(rec->encoders, p, cfg.vehicle.geom);
-        for (const auto& x : dr) add(x);
-        d_path = estimation::pathLength(dr);
-      } else {
-        d_path = estimation::deadReckonRawlog(o.input, sum, with_gyro, cfg.encoders.params,
-                                              cfg.vehicle.geom, add)
-                     .path_m;
-      }
-      tum.commit();
-      return d_path;
-    };
-    const double d_enc = writeVariant(withSuffix(base, "_encoders"), false);
-    const double d_encg = writeVariant(withSuffix(base, "_encoders_gyro"), true);
-    fmt::print("Fig. 5 variants: {} (d_path {:.2f} m), {} (d_path {:.2f} m)\n",
-               withSuffix(base, "_encoders"), d_enc, withSuffix(base, "_encoders_gyro"), d_encg);
-  }
+  if (o.variants) writeVariants(o, sum, cfg, rec);
   return kExitOk;
 }
 
