@@ -380,6 +380,43 @@ stats::SelectionRule selectionRule(const DiagnosisOptions& opt, std::size_t m) {
   return {opt.alpha, static_cast<int>(m), opt.min_bic_drop};
 }
 
+namespace {
+
+/// true: candidate c cannot be accepted together with the accepted terms `acc`.
+bool conflictsWith(const Candidate& c, const std::vector<int>& acc,
+                   const std::vector<Candidate>& cands) {
+  for (int a : acc) {
+    for (auto& n : c.conflicts)
+      if (cands[a].name == n) return true;
+    for (auto& n : cands[a].conflicts)
+      if (c.name == n) return true;
+  }
+  return false;
+}
+
+/// The held-out check of a trial term: the validation rows' RSS without it (design D0v,
+/// coefficients b0, RSS rss0v) and with it (D1v, b1), the realised and the predicted
+/// likelihood-ratio gain (n_eff log(rss0 / rss1); n_eff log(1 + |D1v b1 - D0v b0|^2 / rss1)),
+/// recorded in `st`. Empty, or why the term is rejected.
+std::string heldOutCheck(const SelectionData& d, const Eigen::MatrixXd& D0v,
+                         const Eigen::VectorXd& b0, double rss0v, const Eigen::MatrixXd& D1v,
+                         const Eigen::VectorXd& b1, const DiagnosisOptions& opt,
+                         SelectionStep& st) {
+  Eigen::VectorXd r1 = d.y_val - D1v * b1;
+  double rss1v = r1.squaredNorm();
+  double nev = effectiveSampleSize(r1, d.g_val, d.lags);
+  Eigen::VectorXd delta = D1v * b1 - D0v * b0;
+  st.rss0_val = rss0v, st.rss1_val = rss1v, st.n_eff_val = nev;
+  st.lr_val = nev * std::log(rss0v / std::max(1e-300, rss1v));
+  st.lr_val_expected = nev * std::log(1.0 + delta.squaredNorm() / std::max(1e-300, rss1v));
+  st.val_tested = st.lr_val_expected >= opt.validation_min_expected_lr;
+  if (st.val_tested && st.lr_val < opt.validation_fraction_of_expected * st.lr_val_expected)
+    return "does not improve the held-out data as predicted";
+  return {};
+}
+
+}  // namespace
+
 Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& cands,
                         const DiagnosisOptions& opt, const std::vector<int>& forced) {
   Selection sel;
@@ -403,12 +440,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
   h.evaluate = [&](int ci, const std::vector<int>& acc) {
     stats::Trial t;
     const Candidate& c = cands[ci];
-    for (int a : acc) {
-      for (auto& n : c.conflicts)
-        if (cands[a].name == n) t.skip = true;
-      for (auto& n : cands[a].conflicts)
-        if (c.name == n) t.skip = true;
-    }
+    t.skip = conflictsWith(c, acc, cands);
     if (t.skip) return t;
     std::vector<int> trial = acc;
     trial.push_back(ci);
@@ -441,18 +473,8 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     const LinearFit& f1 = trial_fit[ci];
     std::vector<int> trial = sel.accepted;
     trial.push_back(ci);
-    Eigen::MatrixXd D1v = acceptedDesign(d.X_val, cands, trial);
-    Eigen::VectorXd r1 = d.y_val - D1v * f1.beta;
-    double rss1v = r1.squaredNorm();
-    double nev = effectiveSampleSize(r1, d.g_val, d.lags);
-    Eigen::VectorXd delta = D1v * f1.beta - D0v * f0.beta;
-    st.rss0_val = rss0v, st.rss1_val = rss1v, st.n_eff_val = nev;
-    st.lr_val = nev * std::log(rss0v / std::max(1e-300, rss1v));
-    st.lr_val_expected = nev * std::log(1.0 + delta.squaredNorm() / std::max(1e-300, rss1v));
-    st.val_tested = st.lr_val_expected >= opt.validation_min_expected_lr;
-    if (st.val_tested && st.lr_val < opt.validation_fraction_of_expected * st.lr_val_expected)
-      return "does not improve the held-out data as predicted";
-    return {};
+    return heldOutCheck(d, D0v, f0.beta, rss0v, acceptedDesign(d.X_val, cands, trial), f1.beta, opt,
+                        st);
   };
   h.accepted = [&](int ci) {
     sel.accepted.push_back(ci);
