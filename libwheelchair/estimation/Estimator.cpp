@@ -549,6 +549,19 @@ void applyEvent(Estimator& est, const Event& e) {
   }
 }
 
+// What the run leaves besides the estimates: the last estimate, the physics filter's CVODE
+// statistics, sensor errors and health events, and a failing sonar's dropout episodes.
+void finishResult(const Estimator& est, double t0, EstimationResult& res) {
+  if (!res.estimates.empty()) res.last = res.estimates.back();
+  if (const auto* w = dynamic_cast<const WheelchairEkf*>(&est)) {
+    res.cvode = w->filter().stats();
+    res.sensor_errors = w->sensorErrors();
+    res.health = w->healthEvents();
+  }
+  if (const SensorStats& so = res.stats(Sensor::Sonar); so.dropout_episodes > 0)
+    res.health.push_back(sonarDropoutEvent(so, est.time(), t0));
+}
+
 EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairConfig& cfg,
                                   const EkfOptions& options, EstimateSink* sink,
                                   const std::function<void(double)>& progress) {
@@ -655,26 +668,7 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
     if (!fixed_rate && (!have || N.t != E.t)) named(E, [&] { emit(est->estimate()); });
     E = N;
   }
-  if (!res.estimates.empty()) res.last = res.estimates.back();
-  if (auto* w = dynamic_cast<WheelchairEkf*>(est.get())) {
-    res.cvode = w->filter().stats();
-    res.sensor_errors = w->sensorErrors();
-    res.health = w->healthEvents();
-  }
-  if (const SensorStats& so = res.stats(Sensor::Sonar); so.dropout_episodes > 0) {
-    HealthEvent e;  // a failing sensor: excluded while it fails, its episodes counted
-    e.t_s = est->time();
-    e.sensor = "sonar";
-    e.kind = "dropouts";
-    e.parameter = "episodes";
-    e.value = static_cast<double>(so.dropout_episodes);
-    e.since_s = t0;
-    e.text = fmt::format(
-        "sonar gave no valid range (0 or out of range) {} times in {} episodes, "
-        "excluded while it did",
-        so.dropouts, so.dropout_episodes);
-    res.health.push_back(e);
-  }
+  finishResult(*est, t0, res);
   return std::move(res);
 }
 

@@ -15,6 +15,21 @@ constexpr double kMinFault = 0.01;   // and it is off by more than this and 3 sd
 const char* const kSide[2] = {"right", "left"};
 }  // namespace
 
+HealthEvent sonarDropoutEvent(const SensorStats& st, double t_s, double since_s) {
+  HealthEvent e;
+  e.t_s = t_s;
+  e.sensor = "sonar";
+  e.kind = "dropouts";
+  e.parameter = "episodes";
+  e.value = static_cast<double>(st.dropout_episodes);
+  e.since_s = since_s;
+  e.text = fmt::format(
+      "sonar gave no valid range (0 or out of range) {} times in {} episodes, excluded while it "
+      "did",
+      st.dropouts, st.dropout_episodes);
+  return e;
+}
+
 std::string encoderScaleText(const std::string& side, double k, double sd, double since) {
   return fmt::format("{} encoder reads {:.1f} % {} (+-{:.1f} %) since t = {:.1f} s", side,
                      std::abs(1 - k) * 100, k < 1 ? "short" : "long", sd * 100, since);

@@ -50,6 +50,10 @@ class HealthMonitor {
   std::vector<HealthEvent> events_;
 };
 
+/// The "dropouts" event of a failing sonar (excluded while it fails): its dropouts and
+/// episodes from `st`, at t_s, since since_s.
+HealthEvent sonarDropoutEvent(const SensorStats& st, double t_s, double since_s);
+
 /// "left encoder reads 5.0 % short (+-0.3 %) since t = 12.4 s" (times relative to t0).
 std::string encoderScaleText(const std::string& side, double k, double sd, double since_rel_s);
 
