@@ -99,6 +99,15 @@ struct Snap {
   double x, y, phi, v, om, psiR, psiL, vrcR, vrcL;
 };
 
+/// The truth a fraction a in [0, 1] of the way from (m0, vrc0) to (m1, vrc1), linearly.
+Snap interpolate(const Mech& m0, const double vrc0[2], const Mech& m1, const double vrc1[2],
+                 double a) {
+  auto L = [a](double p, double q) { return p + a * (q - p); };
+  return Snap{L(m0.x, m1.x),       L(m0.y, m1.y),       L(m0.phi, m1.phi),
+              L(m0.v, m1.v),       L(m0.om, m1.om),     L(m0.psiR, m1.psiR),
+              L(m0.psiL, m1.psiL), L(vrc0[0], vrc1[0]), L(vrc0[1], vrc1[1])};
+}
+
 }  // namespace
 
 // ------------------------------------------------------------------------------------------
@@ -477,6 +486,53 @@ class SensorSuite {
 
 }  // namespace
 
+namespace {
+
+/// The true vehicle: the nominal configuration with the effects acting on it (effects/).
+effects::TruthModel trueVehicle(const config::WheelchairConfig& cfg, const SimulationOptions& opt,
+                                const std::vector<effects::EffectSpec>& effects) {
+  effects::TruthModel truth;
+  truth.drive = model::DriveTrain::symmetric(cfg.vehicle);
+  truth.drive.coulomb_smoothing_m_s = opt.coulomb_smoothing_m_s;
+  truth.actuator_delay_s = opt.power.delay_s;
+  truth.actuator_time_constant_s = opt.power.time_constant_s;
+  effects::actOnTruth(effects, truth);
+  return truth;
+}
+
+/// The truth sample stamped `stamp` (s): state s, wheel speeds (rad/s), currents I (A),
+/// voltages U (V), the driver's demand, the power module's references, the supervisor's scale.
+TruthSample truthAt(double stamp, const Mech& s, const Eigen::Vector2d& wheel_rad_s,
+                    const Eigen::Vector2d& I, const double U[2], const JoystickDemand& joy,
+                    const PowerModule& pm, double sup_scale) {
+  TruthSample ts;
+  ts.t_s = stamp;
+  ts.x_m = s.x, ts.y_m = s.y, ts.phi_rad = s.phi, ts.v_m_s = s.v, ts.omega_rad_s = s.om;
+  ts.wheel_speed_right_rad_s = wheel_rad_s(0);
+  ts.wheel_speed_left_rad_s = wheel_rad_s(1);
+  ts.wheel_angle_right_rad = s.psiR, ts.wheel_angle_left_rad = s.psiL;
+  ts.current_right_A = I(0), ts.current_left_A = I(1);
+  ts.voltage_right_V = U[0], ts.voltage_left_V = U[1];
+  ts.v_demand_m_s = joy.v_m_s, ts.omega_demand_rad_s = joy.omega_rad_s;
+  ts.v_ref_m_s = pm.vRef(), ts.omega_ref_rad_s = pm.omegaRef();
+  ts.supervisory_scale = sup_scale;
+  return ts;
+}
+
+/// The MuJoCo multibody when opt.engine is "mujoco" (it replaces the mechanics and the sonar
+/// geometry only), else none.
+std::unique_ptr<MujocoChair> mujocoFor(const config::WheelchairConfig& cfg,
+                                       const SimulationOptions& opt,
+                                       const std::vector<effects::EffectSpec>& effects,
+                                       const std::vector<Obstacle>& obstacles) {
+  if (opt.engine != "mujoco") return nullptr;
+  MujocoOptions mo;
+  mo.loadFromConfig(cfg.ini(), "mujoco");
+  return std::make_unique<MujocoChair>(cfg, mo, effects, obstacles);
+}
+
+}  // namespace
+
 SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string& scenario_name,
                           uint64_t seed, double duration_s,
                           const std::vector<effects::EffectSpec>& effects,
@@ -489,13 +545,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   const double T = sc.duration_s;
   const double h = opt.step_s;
 
-  // --- the true vehicle: nominal configuration + the effects (effects/ registry) ----------
-  effects::TruthModel truth;
-  truth.drive = model::DriveTrain::symmetric(cfg.vehicle);
-  truth.drive.coulomb_smoothing_m_s = opt.coulomb_smoothing_m_s;
-  truth.actuator_delay_s = opt.power.delay_s;
-  truth.actuator_time_constant_s = opt.power.time_constant_s;
-  effects::actOnTruth(effects, truth);
+  const effects::TruthModel truth = trueVehicle(cfg, opt, effects);
   const model::DriveTrain& dt = truth.drive;
   PowerModuleParams pmp = opt.power;
   pmp.delay_s = truth.actuator_delay_s;
@@ -516,13 +566,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
   // --- state ------------------------------------------------------------------------------
   Mech s;
   PowerModule pm(pmp, lw, h);
-  // The MuJoCo engine replaces the mechanics (and the sonar geometry) only.
-  std::unique_ptr<MujocoChair> mj;
-  if (opt.engine == "mujoco") {
-    MujocoOptions mo;
-    mo.loadFromConfig(cfg.ini(), "mujoco");
-    mj = std::make_unique<MujocoChair>(cfg, mo, effects, sc.obstacles);
-  }
+  const std::unique_ptr<MujocoChair> mj = mujocoFor(cfg, opt, effects, sc.obstacles);
   const std::vector<Obstacle> no_obstacles;  // the MuJoCo sonar casts rays instead
   SensorSuite sensors(cfg, opt, seed, truth.sensors, anchor, mj ? no_obstacles : sc.obstacles,
                       mj.get());
@@ -543,7 +587,9 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     else
       io::append(rec, std::move(x));
   };
-  // Rim speeds r psidot (no slip in the model engine) and motor voltages U = R i + k r_G u / r.
+  // Rim speeds r psidot (no slip in the model engine); back-EMF k r_G u / r of motor m at rim
+  // speed u, so the motor voltage is U = R i + emf.
+  const auto emf = [&](int m, double u) { return km[m] * rG * u / r; };
   auto rimSpeeds = [&]() -> Eigen::Vector2d {
     return mj ? Eigen::Vector2d(r * mj->state().psidot_right_rad_s,
                                 r * mj->state().psidot_left_rad_s)
@@ -564,26 +610,15 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     const Eigen::Vector2d rim = rimSpeeds();
     Eigen::Vector2d i_lo, i_hi;
     for (int m = 0; m < 2; ++m) {
-      const double emf = km[m] * rG * rim(m) / r;
-      i_lo(m) = (-pmp.battery_voltage_V - emf) / Rm;
-      i_hi(m) = (pmp.battery_voltage_V - emf) / Rm;
+      i_lo(m) = (-pmp.battery_voltage_V - emf(m, rim(m))) / Rm;
+      i_hi(m) = (pmp.battery_voltage_V - emf(m, rim(m))) / Rm;
     }
     const Eigen::Vector2d I = pm.step(cmd, rim, i_lo, i_hi);
     double U[2];
-    for (int m = 0; m < 2; ++m) U[m] = Rm * I(m) + km[m] * rG * rim(m) / r;
+    for (int m = 0; m < 2; ++m) U[m] = Rm * I(m) + emf(m, rim(m));
 
     if (k % truth_stride == 0) {
-      TruthSample ts;
-      ts.t_s = t0 + t;
-      ts.x_m = s.x, ts.y_m = s.y, ts.phi_rad = s.phi, ts.v_m_s = s.v, ts.omega_rad_s = s.om;
-      ts.wheel_speed_right_rad_s = rim(0) / r;
-      ts.wheel_speed_left_rad_s = rim(1) / r;
-      ts.wheel_angle_right_rad = s.psiR, ts.wheel_angle_left_rad = s.psiL;
-      ts.current_right_A = I(0), ts.current_left_A = I(1);
-      ts.voltage_right_V = U[0], ts.voltage_left_V = U[1];
-      ts.v_demand_m_s = joy.v_m_s, ts.omega_demand_rad_s = joy.omega_rad_s;
-      ts.v_ref_m_s = pm.vRef(), ts.omega_ref_rad_s = pm.omegaRef();
-      ts.supervisory_scale = sup_scale;
+      const TruthSample ts = truthAt(t0 + t, s, rim / r, I, U, joy, pm, sup_scale);
       if (opt.sink) {
         opt.sink->truth(ts);
         res.truth.samples.assign(1, ts);  // the last one only
@@ -604,28 +639,16 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
       s = rk4(s, dt, I, h);
     }
     const Eigen::Vector2d rim_end = rimSpeeds();
-    for (int m = 0; m < 2; ++m) wires.step(m, Rm * I(m) + km[m] * rG * rim_end(m) / r);
-    // Collisions: an obstacle centre inside the footprint.
-    for (std::size_t o = 0; o < sc.obstacles.size(); ++o) {
+    for (int m = 0; m < 2; ++m) wires.step(m, Rm * I(m) + emf(m, rim_end(m)));
+    // Collisions: an obstacle centre inside the footprint (each obstacle once).
+    for (std::size_t o = 0; o < sc.obstacles.size(); ++o)
       if (!hit[o] &&
-          opt.footprint.contains(s.x, s.y, s.phi, sc.obstacles[o].x_m, sc.obstacles[o].y_m)) {
-        hit[o] = true;
-        res.truth.collided_obstacles.push_back(static_cast<int>(o));
-      }
-    }
+          opt.footprint.contains(s.x, s.y, s.phi, sc.obstacles[o].x_m, sc.obstacles[o].y_m))
+        hit[o] = true, res.truth.collided_obstacles.push_back(static_cast<int>(o));
     // Sensors sampled in (t, t + h] (the truth interpolated linearly within the step).
+    const double vrc_end[2] = {wires.vrc(0), wires.vrc(1)};
     auto snapAt = [&](double tm) {
-      const double a = std::clamp((tm - t) / h, 0.0, 1.0);
-      auto L = [a](double p, double q) { return p + a * (q - p); };
-      return Snap{L(s_prev.x, s.x),
-                  L(s_prev.y, s.y),
-                  L(s_prev.phi, s.phi),
-                  L(s_prev.v, s.v),
-                  L(s_prev.om, s.om),
-                  L(s_prev.psiR, s.psiR),
-                  L(s_prev.psiL, s.psiL),
-                  L(vrc_prev[0], wires.vrc(0)),
-                  L(vrc_prev[1], wires.vrc(1))};
+      return interpolate(s_prev, vrc_prev, s, vrc_end, std::clamp((tm - t) / h, 0.0, 1.0));
     };
     sensors.sampleUntil(t + h, t0, snapAt, I, joy, put);
   }
@@ -641,19 +664,20 @@ namespace {
 
 using nlohmann::json;
 
-#define WC_TRUTH_COLUMNS(X)                                                                   \
-  X(t_s)                                                                                      \
-  X(x_m)                                                                                      \
-  X(y_m)                                                                                      \
-  X(phi_rad)                                                                                  \
-  X(v_m_s)                                                                                    \
-  X(omega_rad_s)                                                                              \
-  X(wheel_speed_right_rad_s)                                                                  \
-  X(wheel_speed_left_rad_s)                                                                   \
-  X(wheel_angle_right_rad)                                                                    \
-  X(wheel_angle_left_rad) X(current_right_A) X(current_left_A) X(voltage_right_V)             \
-      X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) X(v_ref_m_s) X(omega_ref_rad_s) \
-          X(supervisory_scale)
+#define WC_TRUTH_COLUMNS(X)                                                                    \
+  X(t_s)                                                                                       \
+  X(x_m)                                                                                       \
+  X(y_m)                                                                                       \
+  X(phi_rad)                                                                                   \
+  X(v_m_s)                                                                                     \
+  X(omega_rad_s)                                                                               \
+  X(wheel_speed_right_rad_s)                                                                   \
+  X(wheel_speed_left_rad_s)                                                                    \
+  X(wheel_angle_right_rad)                                                                     \
+  X(wheel_angle_left_rad)                                                                      \
+  X(current_right_A)                                                                           \
+  X(current_left_A) X(voltage_right_V) X(voltage_left_V) X(v_demand_m_s) X(omega_demand_rad_s) \
+      X(v_ref_m_s) X(omega_ref_rad_s) X(supervisory_scale)
 
 std::string fmtNum(double x) {
   char buf[40];
