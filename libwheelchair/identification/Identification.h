@@ -20,6 +20,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/io/Recording.h"
+#include "libwheelchair/signals/IntervalSignals.h"
 #include "libwheelchair/stats/LeastSquares.h"
 
 #include <nlohmann/json.hpp>
@@ -59,6 +60,8 @@ struct IdentificationOptions {
   /// Throws std::runtime_error (message prefixed by `where`) on inconsistent values.
   void validate(const std::string& where = "identification options") const;
   int hacLags() const;
+  /// The conditioning options these select (signals::prepareIntervalMeans).
+  signals::IntervalSignalOptions intervalSignalOptions() const;
   nlohmann::json toJson() const;
 };
 
@@ -157,26 +160,9 @@ config::WheelchairConfig identifiedConfig(const config::WheelchairConfig& base,
 
 // --- building blocks (exposed for tests) -------------------------------------------------
 
-/// One continuous stretch of a recording on the common time base, all signals filtered.
-struct PreparedSegment {
-  int recording = 0;
-  std::vector<double> t;
-  std::vector<double> u_r, u_l, v, omega, vdot, omegadot;  ///< filtered
-  std::vector<double> i_r, i_l;                            ///< filtered currents
-  std::vector<double> U_r, U_l;                            ///< motor voltage (V_RC inverse)
-  std::vector<char> interior;  ///< not within edge_trim_s of the segment ends
-  std::vector<char> moving;    ///< not standstill
-};
-
-struct PreparedData {
-  std::vector<PreparedSegment> segments;
-  double noise_v = 0, noise_omega = 0;        ///< filtered-signal noise rms
-  double noise_vdot = 0, noise_omegadot = 0;  ///< filtered-derivative noise rms
-  bool has_voltage = false;
-};
-
-PreparedData prepareSignals(const std::vector<io::Recording>& recordings,
-                            const config::WheelchairConfig& cfg, const IdentificationOptions& opt);
+/// The conditioned signals (signals::prepareIntervalMeans, with intervalSignalOptions()).
+using PreparedSegment = signals::IntervalSegment;
+using PreparedData = signals::IntervalSignals;
 
 /// Linear functionals of theta: D1, D2 (see above).
 Eigen::Matrix<double, 5, 1> d1Weights(const model::Geometry& g);
