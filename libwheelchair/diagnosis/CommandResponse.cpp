@@ -63,8 +63,7 @@ double secondDifferenceNoise(const std::vector<double>& t, const std::vector<dou
     d.push_back(std::abs(x[k + 1] - 2 * x[k] + x[k - 1]));
   }
   if (d.size() < 10) return 0;
-  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
-  return 1.4826 * d[d.size() / 2] / std::sqrt(6.0);
+  return 1.4826 * stats::median(std::move(d)) / std::sqrt(6.0);
 }
 
 // Mean velocities over windows of Vicon poses (exact: differences of poses).

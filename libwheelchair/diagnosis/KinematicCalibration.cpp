@@ -1,4 +1,5 @@
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
+#include "libwheelchair/stats/Descriptive.h"
 
 #include <fmt/format.h>
 
@@ -73,19 +74,11 @@ std::string percentText(double d, double sd, const char* more, const char* less)
                      sd * 100);
 }
 
-}  // namespace
-
-KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
-                                         const std::vector<io::Recording>& val,
-                                         const config::WheelchairConfig& cfg,
-                                         const DiagnosisOptions& opt, const Corrections* stage1) {
-  KinematicCalibration kc;
-  kc.nominal = identification::odometryGeometry(cfg);
-  if (stage1) {  // reported / true distance: the true metres per tick are k / scale
-    kc.nominal.m_per_tick_right /= stage1->enc_scale[0];
-    kc.nominal.m_per_tick_left /= stage1->enc_scale[1];
-  }
-  std::vector<OdometryRun> fitRuns, valRuns;
+/// The fit and validation runs (encoders + ground truth, >= 8 samples): with no --validate
+/// recordings the first fit_fraction of each recording is fitted and the rest held out.
+void splitRuns(const std::vector<io::Recording>& fit, const std::vector<io::Recording>& val,
+               const DiagnosisOptions& opt, std::vector<OdometryRun>& fitRuns,
+               std::vector<OdometryRun>& valRuns) {
   for (std::size_t i = 0; i < fit.size(); ++i) {
     OdometryRun r = identification::odometryRun(fit[i], fmt::format("fit {}", i + 1));
     if (r.size() < 8) continue;
@@ -101,6 +94,102 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
     OdometryRun r = identification::odometryRun(val[i], fmt::format("validate {}", i + 1));
     if (r.size() >= 8) valRuns.push_back(r);
   }
+}
+
+/// K-fold cross-validation of every candidate model against the nominal geometry (mean
+/// position error on the left-out folds; kc.candidates records each). Returns the best
+/// candidate that beats nominal by kMinCvGain, or -1; foldFits[m] holds model m's fold fits.
+int crossValidate(const std::vector<CandidateModel>& models,
+                  const std::vector<std::vector<OdometryRun>>& train,
+                  const std::vector<std::vector<OdometryRun>>& test, KinematicCalibration& kc,
+                  std::vector<std::vector<OdometryGeometry>>& foldFits) {
+  const int K = static_cast<int>(test.size());
+  double cv_nominal = 0;
+  for (int k = 0; k < K; ++k)
+    cv_nominal += identification::meanOdometryError(test[k], kc.nominal).mean_position_m / K;
+  int best = -1;
+  double best_cv = (1 - kMinCvGain) * cv_nominal;
+  for (std::size_t m = 0; m < models.size(); ++m) {
+    double cv = 0;
+    for (int k = 0; k < K; ++k) {
+      const auto g = fitModel(models[m], train[k], kc.nominal);
+      foldFits[m].push_back(g);
+      cv += identification::meanOdometryError(test[k], g).mean_position_m / K;
+    }
+    kc.candidates.push_back({{"model", models[m].name}, {"cv_mean_position_error_m", cv}});
+    if (cv < best_cv) best_cv = cv, best = static_cast<int>(m);
+  }
+  kc.candidates.push_back({{"model", "nominal"}, {"cv_mean_position_error_m", cv_nominal}});
+  return best;
+}
+
+/// Whether the refitted geometry is reported: it changes a parameter by kMinRelativeChange,
+/// lowers the held-out mean position error by kMinHeldOutGain and makes neither the end
+/// position nor the end heading worse; otherwise kc.rejected says why.
+void judgeRefit(KinematicCalibration& kc) {
+  const double change =
+      std::max({std::abs(rel(kc.fitted.m_per_tick_right, kc.nominal.m_per_tick_right)),
+                std::abs(rel(kc.fitted.m_per_tick_left, kc.nominal.m_per_tick_left)),
+                std::abs(rel(kc.fitted.track_m, kc.nominal.track_m))});
+  const bool better =
+      kc.heldout_after.mean_position_m < (1 - kMinHeldOutGain) * kc.heldout_before.mean_position_m;
+  // held-out rule (issue 16): neither the end position nor the end heading (the quantity the
+  // track and the radius ratio set) may get worse either
+  const bool not_worse = kc.heldout_after.end_position_m <= kc.heldout_before.end_position_m &&
+                         kc.heldout_after.end_heading_rad <= kc.heldout_before.end_heading_rad;
+  kc.accepted = change >= kMinRelativeChange && better && not_worse;
+  if (better && !not_worse)
+    kc.rejected = fmt::format(
+        "the {} correction lowers the held-out mean position error ({:.4f} m -> {:.4f} m) but "
+        "makes the end position ({:.4f} m -> {:.4f} m) or the end heading ({:.2f} deg -> "
+        "{:.2f} deg) worse: not reported",
+        kc.model, kc.heldout_before.mean_position_m, kc.heldout_after.mean_position_m,
+        kc.heldout_before.end_position_m, kc.heldout_after.end_position_m,
+        kc.heldout_before.end_heading_rad * 180 / M_PI,
+        kc.heldout_after.end_heading_rad * 180 / M_PI);
+  else if (!better)
+    kc.rejected = fmt::format(
+        "the {} correction fitted on the fit data does not lower the held-out odometry error "
+        "by {:.0f} % ({:.4f} m -> {:.4f} m): not reported",
+        kc.model, 100 * kMinHeldOutGain, kc.heldout_before.mean_position_m,
+        kc.heldout_after.mean_position_m);
+  else if (!kc.accepted)
+    kc.rejected = fmt::format(
+        "the {} correction changes no parameter by {:.1f} % or more (largest {:.4f} %): within "
+        "the resolution, not reported",
+        kc.model, 100 * kMinRelativeChange, 100 * change);
+}
+
+/// Jackknife standard deviations of the relative changes (right, left m/tick, track) over the
+/// K fold fits F of the chosen model (kc.sd_rel).
+void jackknife(const std::vector<OdometryGeometry>& F, int K, KinematicCalibration& kc) {
+  for (int p = 0; p < 3; ++p) {
+    auto val_of = [&](const OdometryGeometry& g) {
+      return p == 0   ? rel(g.m_per_tick_right, kc.nominal.m_per_tick_right)
+             : p == 1 ? rel(g.m_per_tick_left, kc.nominal.m_per_tick_left)
+                      : rel(g.track_m, kc.nominal.track_m);
+    };
+    double mean = 0, ss = 0;
+    for (const auto& g : F) mean += val_of(g) / K;
+    for (const auto& g : F) ss += std::pow(val_of(g) - mean, 2);
+    kc.sd_rel[p] = std::sqrt((K - 1.0) / K * ss);
+  }
+}
+
+}  // namespace
+
+KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
+                                         const std::vector<io::Recording>& val,
+                                         const config::WheelchairConfig& cfg,
+                                         const DiagnosisOptions& opt, const Corrections* stage1) {
+  KinematicCalibration kc;
+  kc.nominal = identification::odometryGeometry(cfg);
+  if (stage1) {  // reported / true distance: the true metres per tick are k / scale
+    kc.nominal.m_per_tick_right /= stage1->enc_scale[0];
+    kc.nominal.m_per_tick_left /= stage1->enc_scale[1];
+  }
+  std::vector<OdometryRun> fitRuns, valRuns;
+  splitRuns(fit, val, opt, fitRuns, valRuns);
   kc.validation = val.empty() ? fmt::format("held-out last {:.0f}% of each recording",
                                             100 * (1 - opt.fit_fraction))
                               : fmt::format("{} --validate recording(s)", val.size());
@@ -134,24 +223,9 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   std::vector<std::vector<OdometryRun>> train(K), test(K);
   for (std::size_t u = 0; u < units.size(); ++u)
     for (int k = 0; k < K; ++k) (foldOf(u) == k ? test : train)[k].push_back(units[u]);
-  double cv_nominal = 0;
-  for (int k = 0; k < K; ++k)
-    cv_nominal += identification::meanOdometryError(test[k], kc.nominal).mean_position_m / K;
   const auto models = candidateModels();
-  int best = -1;
-  double best_cv = (1 - kMinCvGain) * cv_nominal;
   std::vector<std::vector<OdometryGeometry>> foldFits(models.size());
-  for (std::size_t m = 0; m < models.size(); ++m) {
-    double cv = 0;
-    for (int k = 0; k < K; ++k) {
-      const auto g = fitModel(models[m], train[k], kc.nominal);
-      foldFits[m].push_back(g);
-      cv += identification::meanOdometryError(test[k], g).mean_position_m / K;
-    }
-    kc.candidates.push_back({{"model", models[m].name}, {"cv_mean_position_error_m", cv}});
-    if (cv < best_cv) best_cv = cv, best = static_cast<int>(m);
-  }
-  kc.candidates.push_back({{"model", "nominal"}, {"cv_mean_position_error_m", cv_nominal}});
+  const int best = crossValidate(models, train, test, kc, foldFits);
   kc.heldout_before = identification::meanOdometryError(valRuns, kc.nominal);
   kc.heldout_after = kc.heldout_before;
   if (best < 0) return kc;  // no candidate predicts left-out fit data better than nominal
@@ -160,52 +234,8 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   kc.model = models[best].name;
   kc.fitted = fitModel(models[best], fitRuns, kc.nominal);
   kc.heldout_after = identification::meanOdometryError(valRuns, kc.fitted);
-  const double change =
-      std::max({std::abs(rel(kc.fitted.m_per_tick_right, kc.nominal.m_per_tick_right)),
-                std::abs(rel(kc.fitted.m_per_tick_left, kc.nominal.m_per_tick_left)),
-                std::abs(rel(kc.fitted.track_m, kc.nominal.track_m))});
-  const bool better =
-      kc.heldout_after.mean_position_m < (1 - kMinHeldOutGain) * kc.heldout_before.mean_position_m;
-  // held-out rule (issue 16): neither the end position nor the end heading (the quantity the
-  // track and the radius ratio set) may get worse either
-  const bool not_worse = kc.heldout_after.end_position_m <= kc.heldout_before.end_position_m &&
-                         kc.heldout_after.end_heading_rad <= kc.heldout_before.end_heading_rad;
-  kc.accepted = change >= kMinRelativeChange && better && not_worse;
-  if (better && !not_worse)
-    kc.rejected = fmt::format(
-        "the {} correction lowers the held-out mean position error ({:.4f} m -> {:.4f} m) but "
-        "makes the end position ({:.4f} m -> {:.4f} m) or the end heading ({:.2f} deg -> "
-        "{:.2f} deg) worse: not reported",
-        kc.model, kc.heldout_before.mean_position_m, kc.heldout_after.mean_position_m,
-        kc.heldout_before.end_position_m, kc.heldout_after.end_position_m,
-        kc.heldout_before.end_heading_rad * 180 / M_PI,
-        kc.heldout_after.end_heading_rad * 180 / M_PI);
-  else if (!better)
-    kc.rejected = fmt::format(
-        "the {} correction fitted on the fit data does not lower the held-out odometry error "
-        "by {:.0f} % ({:.4f} m -> {:.4f} m): not reported",
-        kc.model, 100 * kMinHeldOutGain, kc.heldout_before.mean_position_m,
-        kc.heldout_after.mean_position_m);
-  else if (!kc.accepted)
-    kc.rejected = fmt::format(
-        "the {} correction changes no parameter by {:.1f} % or more (largest {:.4f} %): within "
-        "the resolution, not reported",
-        kc.model, 100 * kMinRelativeChange, 100 * change);
-  // jackknife over the folds
-  if (K > 1) {
-    const auto& F = foldFits[best];
-    for (int p = 0; p < 3; ++p) {
-      auto val_of = [&](const OdometryGeometry& g) {
-        return p == 0   ? rel(g.m_per_tick_right, kc.nominal.m_per_tick_right)
-               : p == 1 ? rel(g.m_per_tick_left, kc.nominal.m_per_tick_left)
-                        : rel(g.track_m, kc.nominal.track_m);
-      };
-      double mean = 0, ss = 0;
-      for (const auto& g : F) mean += val_of(g) / K;
-      for (const auto& g : F) ss += std::pow(val_of(g) - mean, 2);
-      kc.sd_rel[p] = std::sqrt((K - 1.0) / K * ss);
-    }
-  }
+  judgeRefit(kc);
+  if (K > 1) jackknife(foldFits[best], K, kc);
   return kc;
 }
 
@@ -229,7 +259,7 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
     std::vector<double> l = kc.lags_s;
     std::sort(l.begin(), l.end());
     info["encoder_lag_behind_truth_s"] = {
-        {"min", l.front()}, {"median", l[l.size() / 2]}, {"max", l.back()}};
+        {"min", l.front()}, {"median", stats::median(l)}, {"max", l.back()}};
   }
   info["folds"] = kc.folds;
   info["candidates"] = kc.candidates;

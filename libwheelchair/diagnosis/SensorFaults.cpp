@@ -2,6 +2,7 @@
 
 #include "libwheelchair/stats/Descriptive.h"
 #include "libwheelchair/stats/Distributions.h"
+#include "libwheelchair/stats/Selection.h"
 
 #include <Eigen/Dense>
 
@@ -65,8 +66,8 @@ void sonarRecording(const io::Recording& rec, const config::WheelchairConfig& cf
   st.noise_estimated_m = std::max(st.noise_estimated_m, s_est);
   // A non-zero reading beyond the band by more than the Bonferroni quantile of the noise is
   // impossible for a healthy sensor.
-  const double n_all = std::max<double>(1, s.size());
-  const double z = std::sqrt(stats::chi2Quantile(1 - o.alpha / n_all, 1));
+  const double level = stats::SelectionRule{o.alpha, static_cast<int>(s.size())}.level();
+  const double z = std::sqrt(stats::chi2Quantile(1 - level, 1));
   const double lo = sp.min_range_m - z * sig, hi = sp.max_range_m + z * sig;
   enum Kind { kZero, kValid, kBad };
   std::vector<Kind> kind(s.size());
@@ -316,140 +317,149 @@ void pozyxRecording(const io::Recording& rec, const config::WheelchairConfig& cf
   }
 }
 
+/// The sonar's statistics over the recordings as report info and, when readings failed, a
+/// sonar_dropout finding (ss.readings > 0).
+void sonarFinding(const SonarStats& ss, SensorFaultReport& rep) {
+  const std::size_t failed = ss.dropout_readings + ss.out_of_range;
+  const std::size_t expected = ss.valid + failed;
+  nlohmann::json info = {{"readings", ss.readings},
+                         {"zero_readings", ss.zeros},
+                         {"zero_fraction", double(ss.zeros) / ss.readings},
+                         {"valid_readings", ss.valid},
+                         {"zero_runs", ss.zero_runs},
+                         {"zero_runs_tested", ss.tested_runs},
+                         {"dropout_runs", ss.dropout_runs},
+                         {"dropout_readings", ss.dropout_readings},
+                         {"out_of_range_readings", ss.out_of_range},
+                         {"noise_used_m", ss.noise_used_m},
+                         {"noise_estimated_m", ss.noise_estimated_m}};
+  rep.info["sonar"] = info;
+  if (failed > 0) {
+    Finding f;
+    f.effect = "sonar_dropout";
+    f.is_fault = true;
+    f.channels = {"sonar"};
+    const double p = expected > 0 ? double(failed) / expected : 0.0;
+    std::vector<double> lens = ss.run_lengths;
+    for (std::size_t k = 0; k < ss.out_of_range; ++k) lens.push_back(1);
+    const double L =
+        lens.empty() ? 1.0 : std::accumulate(lens.begin(), lens.end(), 0.0) / lens.size();
+    double varL = 0;
+    for (double l : lens) varL += (l - L) * (l - L);
+    varL = lens.size() > 1 ? varL / (lens.size() - 1) : 0;
+    const double nr = std::max<double>(1, lens.size());
+    f.parameters = {{"probability", p}, {"burst_length", L}};
+    // Failures come in bursts: binomial variance inflated by the mean burst length.
+    f.uncertainty = {
+        {"probability", std::sqrt(std::max(0.0, p * (1 - p)) * L / std::max<double>(1, expected))},
+        {"burst_length", std::sqrt(varL / nr)}};
+    f.evidence = info;
+    f.evidence["test"] =
+        "zero runs that interrupt a continuing target track (2-dof chi-square continuity test "
+        "of the range tracks on both sides), plus non-zero readings outside the range band "
+        "(Bonferroni)";
+    f.segments = mergeSegments(ss.intervals);
+    f.description = fmt::format(
+        "the sonar fails on {:.1f}% of the readings where an echo was expected ({} of {}), in "
+        "bursts of {:.1f} readings on average ({} runs of 0 inside a target track{}): a sensor "
+        "fault (no echo / failed reading), not physics; those readings must be ignored",
+        100 * p, failed, expected, L, ss.dropout_runs,
+        ss.out_of_range ? fmt::format(", {} readings out of range", ss.out_of_range) : "");
+    rep.findings.push_back(f);
+  }
+}
+
+/// The Pozyx fixes' outlier test (count against Binomial(n, 1/n) and the largest against the
+/// Bonferroni level) as report info and, when both reject, a pozyx_outliers finding
+/// (ps.tested > 0; keep: t, d2, |e| per tested fix).
+void pozyxFinding(PozyxStats& ps, const std::vector<std::vector<double>>& keep,
+                  const SensorFaultOptions& o, SensorFaultReport& rep) {
+  // A fault is an outlier PROCESS, not one extreme fix: count the fixes beyond the level
+  // p0 = 1 / n (one expected under the null) and test the count against Binomial(n, p0).
+  // One rare Gaussian fix (e.g. 4.9 sigma in 900) is then no finding; a UWB fault with
+  // multipath fixes (many, each far beyond) is.
+  const double n_tested = static_cast<double>(ps.tested);
+  const double p0 = 1.0 / n_tested;
+  ps.threshold_chi2 = -2.0 * std::log(p0);  // chi-square(2) upper quantile at p0
+  std::vector<std::pair<double, double>> iv;
+  for (auto& k : keep)
+    if (k[1] > ps.threshold_chi2) {
+      ++ps.outliers;
+      ps.outlier_times.push_back(k[0]);
+      ps.outlier_mag.push_back(k[2]);
+      iv.push_back({k[0], k[0]});
+    }
+  // P(K >= k) = 1 - sum_{j < k} C(n, j) p0^j (1 - p0)^(n - j), pmf by recurrence.
+  double below = 0, pmf = std::exp(n_tested * std::log1p(-p0));
+  for (std::size_t j = 0; j < ps.outliers; ++j) {
+    below += pmf;
+    pmf *= (n_tested - j) / (j + 1.0) * p0 / (1 - p0);
+  }
+  const double count_p_value = std::max(0.0, 1.0 - below);
+  // ... and at least one fix beyond the Bonferroni level alpha / n, which a cluster of
+  // moderate exceedances from a local error of the odometric track does not reach. Either
+  // test alone keeps a clean recording's false-alarm rate <= alpha; requiring both is stricter.
+  const double bonferroni_chi2 =
+      -2.0 * std::log(stats::SelectionRule{o.alpha, static_cast<int>(ps.tested)}.level());
+  double max_d2 = 0;
+  for (auto& k : keep) max_d2 = std::max(max_d2, k[1]);
+  nlohmann::json info = {{"fixes", ps.fixes},
+                         {"fixes_tested", ps.tested},
+                         {"outliers", ps.outliers},
+                         {"threshold_chi2_2dof", ps.threshold_chi2},
+                         {"per_fix_level", p0},
+                         {"expected_outliers_if_clean", n_tested * p0},
+                         {"count_p_value", count_p_value},
+                         {"largest_chi2", max_d2},
+                         {"bonferroni_chi2", bonferroni_chi2},
+                         {"alpha", o.alpha},
+                         {"noise_used_m", ps.noise_used_m},
+                         {"noise_estimated_m", ps.noise_estimated_m},
+                         {"window_s", o.pozyx_window_s}};
+  rep.info["pozyx"] = info;
+  if (ps.outliers > 0 && count_p_value < o.alpha && max_d2 > bonferroni_chi2) {
+    Finding f;
+    f.effect = "pozyx_outliers";
+    f.is_fault = true;
+    f.channels = {"pozyx"};
+    const double rate = double(ps.outliers) / ps.tested;
+    const double mag = median(ps.outlier_mag);
+    f.parameters = {{"rate", rate}, {"magnitude_m", mag}};
+    double mad = 0;
+    {
+      std::vector<double> dev;
+      for (double m : ps.outlier_mag) dev.push_back(std::abs(m - mag));
+      mad = 1.4826 * median(dev);
+    }
+    f.uncertainty = {{"rate", std::sqrt(rate * (1 - rate) / ps.tested)},
+                     {"magnitude_m", 1.2533 * mad / std::sqrt(double(ps.outliers))}};
+    f.evidence = info;
+    std::vector<double> times = ps.outlier_times;
+    if (times.size() > 200) times.resize(200);
+    f.evidence["outlier_times_s"] = times;
+    f.segments = mergeSegments(iv);
+    f.description = fmt::format(
+        "{} of {} Pozyx fixes ({:.1f}%) lie far outside their noise ({:.2f} m) from the "
+        "odometric track, displaced by {:.2f} m (median): non-line-of-sight / multipath UWB "
+        "fixes, a sensor fault, not physics; gate them in the estimator",
+        ps.outliers, ps.tested, 100 * rate, ps.noise_used_m, mag);
+    rep.findings.push_back(f);
+  }
+}
+
 }  // namespace
 
 SensorFaultReport detectSensorFaults(const std::vector<io::Recording>& recs,
                                      const config::WheelchairConfig& cfg, const Corrections& corr,
                                      const SensorFaultOptions& o) {
   SensorFaultReport rep;
-  // ---- sonar
   SonarStats ss;
   for (const auto& r : recs) sonarRecording(r, cfg, o, ss);
-  if (ss.readings > 0) {
-    const std::size_t failed = ss.dropout_readings + ss.out_of_range;
-    const std::size_t expected = ss.valid + failed;
-    nlohmann::json info = {{"readings", ss.readings},
-                           {"zero_readings", ss.zeros},
-                           {"zero_fraction", double(ss.zeros) / ss.readings},
-                           {"valid_readings", ss.valid},
-                           {"zero_runs", ss.zero_runs},
-                           {"zero_runs_tested", ss.tested_runs},
-                           {"dropout_runs", ss.dropout_runs},
-                           {"dropout_readings", ss.dropout_readings},
-                           {"out_of_range_readings", ss.out_of_range},
-                           {"noise_used_m", ss.noise_used_m},
-                           {"noise_estimated_m", ss.noise_estimated_m}};
-    rep.info["sonar"] = info;
-    if (failed > 0) {
-      Finding f;
-      f.effect = "sonar_dropout";
-      f.is_fault = true;
-      f.channels = {"sonar"};
-      const double p = expected > 0 ? double(failed) / expected : 0.0;
-      std::vector<double> lens = ss.run_lengths;
-      for (std::size_t k = 0; k < ss.out_of_range; ++k) lens.push_back(1);
-      const double L =
-          lens.empty() ? 1.0 : std::accumulate(lens.begin(), lens.end(), 0.0) / lens.size();
-      double varL = 0;
-      for (double l : lens) varL += (l - L) * (l - L);
-      varL = lens.size() > 1 ? varL / (lens.size() - 1) : 0;
-      const double nr = std::max<double>(1, lens.size());
-      f.parameters = {{"probability", p}, {"burst_length", L}};
-      // Failures come in bursts: binomial variance inflated by the mean burst length.
-      f.uncertainty = {{"probability",
-                        std::sqrt(std::max(0.0, p * (1 - p)) * L / std::max<double>(1, expected))},
-                       {"burst_length", std::sqrt(varL / nr)}};
-      f.evidence = info;
-      f.evidence["test"] =
-          "zero runs that interrupt a continuing target track (2-dof chi-square continuity test "
-          "of the range tracks on both sides), plus non-zero readings outside the range band "
-          "(Bonferroni)";
-      f.segments = mergeSegments(ss.intervals);
-      f.description = fmt::format(
-          "the sonar fails on {:.1f}% of the readings where an echo was expected ({} of {}), in "
-          "bursts of {:.1f} readings on average ({} runs of 0 inside a target track{}): a sensor "
-          "fault (no echo / failed reading), not physics; those readings must be ignored",
-          100 * p, failed, expected, L, ss.dropout_runs,
-          ss.out_of_range ? fmt::format(", {} readings out of range", ss.out_of_range) : "");
-      rep.findings.push_back(f);
-    }
-  }
-  // ---- Pozyx
+  if (ss.readings > 0) sonarFinding(ss, rep);
   PozyxStats ps;
   std::vector<std::vector<double>> keep;  // t, d2, |e|
   for (const auto& r : recs) pozyxRecording(r, cfg, corr, o, ps, keep);
-  if (ps.tested > 0) {
-    // A fault is an outlier PROCESS, not one extreme fix: count the fixes beyond the level
-    // p0 = 1 / n (one expected under the null) and test the count against Binomial(n, p0).
-    // One rare Gaussian fix (e.g. 4.9 sigma in 900) is then no finding; a UWB fault with
-    // multipath fixes (many, each far beyond) is.
-    const double n_tested = static_cast<double>(ps.tested);
-    const double p0 = 1.0 / n_tested;
-    ps.threshold_chi2 = -2.0 * std::log(p0);  // chi-square(2) upper quantile at p0
-    std::vector<std::pair<double, double>> iv;
-    for (auto& k : keep)
-      if (k[1] > ps.threshold_chi2) {
-        ++ps.outliers;
-        ps.outlier_times.push_back(k[0]);
-        ps.outlier_mag.push_back(k[2]);
-        iv.push_back({k[0], k[0]});
-      }
-    // P(K >= k) = 1 - sum_{j < k} C(n, j) p0^j (1 - p0)^(n - j), pmf by recurrence.
-    double below = 0, pmf = std::exp(n_tested * std::log1p(-p0));
-    for (std::size_t j = 0; j < ps.outliers; ++j) {
-      below += pmf;
-      pmf *= (n_tested - j) / (j + 1.0) * p0 / (1 - p0);
-    }
-    const double count_p_value = std::max(0.0, 1.0 - below);
-    // ... and at least one fix beyond the Bonferroni level alpha / n, which a cluster of
-    // moderate exceedances from a local error of the odometric track does not reach. Either
-    // test alone keeps a clean recording's false-alarm rate <= alpha; requiring both is stricter.
-    const double bonferroni_chi2 = -2.0 * std::log(o.alpha / n_tested);
-    double max_d2 = 0;
-    for (auto& k : keep) max_d2 = std::max(max_d2, k[1]);
-    nlohmann::json info = {{"fixes", ps.fixes},
-                           {"fixes_tested", ps.tested},
-                           {"outliers", ps.outliers},
-                           {"threshold_chi2_2dof", ps.threshold_chi2},
-                           {"per_fix_level", p0},
-                           {"expected_outliers_if_clean", n_tested * p0},
-                           {"count_p_value", count_p_value},
-                           {"largest_chi2", max_d2},
-                           {"bonferroni_chi2", bonferroni_chi2},
-                           {"alpha", o.alpha},
-                           {"noise_used_m", ps.noise_used_m},
-                           {"noise_estimated_m", ps.noise_estimated_m},
-                           {"window_s", o.pozyx_window_s}};
-    rep.info["pozyx"] = info;
-    if (ps.outliers > 0 && count_p_value < o.alpha && max_d2 > bonferroni_chi2) {
-      Finding f;
-      f.effect = "pozyx_outliers";
-      f.is_fault = true;
-      f.channels = {"pozyx"};
-      const double rate = double(ps.outliers) / ps.tested;
-      const double mag = median(ps.outlier_mag);
-      f.parameters = {{"rate", rate}, {"magnitude_m", mag}};
-      double mad = 0;
-      {
-        std::vector<double> dev;
-        for (double m : ps.outlier_mag) dev.push_back(std::abs(m - mag));
-        mad = 1.4826 * median(dev);
-      }
-      f.uncertainty = {{"rate", std::sqrt(rate * (1 - rate) / ps.tested)},
-                       {"magnitude_m", 1.2533 * mad / std::sqrt(double(ps.outliers))}};
-      f.evidence = info;
-      std::vector<double> times = ps.outlier_times;
-      if (times.size() > 200) times.resize(200);
-      f.evidence["outlier_times_s"] = times;
-      f.segments = mergeSegments(iv);
-      f.description = fmt::format(
-          "{} of {} Pozyx fixes ({:.1f}%) lie far outside their noise ({:.2f} m) from the "
-          "odometric track, displaced by {:.2f} m (median): non-line-of-sight / multipath UWB "
-          "fixes, a sensor fault, not physics; gate them in the estimator",
-          ps.outliers, ps.tested, 100 * rate, ps.noise_used_m, mag);
-      rep.findings.push_back(f);
-    }
-  }
+  if (ps.tested > 0) pozyxFinding(ps, keep, o, rep);
   return rep;
 }
 
