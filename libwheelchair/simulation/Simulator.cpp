@@ -531,6 +531,24 @@ std::unique_ptr<MujocoChair> mujocoFor(const config::WheelchairConfig& cfg,
   return std::make_unique<MujocoChair>(cfg, mo, effects, obstacles);
 }
 
+/// A truth sample to the sink (res keeps the last one only) or to res.truth.samples.
+void keepTruth(const TruthSample& ts, const SimulationOptions& opt, SimulationResult& res) {
+  if (opt.sink) {
+    opt.sink->truth(ts);
+    res.truth.samples.assign(1, ts);  // the last one only
+  } else {
+    res.truth.samples.push_back(ts);
+  }
+}
+
+/// Collisions: an obstacle centre inside the footprint at pose s (each obstacle once: hit).
+void markCollisions(const std::vector<Obstacle>& obstacles, const Footprint& footprint,
+                    const Mech& s, std::vector<bool>& hit, std::vector<int>& collided) {
+  for (std::size_t o = 0; o < obstacles.size(); ++o)
+    if (!hit[o] && footprint.contains(s.x, s.y, s.phi, obstacles[o].x_m, obstacles[o].y_m))
+      hit[o] = true, collided.push_back(static_cast<int>(o));
+}
+
 }  // namespace
 
 SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string& scenario_name,
@@ -618,13 +636,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     for (int m = 0; m < 2; ++m) U[m] = Rm * I(m) + emf(m, rim(m));
 
     if (k % truth_stride == 0) {
-      const TruthSample ts = truthAt(t0 + t, s, rim / r, I, U, joy, pm, sup_scale);
-      if (opt.sink) {
-        opt.sink->truth(ts);
-        res.truth.samples.assign(1, ts);  // the last one only
-      } else {
-        res.truth.samples.push_back(ts);
-      }
+      keepTruth(truthAt(t0 + t, s, rim / r, I, U, joy, pm, sup_scale), opt, res);
     }
     if (k == n_steps) break;
 
@@ -641,10 +653,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
     const Eigen::Vector2d rim_end = rimSpeeds();
     for (int m = 0; m < 2; ++m) wires.step(m, Rm * I(m) + emf(m, rim_end(m)));
     // Collisions: an obstacle centre inside the footprint (each obstacle once).
-    for (std::size_t o = 0; o < sc.obstacles.size(); ++o)
-      if (!hit[o] &&
-          opt.footprint.contains(s.x, s.y, s.phi, sc.obstacles[o].x_m, sc.obstacles[o].y_m))
-        hit[o] = true, res.truth.collided_obstacles.push_back(static_cast<int>(o));
+    markCollisions(sc.obstacles, opt.footprint, s, hit, res.truth.collided_obstacles);
     // Sensors sampled in (t, t + h] (the truth interpolated linearly within the step).
     const double vrc_end[2] = {wires.vrc(0), wires.vrc(1)};
     auto snapAt = [&](double tm) {
