@@ -248,10 +248,8 @@ TrajMetrics deadReckoningMetrics(const Streams& s, const Corrections& c,
   std::vector<double> tgt, gx, gy, gp;
   for (auto& p : s.gt)
     tgt.push_back(p.t_s), gx.push_back(p.x_m), gy.push_back(p.y_m), gp.push_back(p.phi_rad);
-  for (size_t i = 1; i < gp.size(); ++i) {
-    double d = gp[i] - gp[i - 1];
-    gp[i] -= 2 * M_PI * std::round(d / (2 * M_PI));
-  }
+  for (size_t i = 1; i < gp.size(); ++i)  // unwrapped
+    gp[i] = gp[i - 1] + model::wrapAngle(gp[i] - gp[i - 1]);
   std::vector<double> gzc;
   if (gyro)
     for (double g : s.gz) gzc.push_back((g - c.gyro_bias) / c.gyro_scale);

@@ -91,6 +91,47 @@ TEST(ConfigCli, BadConfigurationsExitOneNamingFileLineAndKey) {
                        ": empty configuration (no section, no key)\n");
 }
 
+// Every command that reads --config (not only simulate) stops on each kind of bad value
+// before any work: exit 1, one line naming file, line and key, and no output written.
+TEST(ConfigCli, EveryCommandReadingAConfigRejectsBadKeysBeforeWork) {
+  test::TempDir tmp;
+  const std::string drive = tmp / "drive.rawlog";
+  const auto sim = cli("simulate --scenario three_task --duration 2 -o " + drive);
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  struct Case {
+    std::string name, from, to, expect;
+  };
+  const std::vector<Case> cases = {
+      {"typo", "wheel_radius_m = 0.17", "wheel_radus_m = 0.17",
+       "[vehicle] wheel_radus_m: unknown key (did you mean wheel_radius_m?)"},
+      {"comma", "cutoff_hz = 2.0", "cutoff_hz = 2,5",
+       "[identification] cutoff_hz: '2,5' is not a number"},
+      {"range", "gate_probability = 0.999", "gate_probability = 5",
+       "[estimator] gate_probability: 5 is out of range [0, 1]"},
+  };
+  const std::string out = tmp / "out";
+  const std::vector<std::pair<std::string, std::string>> commands = {
+      {"identify", "identify " + drive + " --json " + out},
+      {"diagnose", "diagnose " + drive + " --json " + out},
+      {"filter", "filter " + drive + " --trajectory " + out},
+      {"evaluate", "evaluate " + drive + " --json " + out},
+      {"simulate", "simulate --scenario three_task --duration 1 -o " + out},
+  };
+  for (const auto& c : cases) {
+    const std::string path = tmp / (c.name + ".ini");
+    const std::string text = templateWith(c.from, c.to);
+    test::writeFile(path, text);
+    const std::string where = path + ":" + std::to_string(lineOf(text, c.to)) + ": ";
+    for (const auto& [name, args] : commands) {
+      const auto r = cli(args + " --config " + path);
+      EXPECT_EQ(r.exit_code, 1) << name << " " << c.name << "\n" << r.out;
+      EXPECT_EQ(r.out, "wheelchair " + name + ": error: " + where + c.expect + "\n")
+          << name << " " << c.name;
+      EXPECT_FALSE(std::filesystem::exists(out)) << name << " " << c.name;
+    }
+  }
+}
+
 TEST(ConfigCli, LenientWarnsAboutUnknownNamesButNotBadValues) {
   test::TempDir tmp;
   test::writeFile(tmp / "old.ini",
