@@ -51,23 +51,30 @@ std::set<std::pair<std::string, std::string>> keysOf(const std::string& text) {
   return k;
 }
 
-}  // namespace
+// One template line changed: a typo'd key, a malformed number, an out-of-range value, and the
+// error each must give (after "FILE:LINE: ").
+struct BadCase {
+  std::string name, from, to, expect;
+};
 
-TEST(ConfigCli, BadConfigurationsExitOneNamingFileLineAndKey) {
-  test::TempDir tmp;
-  struct Case {
-    std::string name, from, to, expect;
-  };
-  const std::vector<Case> cases = {
+std::vector<BadCase> badValues() {
+  return {
       {"typo", "wheel_radius_m = 0.17", "wheel_radus_m = 0.17",
        "[vehicle] wheel_radus_m: unknown key (did you mean wheel_radius_m?)"},
       {"comma", "cutoff_hz = 2.0", "cutoff_hz = 2,5",
        "[identification] cutoff_hz: '2,5' is not a number"},
       {"range", "gate_probability = 0.999", "gate_probability = 5",
        "[estimator] gate_probability: 5 is out of range [0, 1]"},
-      {"section", "[estimator]", "[estimater]",
-       "[estimater]: unknown section (did you mean estimator?)"},
   };
+}
+
+}  // namespace
+
+TEST(ConfigCli, BadConfigurationsExitOneNamingFileLineAndKey) {
+  test::TempDir tmp;
+  std::vector<BadCase> cases = badValues();
+  cases.push_back({"section", "[estimator]", "[estimater]",
+                   "[estimater]: unknown section (did you mean estimator?)"});
   for (const auto& c : cases) {
     const std::string path = tmp / (c.name + ".ini");
     const std::string text = templateWith(c.from, c.to);
@@ -98,17 +105,7 @@ TEST(ConfigCli, EveryCommandReadingAConfigRejectsBadKeysBeforeWork) {
   const std::string drive = tmp / "drive.rawlog";
   const auto sim = cli("simulate --scenario three_task --duration 2 -o " + drive);
   ASSERT_EQ(sim.exit_code, 0) << sim.out;
-  struct Case {
-    std::string name, from, to, expect;
-  };
-  const std::vector<Case> cases = {
-      {"typo", "wheel_radius_m = 0.17", "wheel_radus_m = 0.17",
-       "[vehicle] wheel_radus_m: unknown key (did you mean wheel_radius_m?)"},
-      {"comma", "cutoff_hz = 2.0", "cutoff_hz = 2,5",
-       "[identification] cutoff_hz: '2,5' is not a number"},
-      {"range", "gate_probability = 0.999", "gate_probability = 5",
-       "[estimator] gate_probability: 5 is out of range [0, 1]"},
-  };
+  const std::vector<BadCase> cases = badValues();
   const std::string out = tmp / "out";
   const std::vector<std::pair<std::string, std::string>> commands = {
       {"identify", "identify " + drive + " --json " + out},
