@@ -213,6 +213,7 @@ nlohmann::json regimeStats(const Eigen::VectorXd& r, const std::vector<double>& 
       {"heading_S", [&](size_t i) { return std::abs(v[i]) >= 0.03 && std::sin(phi[i]) < -0.7071; }},
   };
   nlohmann::json j = nlohmann::json::object();
+  const double level = stats::SelectionRule{alpha, static_cast<int>(reg.size())}.level();
   for (auto& [name, f] : reg) {
     std::vector<double> sub;
     for (size_t i = 0; i < static_cast<size_t>(r.size()) && i < v.size(); ++i)
@@ -221,7 +222,7 @@ nlohmann::json regimeStats(const Eigen::VectorXd& r, const std::vector<double>& 
     Eigen::VectorXd s = Eigen::Map<Eigen::VectorXd>(sub.data(), sub.size());
     BiasTest b = biasTest(s, singleGroup(static_cast<int>(s.size())), lags);
     j[name] = {{"n", b.n}, {"mean", b.mean}, {"rms", b.rms},
-               {"t", b.t}, {"p", b.p_value}, {"biased", b.p_value < alpha / reg.size()}};
+               {"t", b.t}, {"p", b.p_value}, {"biased", b.p_value < level}};
   }
   return j;
 }
