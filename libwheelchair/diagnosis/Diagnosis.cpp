@@ -326,13 +326,16 @@ struct SparseResult {
   double rms_before_val = 0, rms_after_val = 0;
 };
 
-SparseResult stlsq(const Eigen::MatrixXd& L, const Eigen::VectorXd& y, const Groups& g,
-                   const Eigen::MatrixXd& Lv, const Eigen::VectorXd& yv, const Groups& gv, int lags,
-                   const DiagnosisOptions& opt, double min_contribution_rms) {
+/// The library L (fit) and Lv (validation) are views of the caller's rows (no copy); column
+/// `excluded` (-1: none) is left out as if it were zero.
+using LibraryView = Eigen::Ref<const Eigen::MatrixXd>;
+SparseResult stlsq(const LibraryView& L, const Eigen::VectorXd& y, const Groups& g,
+                   const LibraryView& Lv, const Eigen::VectorXd& yv, const Groups& gv, int lags,
+                   const DiagnosisOptions& opt, double min_contribution_rms, int excluded = -1) {
   SparseResult res;
   std::vector<int> act;
   for (int j = 0; j < L.cols(); ++j)
-    if (L.col(j).norm() > 0) act.push_back(j);
+    if (j != excluded && L.col(j).norm() > 0) act.push_back(j);
   for (int it = 0; it < 20 && !act.empty(); ++it) {
     Eigen::MatrixXd A(L.rows(), act.size());
     for (size_t k = 0; k < act.size(); ++k) A.col(k) = L.col(act[k]);
@@ -459,7 +462,7 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs,
   d.fit_fraction = val_recs.empty() ? opt.fit_fraction : 1.0;
   for (auto& r : fit_recs) {
     Streams s = makeStreams(r, cfg);
-    d.all.push_back(s);
+    d.any_enc |= s.hasEncoders(), d.any_gyro |= s.hasGyro(), d.any_mot |= s.hasMotors();
     if (val_recs.empty()) {
       double tc = s.t_begin + opt.fit_fraction * (s.t_end - s.t_begin);
       d.fit.push_back(cropStreams(s, s.t_begin, tc));
@@ -467,10 +470,16 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs,
     } else {
       d.fit.push_back(s);
     }
+    // `all` serves the trajectory check, which needs ground truth: a recording without it
+    // keeps only its time span there (its streams are already in fit / val; memory).
+    if (s.gt.size() < 2) {
+      Streams span;
+      span.t_begin = s.t_begin, span.t_end = s.t_end;
+      s = std::move(span);
+    }
+    d.all.push_back(std::move(s));
   }
   for (auto& r : val_recs) d.val.push_back(makeStreams(r, cfg));
-  for (auto& s : d.all)
-    d.any_enc |= s.hasEncoders(), d.any_gyro |= s.hasGyro(), d.any_mot |= s.hasMotors();
   return d;
 }
 
@@ -610,7 +619,7 @@ void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows&
     }
     return L;
   };
-  Eigen::VectorXd rf = sel.fit.residual;
+  const Eigen::VectorXd& rf = sel.fit.residual;
   SparseResult sr = stlsq(lib(kf2), rf, kf2.groups, lib(kv2), rv_after, kv2.groups, lags, opt,
                           opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
   if (!sr.accepted) return;
@@ -760,16 +769,15 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
                       const Eigen::VectorXd& rv_after, int lags,
                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
                       DiagnosisReport& rep) {
-  Eigen::VectorXd rf = sel.fit.residual;
+  const Eigen::VectorXd& rf = sel.fit.residual;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   for (int s2 = 0; s2 < 2; ++s2) {
-    Eigen::MatrixXd L = df2.lib.middleRows(s2 * nRf, nRf);
-    Eigen::MatrixXd Lv = dv2.lib.middleRows(s2 * nRv2, nRv2);
-    // i_self is the measured quantity itself: keep it out (it would absorb everything)
-    L.col(12).setZero(), Lv.col(12).setZero();
-    SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
+    // i_self (column 12) is the measured quantity itself: keep it out (it would absorb
+    // everything). The library rows are views, not copies.
+    SparseResult sr = stlsq(df2.lib.middleRows(s2 * nRf, nRf), rf.segment(s2 * nRf, nRf),
+                            half(df2.groups, nRf, s2 == 1), dv2.lib.middleRows(s2 * nRv2, nRv2),
                             rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
-                            lags, opt, opt.min_relevance * cfg.motors.current_noise_A);
+                            lags, opt, opt.min_relevance * cfg.motors.current_noise_A, 12);
     if (!sr.accepted) continue;
     std::string ch = s2 == 0 ? "current_right" : "current_left";
     rep.addFinding(
