@@ -326,20 +326,30 @@ struct SparseResult {
   double rms_before_val = 0, rms_after_val = 0;
 };
 
-/// The library L (fit) and Lv (validation) are views of the caller's rows (no copy); column
-/// `excluded` (-1: none) is left out as if it were zero.
-using LibraryView = Eigen::Ref<const Eigen::MatrixXd>;
-SparseResult stlsq(const LibraryView& L, const Eigen::VectorXd& y, const Groups& g,
-                   const LibraryView& Lv, const Eigen::VectorXd& yv, const Groups& gv, int lags,
+/// A term library over a set of rows, its columns made on demand (a long drive's library is
+/// not kept as a matrix: memory, docs/benchmarks.md).
+struct Library {
+  int rows = 0, cols = 0;
+  std::function<Eigen::VectorXd(int)> col;
+  /// The columns `which`, in order.
+  Eigen::MatrixXd design(const std::vector<int>& which) const {
+    Eigen::MatrixXd A(rows, which.size());
+    for (size_t k = 0; k < which.size(); ++k) A.col(k) = col(which[k]);
+    return A;
+  }
+};
+
+/// Column `excluded` (-1: none) of the library L (fit; Lv validation) is left out as if it
+/// were zero.
+SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, const Library& Lv,
+                   const Eigen::VectorXd& yv, const Groups& gv, int lags,
                    const DiagnosisOptions& opt, double min_contribution_rms, int excluded = -1) {
   SparseResult res;
   std::vector<int> act;
-  for (int j = 0; j < L.cols(); ++j)
+  for (int j = 0; j < L.cols; ++j)
     if (j != excluded && L.col(j).norm() > 0) act.push_back(j);
   for (int it = 0; it < 20 && !act.empty(); ++it) {
-    Eigen::MatrixXd A(L.rows(), act.size());
-    for (size_t k = 0; k < act.size(); ++k) A.col(k) = L.col(act[k]);
-    LinearFit f = fitLinear(A, y, g, lags);
+    LinearFit f = fitLinear(L.design(act), y, g, lags);
     if (!f.ok) {  // drop the column with the smallest norm and retry
       act.pop_back();
       continue;
@@ -362,16 +372,12 @@ SparseResult stlsq(const LibraryView& L, const Eigen::VectorXd& y, const Groups&
     act.erase(act.begin() + worst_k);  // sequential thresholding: drop the weakest term
   }
   if (res.terms.empty()) return res;
-  if (!selectionRule(opt, L.cols()).reject(res.ev).empty()) return res;
-  {
-    Eigen::MatrixXd A(L.rows(), res.terms.size());
-    for (size_t k = 0; k < res.terms.size(); ++k) A.col(k) = L.col(res.terms[k]);
-    if ((A * res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) < min_contribution_rms)
-      return res;
-  }
+  if (!selectionRule(opt, L.cols).reject(res.ev).empty()) return res;
+  if ((L.design(res.terms) * res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) <
+      min_contribution_rms)
+    return res;
   if (yv.size() > 10) {
-    Eigen::MatrixXd Av(Lv.rows(), res.terms.size());
-    for (size_t k = 0; k < res.terms.size(); ++k) Av.col(k) = Lv.col(res.terms[k]);
+    const Eigen::MatrixXd Av = Lv.design(res.terms);
     Eigen::VectorXd r1 = yv - Av * res.coef;
     double nev = effectiveSampleSize(r1, gv, lags);
     res.lr_val = nev * std::log(yv.squaredNorm() / std::max(1e-300, r1.squaredNorm()));
@@ -620,7 +626,12 @@ void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows&
     return L;
   };
   const Eigen::VectorXd& rf = sel.fit.residual;
-  SparseResult sr = stlsq(lib(kf2), rf, kf2.groups, lib(kv2), rv_after, kv2.groups, lags, opt,
+  const Eigen::MatrixXd Lf = lib(kf2), Lv = lib(kv2);
+  auto view = [](const Eigen::MatrixXd& L) {
+    return Library{static_cast<int>(L.rows()), static_cast<int>(L.cols()),
+                   [&L](int j) -> Eigen::VectorXd { return L.col(j); }};
+  };
+  SparseResult sr = stlsq(view(Lf), rf, kf2.groups, view(Lv), rv_after, kv2.groups, lags, opt,
                           opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
   if (!sr.accepted) return;
   static const std::vector<std::string> names = {"v",        "|omega|",  "omega*|omega|",
@@ -772,10 +783,12 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
   const Eigen::VectorXd& rf = sel.fit.residual;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   for (int s2 = 0; s2 < 2; ++s2) {
-    // i_self (column 12) is the measured quantity itself: keep it out (it would absorb
-    // everything). The library rows are views, not copies.
-    SparseResult sr = stlsq(df2.lib.middleRows(s2 * nRf, nRf), rf.segment(s2 * nRf, nRf),
-                            half(df2.groups, nRf, s2 == 1), dv2.lib.middleRows(s2 * nRv2, nRv2),
+    // This motor's rows of the library; i_self (column 12) is the measured quantity itself:
+    // keep it out (it would absorb everything).
+    const int nlib = static_cast<int>(dynLibNames().size());
+    const Library L{nRf, nlib, [&](int j) { return df2.libColumn(j, s2 * nRf, nRf); }};
+    const Library Lv{nRv2, nlib, [&](int j) { return dv2.libColumn(j, s2 * nRv2, nRv2); }};
+    SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
                             rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
                             lags, opt, opt.min_relevance * cfg.motors.current_noise_A, 12);
     if (!sr.accepted) continue;

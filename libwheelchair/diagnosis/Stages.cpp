@@ -261,7 +261,7 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   const double Mg2 = (g.body_mass_kg + 2 * g.wheel_mass_kg) * 9.81 / 2.0;
   const double fs = opt.grid_rate_hz, fc = opt.cutoff_hz;
   const auto& cols = driveColumns();
-  const int ncol = static_cast<int>(cols.size()), nlib = static_cast<int>(dynLibNames().size());
+  const int ncol = static_cast<int>(cols.size());
   signals::DriveSignalOptions so;
   so.grid_rate_hz = fs, so.cutoff_hz = fc, so.max_gap_s = opt.max_gap_s;
   so.edge_trim_s = opt.edge_trim_s;
@@ -287,8 +287,9 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   const int N = 2 * nR;
   d.y.resize(N);
   d.X.resize(N, ncol);
-  d.lib.resize(N, nlib);
-  for (auto* col : {&d.t, &d.v, &d.omega, &d.vdot, &d.omegadot, &d.phi}) col->resize(N);
+  for (auto* col : {&d.t, &d.v, &d.omega, &d.vdot, &d.omegadot, &d.phi, &d.u, &d.sgn_u, &d.cos_phi,
+                    &d.sin_phi, &d.current})
+    col->resize(N);
   d.side.assign(N, 0);
   std::fill(d.side.begin() + nR, d.side.end(), 1);
   int row_R = 0;  // next right-motor row; its left-motor row is row_R + nR
@@ -334,16 +335,14 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
           d.omegadot[k] = wd[i], d.phi[k] = phi[i];
           double u = sd == 0 ? uRf[i] : uLf[i];
           double im = sd == 0 ? iRf[i] : iLf[i];
-          double io = sd == 0 ? iLf[i] : iRf[i];
           d.y(k) = im - (sd == 0 ? predR[i] : predL[i]);
           double sg = sd == 0 ? sgR[i] : sgL[i];
           const effects::DriveSample sample{
               sd,     u,     sg, vd[i], cph[i], sph[i], sd == 0 ? dpR[i] : dpL[i],
               theta5, alpha, r,  rG,    Mg2};
           for (int j = 0; j < ncol; ++j) d.X(k, j) = cols[j].value(sample);
-          const double l[14] = {1.0,   v[i],        w[i],        vd[i],  wd[i],  sg, std::abs(u),
-                                u * u, v[i] * w[i], w[i] * w[i], cph[i], sph[i], im, io};
-          for (int j = 0; j < nlib; ++j) d.lib(k, j) = l[j];
+          d.u[k] = u, d.sgn_u[k] = sg, d.cos_phi[k] = cph[i], d.sin_phi[k] = sph[i];
+          d.current[k] = im;  // io, the other motor's, is the other side's row
         }
       }
       d.groups.push_back({bR, row_R});
@@ -356,6 +355,64 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   d.noise_var = cfg.motors.current_noise_A * cfg.motors.current_noise_A *
                 filteredNoiseFactor(fc, cfg.motors.rate_hz > 0 ? cfg.motors.rate_hz : 100.0);
   return d;
+}
+
+Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
+  const int nR = static_cast<int>(y.size() / 2);
+  Eigen::VectorXd c(n);
+  for (int q = 0; q < n; ++q) {
+    const int k = r0 + q;
+    const double u_k = u[k], v_k = v[k], w_k = omega[k];
+    double x = 0;
+    switch (j) {
+      case 0:
+        x = 1.0;
+        break;
+      case 1:
+        x = v_k;
+        break;
+      case 2:
+        x = w_k;
+        break;
+      case 3:
+        x = vdot[k];
+        break;
+      case 4:
+        x = omegadot[k];
+        break;
+      case 5:
+        x = sgn_u[k];
+        break;
+      case 6:
+        x = std::abs(u_k);
+        break;
+      case 7:
+        x = u_k * u_k;
+        break;
+      case 8:
+        x = v_k * w_k;
+        break;
+      case 9:
+        x = w_k * w_k;
+        break;
+      case 10:
+        x = cos_phi[k];
+        break;
+      case 11:
+        x = sin_phi[k];
+        break;
+      case 12:
+        x = current[k];
+        break;
+      case 13:
+        x = current[k < nR ? k + nR : k - nR];
+        break;
+      default:
+        throw std::out_of_range("DynRows::libColumn: no column " + std::to_string(j));
+    }
+    c(q) = x;
+  }
+  return c;
 }
 
 Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,

@@ -94,11 +94,11 @@ double LsSolution::standardErrorNaive(const Eigen::VectorXd& w) const {
 
 namespace {
 
-// solveLeastSquares on the caller's X and y (no copy: fitLinear's designs are up to
-// n x p = 10^6 x 14 doubles on a long drive, docs/benchmarks.md "Memory").
-LsSolution solve(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
-                 const std::vector<long>& time_index, const std::vector<int>& block,
-                 const LsOptions& opt) {
+// solveLeastSquares on the design X, which it owns and equilibrates in place (fitLinear's
+// designs are up to n x p = 10^6 x 14 doubles on a long drive: a copy less matters,
+// docs/benchmarks.md "Memory"), and the caller's y.
+LsSolution solve(Eigen::MatrixXd X, const Eigen::VectorXd& y, const std::vector<long>& time_index,
+                 const std::vector<int>& block, const LsOptions& opt) {
   const long n = X.rows(), p = X.cols();
   if (y.size() != n || long(time_index.size()) != n || long(block.size()) != n)
     throw std::invalid_argument("solveLeastSquares: inconsistent input sizes");
@@ -110,7 +110,9 @@ LsSolution solve(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
   s.column_scale = X.colwise().norm().transpose();
   for (long j = 0; j < p; ++j)
     if (!(s.column_scale(j) > 0)) s.column_scale(j) = 1.0;
-  const Eigen::MatrixXd Xs = X * s.column_scale.cwiseInverse().asDiagonal();
+  const Eigen::VectorXd inv_scale = s.column_scale.cwiseInverse();
+  for (long j = 0; j < p; ++j) X.col(j) *= inv_scale(j);  // X * diag(inv_scale), in place
+  const Eigen::MatrixXd& Xs = X;
 
   Eigen::MatrixXd Vr;
   Eigen::VectorXd sr, beta_s;
@@ -192,6 +194,10 @@ Groups singleGroup(int n) {
 
 LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
                     int lags) {
+  return fitLinear(Eigen::MatrixXd(X), y, groups, lags);
+}
+
+LinearFit fitLinear(Eigen::MatrixXd&& X, const Eigen::VectorXd& y, const Groups& groups, int lags) {
   LinearFit f;
   const int n = static_cast<int>(y.size());
   const int p = static_cast<int>(X.cols());
@@ -216,7 +222,7 @@ LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Gr
   LsOptions opt;
   opt.hac_lags = std::max(0, lags);
   opt.rank_tol = 1e-10;
-  LsSolution s = solve(X, y, time_index, block, opt);
+  LsSolution s = solve(std::move(X), y, time_index, block, opt);
   f.rank = s.rank;
   if (s.rank < p) return f;
   f.beta = s.beta;
