@@ -863,7 +863,16 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     describeFinding(f, c, sel, a, fit);
     rep.addFinding(f);
   }
-  if (opt.enable_unmodeled) dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, rep);
+  if (opt.enable_unmodeled) {
+    // The unmodeled-term search reads the rows' signals (DynRows::libColumn), not their
+    // designs: those go first, as the search's own fits are the peak of diagnose (memory).
+    for (DynRows* rows : {&df, &dv, &refit.fit, &refit.val}) {
+      rows->X = Eigen::MatrixXd();
+      rows->t = rows->phi = {};
+      rows->side = {};
+    }
+    dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, rep);
+  }
   return true;
 }
 

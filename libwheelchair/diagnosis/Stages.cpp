@@ -503,6 +503,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
       return t;
     }
     double ne = effectiveSampleSize(f1.residual, d.g_fit, d.lags);
+    f1.residual = Eigen::VectorXd();  // only beta is read later: one residual per candidate
     int k = static_cast<int>(c.S.cols());
     t.evidence = compareNested(f0.rss, f1.rss, k, ne);
     SelectionStep& st = trial_step[ci];
