@@ -358,59 +358,21 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
 }
 
 Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
+  if (j < 0 || j >= 14)
+    throw std::out_of_range("DynRows::libColumn: no column " + std::to_string(j));
   const int nR = static_cast<int>(y.size() / 2);
   Eigen::VectorXd c(n);
   for (int q = 0; q < n; ++q) {
     const int k = r0 + q;
-    const double u_k = u[k], v_k = v[k], w_k = omega[k];
-    double x = 0;
-    switch (j) {
-      case 0:
-        x = 1.0;
-        break;
-      case 1:
-        x = v_k;
-        break;
-      case 2:
-        x = w_k;
-        break;
-      case 3:
-        x = vdot[k];
-        break;
-      case 4:
-        x = omegadot[k];
-        break;
-      case 5:
-        x = sgn_u[k];
-        break;
-      case 6:
-        x = std::abs(u_k);
-        break;
-      case 7:
-        x = u_k * u_k;
-        break;
-      case 8:
-        x = v_k * w_k;
-        break;
-      case 9:
-        x = w_k * w_k;
-        break;
-      case 10:
-        x = cos_phi[k];
-        break;
-      case 11:
-        x = sin_phi[k];
-        break;
-      case 12:
-        x = current[k];
-        break;
-      case 13:
-        x = current[k < nR ? k + nR : k - nR];
-        break;
-      default:
-        throw std::out_of_range("DynRows::libColumn: no column " + std::to_string(j));
-    }
-    c(q) = x;
+    const double uk = u[k], vk = v[k], wk = omega[k];
+    const double row[14] = {1.0,          vk,
+                            wk,           vdot[k],
+                            omegadot[k],  sgn_u[k],
+                            std::abs(uk), uk * uk,
+                            vk * wk,      wk * wk,
+                            cos_phi[k],   sin_phi[k],
+                            current[k],   current[k < nR ? k + nR : k - nR]};
+    c(q) = row[j];
   }
   return c;
 }
