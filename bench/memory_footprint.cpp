@@ -17,7 +17,7 @@
 // Usage:
 //   memory_footprint --cli build/bin/wheelchair --durations 3600,36000 [--keep DIR]
 //   memory_footprint --cli build/bin/wheelchair --durations 300,600
-//       --check-growth simulate=150,filter=150,evaluate=200,diagnose=400
+//       --check-growth simulate=40,filter=40,evaluate=60,diagnose=200
 // Exit: 0 ok, 1 a command failed or the growth check failed, 2 usage.
 #include <fmt/core.h>
 

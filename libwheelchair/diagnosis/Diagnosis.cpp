@@ -325,17 +325,30 @@ struct SparseResult {
   double rms_before_val = 0, rms_after_val = 0;
 };
 
-SparseResult stlsq(const Eigen::MatrixXd& L, const Eigen::VectorXd& y, const Groups& g,
-                   const Eigen::MatrixXd& Lv, const Eigen::VectorXd& yv, const Groups& gv, int lags,
-                   const DiagnosisOptions& opt, double min_contribution_rms) {
+/// A term library over a set of rows, its columns made on demand (a long drive's library is
+/// not kept as a matrix: memory, docs/benchmarks.md).
+struct Library {
+  int rows = 0, cols = 0;
+  std::function<Eigen::VectorXd(int)> col;
+  /// The columns `which`, in order.
+  Eigen::MatrixXd design(const std::vector<int>& which) const {
+    Eigen::MatrixXd A(rows, which.size());
+    for (size_t k = 0; k < which.size(); ++k) A.col(k) = col(which[k]);
+    return A;
+  }
+};
+
+/// Column `excluded` (-1: none) of the library L (fit; Lv validation) is left out as if it
+/// were zero.
+SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, const Library& Lv,
+                   const Eigen::VectorXd& yv, const Groups& gv, int lags,
+                   const DiagnosisOptions& opt, double min_contribution_rms, int excluded = -1) {
   SparseResult res;
   std::vector<int> act;
-  for (int j = 0; j < L.cols(); ++j)
-    if (L.col(j).norm() > 0) act.push_back(j);
+  for (int j = 0; j < L.cols; ++j)
+    if (j != excluded && L.col(j).norm() > 0) act.push_back(j);
   for (int it = 0; it < 20 && !act.empty(); ++it) {
-    Eigen::MatrixXd A(L.rows(), act.size());
-    for (size_t k = 0; k < act.size(); ++k) A.col(k) = L.col(act[k]);
-    LinearFit f = fitLinear(A, y, g, lags);
+    LinearFit f = fitLinear(L.design(act), y, g, lags);
     if (!f.ok) {  // drop the column with the smallest norm and retry
       act.pop_back();
       continue;
@@ -358,16 +371,12 @@ SparseResult stlsq(const Eigen::MatrixXd& L, const Eigen::VectorXd& y, const Gro
     act.erase(act.begin() + worst_k);  // sequential thresholding: drop the weakest term
   }
   if (res.terms.empty()) return res;
-  if (!selectionRule(opt, L.cols()).reject(res.ev).empty()) return res;
-  {
-    Eigen::MatrixXd A(L.rows(), res.terms.size());
-    for (size_t k = 0; k < res.terms.size(); ++k) A.col(k) = L.col(res.terms[k]);
-    if ((A * res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) < min_contribution_rms)
-      return res;
-  }
+  if (!selectionRule(opt, L.cols).reject(res.ev).empty()) return res;
+  if ((L.design(res.terms) * res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) <
+      min_contribution_rms)
+    return res;
   if (yv.size() > 10) {
-    Eigen::MatrixXd Av(Lv.rows(), res.terms.size());
-    for (size_t k = 0; k < res.terms.size(); ++k) Av.col(k) = Lv.col(res.terms[k]);
+    const Eigen::MatrixXd Av = Lv.design(res.terms);
     Eigen::VectorXd r1 = yv - Av * res.coef;
     double nev = effectiveSampleSize(r1, gv, lags);
     res.lr_val = nev * std::log(yv.squaredNorm() / std::max(1e-300, r1.squaredNorm()));
@@ -458,7 +467,7 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs,
   d.fit_fraction = val_recs.empty() ? opt.fit_fraction : 1.0;
   for (auto& r : fit_recs) {
     Streams s = makeStreams(r, cfg);
-    d.all.push_back(s);
+    d.any_enc |= s.hasEncoders(), d.any_gyro |= s.hasGyro(), d.any_mot |= s.hasMotors();
     if (val_recs.empty()) {
       double tc = s.t_begin + opt.fit_fraction * (s.t_end - s.t_begin);
       d.fit.push_back(cropStreams(s, s.t_begin, tc));
@@ -466,10 +475,16 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs,
     } else {
       d.fit.push_back(s);
     }
+    // `all` serves the trajectory check, which needs ground truth: a recording without it
+    // keeps only its time span there (its streams are already in fit / val; memory).
+    if (s.gt.size() < 2) {
+      Streams span;
+      span.t_begin = s.t_begin, span.t_end = s.t_end;
+      s = std::move(span);
+    }
+    d.all.push_back(std::move(s));
   }
   for (auto& r : val_recs) d.val.push_back(makeStreams(r, cfg));
-  for (auto& s : d.all)
-    d.any_enc |= s.hasEncoders(), d.any_gyro |= s.hasGyro(), d.any_mot |= s.hasMotors();
   return d;
 }
 
@@ -609,8 +624,13 @@ void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows&
     }
     return L;
   };
-  Eigen::VectorXd rf = sel.fit.residual;
-  SparseResult sr = stlsq(lib(kf2), rf, kf2.groups, lib(kv2), rv_after, kv2.groups, lags, opt,
+  const Eigen::VectorXd& rf = sel.fit.residual;
+  const Eigen::MatrixXd Lf = lib(kf2), Lv = lib(kv2);
+  auto view = [](const Eigen::MatrixXd& L) {
+    return Library{static_cast<int>(L.rows()), static_cast<int>(L.cols()),
+                   [&L](int j) -> Eigen::VectorXd { return L.col(j); }};
+  };
+  SparseResult sr = stlsq(view(Lf), rf, kf2.groups, view(Lv), rv_after, kv2.groups, lags, opt,
                           opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
   if (!sr.accepted) return;
   static const std::vector<std::string> names = {"v",        "|omega|",  "omega*|omega|",
@@ -759,16 +779,17 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
                       const Eigen::VectorXd& rv_after, int lags,
                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
                       DiagnosisReport& rep) {
-  Eigen::VectorXd rf = sel.fit.residual;
+  const Eigen::VectorXd& rf = sel.fit.residual;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   for (int s2 = 0; s2 < 2; ++s2) {
-    Eigen::MatrixXd L = df2.lib.middleRows(s2 * nRf, nRf);
-    Eigen::MatrixXd Lv = dv2.lib.middleRows(s2 * nRv2, nRv2);
-    // i_self is the measured quantity itself: keep it out (it would absorb everything)
-    L.col(12).setZero(), Lv.col(12).setZero();
+    // This motor's rows of the library; i_self (column 12) is the measured quantity itself:
+    // keep it out (it would absorb everything).
+    const int nlib = static_cast<int>(dynLibNames().size());
+    const Library L{nRf, nlib, [&](int j) { return df2.libColumn(j, s2 * nRf, nRf); }};
+    const Library Lv{nRv2, nlib, [&](int j) { return dv2.libColumn(j, s2 * nRv2, nRv2); }};
     SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
                             rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
-                            lags, opt, opt.min_relevance * cfg.motors.current_noise_A);
+                            lags, opt, opt.min_relevance * cfg.motors.current_noise_A, 12);
     if (!sr.accepted) continue;
     std::string ch = s2 == 0 ? "current_right" : "current_left";
     rep.addFinding(
@@ -841,7 +862,16 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     describeFinding(f, c, sel, a, fit);
     rep.addFinding(f);
   }
-  if (opt.enable_unmodeled) dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, rep);
+  if (opt.enable_unmodeled) {
+    // The unmodeled-term search reads the rows' signals (DynRows::libColumn), not their
+    // designs: those go first, as the search's own fits are the peak of diagnose (memory).
+    for (DynRows* rows : {&df, &dv, &refit.fit, &refit.val}) {
+      rows->X = Eigen::MatrixXd();
+      rows->t = rows->phi = {};
+      rows->side = {};
+    }
+    dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, rep);
+  }
   return true;
 }
 

@@ -261,18 +261,14 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   const double Mg2 = (g.body_mass_kg + 2 * g.wheel_mass_kg) * 9.81 / 2.0;
   const double fs = opt.grid_rate_hz, fc = opt.cutoff_hz;
   const auto& cols = driveColumns();
-  const int ncol = static_cast<int>(cols.size()), nlib = static_cast<int>(dynLibNames().size());
-  struct Row {
-    double y, t, v, w, vd, wd, phi;
-    int side;
-    std::array<double, 14> l;
-  };
-  std::vector<Row> rowsR, rowsL;
-  std::vector<double> xR, xL;  // the rows' columns, row-major
-  Groups gR, gL;
+  const int ncol = static_cast<int>(cols.size());
   signals::DriveSignalOptions so;
   so.grid_rate_hz = fs, so.cutoff_hz = fc, so.max_gap_s = opt.max_gap_s;
   so.edge_trim_s = opt.edge_trim_s;
+  // Every recording's resampled segments first (~11 doubles per grid step), so that the rows
+  // (2 per grid step, ~30 doubles each) are written once into outputs of their final size:
+  // no per-row temporaries, no growth slack (docs/benchmarks.md, "Memory").
+  std::vector<signals::DriveSegment> segs;
   for (const auto& s : recs) {
     if (!s.hasEncoders() || !s.hasMotors()) continue;
     // The recording with the sensor corrections applied.
@@ -284,7 +280,21 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
     for (auto& v : ds.s[0]) v /= c.enc_scale[0];
     for (auto& v : ds.s[1]) v /= c.enc_scale[1];
     ds.i = {s.iR, s.iL};
-    for (const signals::DriveSegment& seg : signals::prepare(ds, so)) {
+    for (signals::DriveSegment& seg : signals::prepare(ds, so)) segs.push_back(std::move(seg));
+  }
+  int nR = 0;
+  for (const auto& seg : segs) nR += seg.i1 - seg.i0;
+  const int N = 2 * nR;
+  d.y.resize(N);
+  d.X.resize(N, ncol);
+  for (auto* col : {&d.t, &d.v, &d.omega, &d.vdot, &d.omegadot, &d.phi, &d.u, &d.sgn_u, &d.cos_phi,
+                    &d.sin_phi, &d.current})
+    col->resize(N);
+  d.side.assign(N, 0);
+  std::fill(d.side.begin() + nR, d.side.end(), 1);
+  int row_R = 0;  // next right-motor row; its left-motor row is row_R + nR
+  for (signals::DriveSegment& seg : segs) {
+    {
       const std::vector<double>& tg = seg.t;
       const int n = static_cast<int>(tg.size());
       const auto &pR = seg.p[0], &pL = seg.p[1], &uRf = seg.u_f[0], &uLf = seg.u_f[1];
@@ -317,50 +327,54 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
       }
       auto dpR = sensors::centralDerivative(tg, predR);
       auto dpL = sensors::centralDerivative(tg, predL);
-      int bR = static_cast<int>(rowsR.size());
-      for (int i = seg.i0; i < seg.i1; ++i) {
+      const int bR = row_R;
+      for (int i = seg.i0; i < seg.i1; ++i, ++row_R) {
         for (int sd = 0; sd < 2; ++sd) {
-          Row row;
-          row.t = tg[i], row.v = v[i], row.w = w[i], row.vd = vd[i], row.wd = wd[i],
-          row.phi = phi[i];
-          row.side = sd;
+          const int k = sd == 0 ? row_R : row_R + nR;
+          d.t[k] = tg[i], d.v[k] = v[i], d.omega[k] = w[i], d.vdot[k] = vd[i],
+          d.omegadot[k] = wd[i], d.phi[k] = phi[i];
           double u = sd == 0 ? uRf[i] : uLf[i];
           double im = sd == 0 ? iRf[i] : iLf[i];
-          double io = sd == 0 ? iLf[i] : iRf[i];
-          row.y = im - (sd == 0 ? predR[i] : predL[i]);
+          d.y(k) = im - (sd == 0 ? predR[i] : predL[i]);
           double sg = sd == 0 ? sgR[i] : sgL[i];
           const effects::DriveSample sample{
               sd,     u,     sg, vd[i], cph[i], sph[i], sd == 0 ? dpR[i] : dpL[i],
               theta5, alpha, r,  rG,    Mg2};
-          for (const auto& c : cols) (sd == 0 ? xR : xL).push_back(c.value(sample));
-          row.l = {1.0,   v[i],        w[i],        vd[i],  wd[i],  sg, std::abs(u),
-                   u * u, v[i] * w[i], w[i] * w[i], cph[i], sph[i], im, io};
-          (sd == 0 ? rowsR : rowsL).push_back(row);
+          for (int j = 0; j < ncol; ++j) d.X(k, j) = cols[j].value(sample);
+          d.u[k] = u, d.sgn_u[k] = sg, d.cos_phi[k] = cph[i], d.sin_phi[k] = sph[i];
+          d.current[k] = im;  // io, the other motor's, is the other side's row
         }
       }
-      gR.push_back({bR, static_cast<int>(rowsR.size())});
+      d.groups.push_back({bR, row_R});
     }
+    seg = signals::DriveSegment{};  // consumed: its memory goes back before the next one
   }
-  const int nR = static_cast<int>(rowsR.size());
-  const int N = 2 * nR;
-  d.y.resize(N);
-  d.X.resize(N, ncol);
-  d.lib.resize(N, nlib);
-  for (int k = 0; k < N; ++k) {
-    const Row& row = k < nR ? rowsR[k] : rowsL[k - nR];
-    const double* x = k < nR ? &xR[k * ncol] : &xL[(k - nR) * ncol];
-    d.y(k) = row.y;
-    for (int j = 0; j < ncol; ++j) d.X(k, j) = x[j];
-    for (int j = 0; j < nlib; ++j) d.lib(k, j) = row.l[j];
-    d.t.push_back(row.t), d.v.push_back(row.v), d.omega.push_back(row.w);
-    d.vdot.push_back(row.vd), d.omegadot.push_back(row.wd), d.phi.push_back(row.phi);
-    d.side.push_back(row.side);
-  }
-  for (auto [a, b] : gR) d.groups.push_back({a, b});
-  for (auto [a, b] : gR) d.groups.push_back({a + nR, b + nR});
+  const std::size_t nseg = d.groups.size();
+  for (std::size_t q = 0; q < nseg; ++q)
+    d.groups.push_back({d.groups[q].first + nR, d.groups[q].second + nR});
   d.noise_var = cfg.motors.current_noise_A * cfg.motors.current_noise_A *
                 filteredNoiseFactor(fc, cfg.motors.rate_hz > 0 ? cfg.motors.rate_hz : 100.0);
   return d;
+}
+
+Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
+  if (j < 0 || j >= 14)
+    throw std::out_of_range("DynRows::libColumn: no column " + std::to_string(j));
+  const int nR = static_cast<int>(y.size() / 2);
+  Eigen::VectorXd c(n);
+  for (int q = 0; q < n; ++q) {
+    const int k = r0 + q;
+    const double uk = u[k], vk = v[k], wk = omega[k];
+    const double row[14] = {1.0,          vk,
+                            wk,           vdot[k],
+                            omegadot[k],  sgn_u[k],
+                            std::abs(uk), uk * uk,
+                            vk * wk,      wk * wk,
+                            cos_phi[k],   sin_phi[k],
+                            current[k],   current[k < nR ? k + nR : k - nR]};
+    c(q) = row[j];
+  }
+  return c;
 }
 
 Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
@@ -451,6 +465,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
       return t;
     }
     double ne = effectiveSampleSize(f1.residual, d.g_fit, d.lags);
+    f1.residual = Eigen::VectorXd();  // only beta is read later: one residual per candidate
     int k = static_cast<int>(c.S.cols());
     t.evidence = compareNested(f0.rss, f1.rss, k, ne);
     SelectionStep& st = trial_step[ci];

@@ -75,14 +75,21 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
 /// Stage 2 rows: per grid sample the right and then the left motor equation error (A),
 /// y = filtered current - nominal model current. Columns: driveColumns() (asymmetry right/left,
 /// Coulomb right/left, payload per kg, slope cos/sin, motors delay).
-/// `lib` holds the unmodeled-term library (per row) with names in libNames().
+/// The unmodeled-term library (names in dynLibNames()) is not stored as a matrix (14 doubles
+/// a row; memory, docs/benchmarks.md): libColumn() makes a column from the per-row signals.
 struct DynRows {
   Eigen::VectorXd y;
-  Eigen::MatrixXd X, lib;
+  Eigen::MatrixXd X;
   std::vector<double> t, v, omega, vdot, omegadot, phi;
   std::vector<int> side;  ///< 0 right, 1 left
+  /// Per row, the rest of the library: the motor's rim speed u (m/s), its smoothed sign
+  /// sgn(u), the filtered cos/sin of the heading and the motor's filtered current (A).
+  std::vector<double> u, sgn_u, cos_phi, sin_phi, current;
   stats::Groups groups;
   double noise_var = 0;  ///< predicted variance of y from the current-sensor noise
+  /// Library column j over rows [r0, r0 + n): 1, v, omega, vdot, omegadot, sgn(u), |u|, u^2,
+  /// v*omega, omega^2, cos(phi), sin(phi), i_self, i_other (the other motor's current).
+  Eigen::VectorXd libColumn(int j, int r0, int n) const;
 };
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
                     const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
@@ -113,7 +120,7 @@ struct SelectionStep {
 struct Selection {
   std::vector<int> accepted;
   std::vector<SelectionStep> steps;         ///< one per accepted candidate
-  stats::LinearFit fit;                            ///< final joint fit (columns: accepted in order)
+  stats::LinearFit fit;                     ///< final joint fit (columns: accepted in order)
   std::vector<std::pair<int, int>> ranges;  ///< coefficient range of each accepted candidate
   std::vector<std::string> log;             ///< why candidates were rejected (last round)
 };

@@ -7,6 +7,7 @@
 #include <limits>
 #include <map>
 #include <stdexcept>
+#include <utility>
 
 namespace wheelchair::stats {
 
@@ -91,55 +92,66 @@ double LsSolution::standardErrorNaive(const Eigen::VectorXd& w) const {
   return std::sqrt(std::max(0.0, w.dot(cov_naive * w)));
 }
 
-LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt) {
-  const long n = in.X.rows(), p = in.X.cols();
-  if (in.y.size() != n || long(in.time_index.size()) != n || long(in.block.size()) != n)
+namespace {
+
+// solveLeastSquares on the design X, which it owns and equilibrates in place (fitLinear's
+// designs are up to n x p = 10^6 x 14 doubles on a long drive: a copy less matters,
+// docs/benchmarks.md "Memory"), and the caller's y.
+LsSolution solve(Eigen::MatrixXd X, const Eigen::VectorXd& y, const std::vector<long>& time_index,
+                 const std::vector<int>& block, const LsOptions& opt) {
+  const long n = X.rows(), p = X.cols();
+  if (y.size() != n || long(time_index.size()) != n || long(block.size()) != n)
     throw std::invalid_argument("solveLeastSquares: inconsistent input sizes");
   if (n < p) throw std::invalid_argument("solveLeastSquares: fewer rows than parameters");
 
   LsSolution s;
   // Column equilibration: unit 2-norm columns (an all-zero column keeps scale 1 and shows up
   // as a zero singular value, i.e. an undetermined parameter).
-  s.column_scale = in.X.colwise().norm().transpose();
+  s.column_scale = X.colwise().norm().transpose();
   for (long j = 0; j < p; ++j)
     if (!(s.column_scale(j) > 0)) s.column_scale(j) = 1.0;
-  const Eigen::MatrixXd Xs = in.X * s.column_scale.cwiseInverse().asDiagonal();
+  const Eigen::VectorXd inv_scale = s.column_scale.cwiseInverse();
+  for (long j = 0; j < p; ++j) X.col(j) *= inv_scale(j);  // X * diag(inv_scale), in place
+  const Eigen::MatrixXd& Xs = X;
 
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(Xs, Eigen::ComputeThinU | Eigen::ComputeFullV);
-  s.singular_values = svd.singularValues();
-  s.V = svd.matrixV();
-  const double smax = s.singular_values(0);
-  s.rank = 0;
-  for (long k = 0; k < p; ++k)
-    if (s.singular_values(k) > opt.rank_tol * smax) ++s.rank;
-  const double smin = s.singular_values(p - 1);
-  s.condition_number = smin > 0 ? smax / smin : std::numeric_limits<double>::infinity();
-  s.condition_number_identifiable =
-      s.rank > 0 ? smax / s.singular_values(s.rank - 1) : std::numeric_limits<double>::infinity();
-
+  Eigen::MatrixXd Vr;
+  Eigen::VectorXd sr, beta_s;
+  {  // the SVD's n x p work matrices are freed before the score series are built
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(Xs, Eigen::ComputeThinU | Eigen::ComputeFullV);
+    s.singular_values = svd.singularValues();
+    s.V = svd.matrixV();
+    const double smax = s.singular_values(0);
+    s.rank = 0;
+    for (long k = 0; k < p; ++k)
+      if (s.singular_values(k) > opt.rank_tol * smax) ++s.rank;
+    const double smin = s.singular_values(p - 1);
+    s.condition_number = smin > 0 ? smax / smin : std::numeric_limits<double>::infinity();
+    s.condition_number_identifiable =
+        s.rank > 0 ? smax / s.singular_values(s.rank - 1) : std::numeric_limits<double>::infinity();
+    Vr = s.V.leftCols(s.rank);
+    sr = s.singular_values.head(s.rank);
+    beta_s =
+        Vr * (sr.cwiseInverse().asDiagonal() * (svd.matrixU().leftCols(s.rank).transpose() * y));
+  }
   const int r = s.rank;
-  const Eigen::MatrixXd Vr = s.V.leftCols(r);
-  const Eigen::VectorXd sr = s.singular_values.head(r);
-  const Eigen::VectorXd beta_s =
-      Vr * (sr.cwiseInverse().asDiagonal() * (svd.matrixU().leftCols(r).transpose() * in.y));
   s.beta = beta_s.cwiseQuotient(s.column_scale);
 
-  s.residuals = in.y - Xs * beta_s;
+  s.residuals = y - Xs * beta_s;
   auto& rs = s.residual;
   rs.n_rows = static_cast<std::size_t>(n);
   rs.dof = static_cast<int>(n - r);
   rs.rms = std::sqrt(s.residuals.squaredNorm() / n);
   rs.mean = s.residuals.mean();
   rs.max_abs = s.residuals.cwiseAbs().maxCoeff();
-  rs.rms_y = std::sqrt(in.y.squaredNorm() / n);
-  rs.r_squared = 1.0 - s.residuals.squaredNorm() / std::max(in.y.squaredNorm(), 1e-300);
+  rs.rms_y = std::sqrt(y.squaredNorm() / n);
+  rs.r_squared = 1.0 - s.residuals.squaredNorm() / std::max(y.squaredNorm(), 1e-300);
 
   // (X_s'X_s)^+ on the retained subspace.
   const Eigen::MatrixXd P = Vr * sr.array().pow(-2).matrix().asDiagonal() * Vr.transpose();
   const double sigma2 = s.residuals.squaredNorm() / std::max<long>(1, n - r);
   const Eigen::MatrixXd cov_naive_s = sigma2 * P;
   const Eigen::MatrixXd S =
-      hacScoreCovariance(Xs, s.residuals, in.time_index, in.block, std::max(0, opt.hac_lags));
+      hacScoreCovariance(Xs, s.residuals, time_index, block, std::max(0, opt.hac_lags));
   const double small_sample = double(n) / std::max<long>(1, n - r);
   const Eigen::MatrixXd cov_s = small_sample * P * S * P;
   const Eigen::MatrixXd Dinv = s.column_scale.cwiseInverse().asDiagonal();
@@ -158,7 +170,7 @@ LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt) {
   // Lag-1 autocorrelation of the per-time-step residual sum, within blocks.
   {
     Eigen::MatrixXd ones = Eigen::MatrixXd::Ones(n, 1);
-    const auto series = scoreSeries(ones, s.residuals, in.time_index, in.block);
+    const auto series = scoreSeries(ones, s.residuals, time_index, block);
     double c0 = 0, c1 = 0;
     for (const auto& [b, ser] : series) {
       const Eigen::RowVectorXd g = ser.G.row(0);
@@ -170,12 +182,22 @@ LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt) {
   return s;
 }
 
+}  // namespace
+
+LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt) {
+  return solve(in.X, in.y, in.time_index, in.block, opt);
+}
+
 Groups singleGroup(int n) {
   return {{0, n}};
 }
 
 LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
                     int lags) {
+  return fitLinear(Eigen::MatrixXd(X), y, groups, lags);
+}
+
+LinearFit fitLinear(Eigen::MatrixXd&& X, const Eigen::VectorXd& y, const Groups& groups, int lags) {
   LinearFit f;
   const int n = static_cast<int>(y.size());
   const int p = static_cast<int>(X.cols());
@@ -190,22 +212,23 @@ LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Gr
   f.beta = Eigen::VectorXd::Zero(p);
   f.cov = Eigen::MatrixXd::Identity(p, p) * 1e300;
   if (n <= p) return f;
-  LsInput in{X, y, std::vector<long>(n, 0), std::vector<int>(n, -1)};
+  std::vector<long> time_index(n, 0);
+  std::vector<int> block(n, -1);
   for (std::size_t g = 0; g < groups.size(); ++g)
     for (int i = std::max(0, groups[g].first); i < std::min(n, groups[g].second); ++i)
-      in.time_index[i] = i - groups[g].first, in.block[i] = static_cast<int>(g);
+      time_index[i] = i - groups[g].first, block[i] = static_cast<int>(g);
   for (int i = 0; i < n; ++i)  // rows outside every group: each its own block
-    if (in.block[i] < 0) in.block[i] = -1 - i;
+    if (block[i] < 0) block[i] = -1 - i;
   LsOptions opt;
   opt.hac_lags = std::max(0, lags);
   opt.rank_tol = 1e-10;
-  LsSolution s = solveLeastSquares(in, opt);
+  LsSolution s = solve(std::move(X), y, time_index, block, opt);
   f.rank = s.rank;
   if (s.rank < p) return f;
   f.beta = s.beta;
   f.cov = s.cov;
-  f.residual = s.residuals;
   f.rss = s.residuals.squaredNorm();
+  f.residual = std::move(s.residuals);
   f.ok = true;
   return f;
 }

@@ -115,5 +115,8 @@ struct LinearFit {
 /// the design is rank deficient or has no more rows than columns.
 LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
                     int lags);
+/// The same on a design the caller no longer needs (e.g. a temporary): it is equilibrated in
+/// place instead of copied, one n x p matrix less at the peak (the same numbers, bit for bit).
+LinearFit fitLinear(Eigen::MatrixXd&& X, const Eigen::VectorXd& y, const Groups& groups, int lags);
 
 }  // namespace wheelchair::stats

@@ -145,3 +145,46 @@ TEST(LeastSquares, HacCovarianceEqualsItsDefinition) {
   EXPECT_LT((s2.beta - beta).norm(), 1e-10 * beta.norm());
   EXPECT_LT((s2.cov - cov2).norm(), 1e-9 * cov2.norm());
 }
+
+// fitLinear on a temporary design equilibrates it in place instead of copying it (memory of
+// diagnose on long drives): the result must be the same, bit for bit, as on a kept design, and
+// the kept design untouched.
+TEST(LeastSquares, FitLinearOnATemporaryDesignIsBitIdentical) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> N(0, 1);
+  const int n = 3001, p = 5;  // odd n: columns start unaligned in the matrix
+  Eigen::MatrixXd X(n, p);
+  Eigen::VectorXd y(n);
+  double e = 0;
+  for (int i = 0; i < n; ++i) {
+    X.row(i) << 1.0, N(rng), 1e3 * N(rng), 1e-3 * N(rng), std::sin(0.01 * i);
+    e = 0.9 * e + N(rng);  // autocorrelated noise: the HAC part matters
+    y(i) = 0.5 + 2 * X(i, 1) - 0.001 * X(i, 2) + 300 * X(i, 3) + e;
+  }
+  const stats::Groups groups{{0, 1000}, {1000, 2500}, {2600, n}};  // rows 2500..2599 alone
+  const Eigen::MatrixXd kept = X;
+  const stats::LinearFit a = stats::fitLinear(X, y, groups, 8);
+  const stats::LinearFit b = stats::fitLinear(Eigen::MatrixXd(X), y, groups, 8);
+  EXPECT_EQ(X, kept);
+  ASSERT_TRUE(a.ok);
+  ASSERT_TRUE(b.ok);
+  EXPECT_EQ(a.beta, b.beta);
+  EXPECT_EQ(a.cov, b.cov);
+  EXPECT_EQ(a.residual, b.residual);
+  EXPECT_EQ(a.rss, b.rss);
+  EXPECT_NEAR(a.beta(1), 2.0, 0.2);
+  // solveLeastSquares (LsInput) is the same solver: the same coefficients.
+  stats::LsInput in{X, y, std::vector<long>(n), std::vector<int>(n)};
+  for (int i = 0; i < n; ++i) {
+    int g = 0;
+    while (g < 3 && !(i >= groups[g].first && i < groups[g].second)) ++g;
+    in.time_index[i] = g < 3 ? i - groups[g].first : 0;
+    in.block[i] = g < 3 ? g : -1 - i;
+  }
+  stats::LsOptions lo;
+  lo.hac_lags = 8;
+  lo.rank_tol = 1e-10;
+  const auto s = stats::solveLeastSquares(in, lo);
+  EXPECT_EQ(s.beta, a.beta);
+  EXPECT_EQ(s.cov, a.cov);
+}
