@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "libwheelchair/estimation/Measurement.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/stats/Distributions.h"
 
@@ -150,11 +151,6 @@ std::vector<std::string> missingForCommandDrivenEkf(const io::Recording& rec) {
       missing.push_back("sightings of mapped landmarks (every sighting is of an unmapped subject)");
   }
   return missing;
-}
-
-std::pair<double, double> CommandDrivenEkfResult::meanNisBand95() const {
-  if (!accepted) return {0.0, 0.0};
-  return stats::chi2MeanBand(0.95, 2, static_cast<double>(accepted));
 }
 
 namespace {
@@ -380,8 +376,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   const double t_ref = res.t_start_s;
   double tau = 0, next_out_tau = 0, t = t_ref;
   const double t_end = std::max(sig.endTime(), z.empty() ? t : z.back().t_s);
-  double nis_sum = 0, nis_sum_all = 0;
-  const double band_lo = stats::chi2Quantile(0.025, 2), band_hi = stats::chi2Quantile(0.975, 2);
+  double nis_sum_all = 0;
   const double t_first = t, span = std::max(t_end - t_first, 1e-9);
   double next_progress = t_first;
   const auto emit = [&] {
@@ -435,30 +430,31 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
       }
     }
   };
+  // The library's one update path (Measurement.h) on work copies of the fixed-size state.
+  Measurement meas(Sensor::Landmarks, 2, 5);
+  meas.R = R;
+  meas.angular_rows = 0b10;  // the bearing
+  Eigen::VectorXd xw(5);
+  Eigen::MatrixXd Pw(5, 5);
   for (; k < z.size(); ++k) {
     propagateTo(z[k].t_s);
     Eigen::Matrix<double, 2, 5> H;
-    const Eigen::Vector2d h = rangeBearing(x, L[z[k].landmark_id], &H);
-    Eigen::Vector2d y(z[k].range_m - h(0), wrapAngle(z[k].bearing_rad - h(1)));
-    const Eigen::Matrix2d S = H * P * H.transpose() + R;
-    const double nis = y.dot(S.ldlt().solve(y));
-    nis_sum_all += nis;
-    if (gate > 0 && nis > gate) {
-      ++res.rejected;
-      continue;
-    }
-    const Eigen::Matrix<double, 5, 2> K = P * H.transpose() * S.inverse();
-    x += K * y;
-    const Eigen::Matrix<double, 5, 5> IKH = Eigen::Matrix<double, 5, 5>::Identity() - K * H;
-    P = IKH * P * IKH.transpose() + K * R * K.transpose();
-    ++res.accepted;
-    nis_sum += nis;
-    res.nis_inside95 += nis >= band_lo && nis <= band_hi;
+    meas.h = rangeBearing(x, L[z[k].landmark_id], &H);
+    meas.H = H;
+    meas.z << z[k].range_m, z[k].bearing_rad;
+    xw = x;
+    Pw = P;
+    const UpdateResult r = correct(xw, Pw, meas, gate);
+    bookUpdate(res, Sensor::Landmarks, z[k].t_s, r, gate, false);
+    nis_sum_all += r.nis;
+    if (!r.accepted) continue;
+    x = xw;
+    P = Pw;
   }
   propagateTo(t_end);
-  res.mean_nis = res.accepted ? nis_sum / res.accepted : 0;
-  const std::size_t attempts = res.accepted + res.rejected;
-  res.mean_nis_all = attempts ? nis_sum_all / attempts : 0;
+  const SensorStats& st = res.landmarks();
+  const long attempts = st.used + st.rejected;
+  res.mean_nis_all = attempts ? nis_sum_all / double(attempts) : 0;
   if (progress) progress(1.0);
   return res;
 }

@@ -23,9 +23,10 @@ constexpr int kCanonicalDim = 7;
 using CanonicalState = Eigen::Matrix<double, kCanonicalDim, 1>;
 using CanonicalCov = Eigen::Matrix<double, kCanonicalDim, kCanonicalDim>;
 
-/// Sensors whose measurements the filters use (index into EstimationResult::sensors).
-enum class Sensor { Encoders = 0, Gyro = 1, Sonar = 2, Pozyx = 3 };
-constexpr int kNumSensors = 4;
+/// Sensors whose measurements the filters use (index into EstimationResult::sensors): the
+/// wheelchair filters' four, and the command-driven EKF's landmark range-bearing sightings.
+enum class Sensor { Encoders = 0, Gyro = 1, Sonar = 2, Pozyx = 3, Landmarks = 4 };
+constexpr int kNumSensors = 5;
 const char* sensorName(Sensor s);
 
 struct EstimateSample {
@@ -141,7 +142,7 @@ struct HealthEvent {
 };
 
 struct EstimationResult {
-  std::string filter;  ///< "physics" or "baseline"
+  std::string filter;  ///< "physics", "baseline" or "command"
   /// All estimates (runEstimator without a sink); empty when they went to an EstimateSink.
   EstimateSeries estimates;
   std::size_t n_estimates = 0;  ///< estimates produced (stored or streamed)

@@ -21,6 +21,7 @@
 #include "libwheelchair/estimation/CdEkf.h"
 #include "libwheelchair/estimation/EkfOptions.h"
 #include "libwheelchair/estimation/EstimationTypes.h"
+#include "libwheelchair/estimation/Measurement.h"
 #include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/io/Recording.h"
 #include "libwheelchair/sensors/Encoders.h"
@@ -106,12 +107,22 @@ class Estimator {
   EstimationResult& result() { return res_; }
   const EkfOptions& options() const { return opt_; }
 
+  /// The filter's own state vector (its layout: WheelchairEkf.h, BaselineEkf.h).
+  virtual const Eigen::VectorXd& state() const = 0;
+  // The filter's measurement models linearised at a state x of its own layout
+  // (estimation/Measurement.h): z, h(x), H = dh/dx, R in the filter's preallocated storage,
+  // valid until the next call for that sensor. The updates use them at state(); the tests
+  // check each H against central differences of h.
+  virtual Measurement& gyroModel(const Eigen::VectorXd& x, double z_rad_s, double R) = 0;
+  virtual Measurement& sonarModel(const Eigen::VectorXd& x, double z_m, double R) = 0;
+  /// z_start: the tag position in the start frame (m).
+  virtual Measurement& pozyxModel(const Eigen::VectorXd& x, const Eigen::Vector2d& z_start,
+                                  const Eigen::Matrix2d& R) = 0;
+
  protected:
-  // Filter-specific parts of the measurement updates (state already at the measurement time).
-  virtual UpdateResult gyroUpdate(double z, double R, double gate) = 0;
-  virtual UpdateResult sonarUpdate(double z, double R, double gate) = 0;
-  virtual UpdateResult pozyxUpdate(const Eigen::Vector2d& z_start, const Eigen::Matrix2d& R,
-                                   double gate) = 0;
+  /// The one update path (Measurement.h correct() on the filter's state), then the filter's
+  /// angle wrapping. The state is already at the measurement time.
+  virtual UpdateResult correct(Measurement& m, double gate) = 0;
   virtual bool obstacleInitialised() const = 0;
   /// Obstacle at `range` along the sonar axis, covariance from the sonar datasheet.
   virtual void initObstacleFromSonar(double range_m) = 0;
