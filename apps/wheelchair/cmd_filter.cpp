@@ -263,6 +263,11 @@ void printRun(const estimation::EstimationResult& res, const estimation::EkfOpti
       "'in band': share of single NIS values inside chi2(dof)'s two-sided 95% interval)\n");
   for (const auto& v : estimation::sensorVerdicts(res, opt.gate_probability))
     fmt::print("verdict: {}\n", v);
+  if (const auto& p = res.stats(estimation::Sensor::Pozyx); p.inflated > 0)
+    fmt::print(
+        "pozyx: the filter had drifted {} times (after {} consecutive gated readings each): "
+        "position covariance inflated until the reading fitted, then applied\n",
+        p.inflated, opt.pozyx_inflate_after_rejections);
   if (res.cvode.intervals > 0) {
     const auto& c = res.cvode;
     fmt::print(
@@ -388,9 +393,16 @@ int runFilter(const FilterCliOptions& o) {
   }
   // The outputs are streamed while the filter runs (memory flat in the drive's length); their
   // temporaries are created first, so a bad path fails before the run.
+  // Fused, the Pozyx is no longer an independent ground truth for these estimates.
+  const bool pozyx_fused = opt.use_pozyx && sum.count(StreamKind::Pozyx) > 0;
+  const std::string fused_note =
+      "Pozyx fused (use_pozyx = 1): not an independent ground truth for these estimates; "
+      "evaluate against a GROUND_TRUTH stream or the simulator's truth (evaluate --truth)";
   std::optional<evaluation::TumEstimateSink> tum;
   std::optional<estimation::EstimatesCsvWriter> csv;
-  if (!o.trajectory.empty()) tum.emplace(o.trajectory);
+  if (!o.trajectory.empty())
+    tum.emplace(o.trajectory,
+                pozyx_fused ? std::vector<std::string>{fused_note} : std::vector<std::string>{});
   if (!o.estimates.empty()) csv.emplace(o.estimates);
   std::optional<util::AtomicFile> health;
   if (!o.health.empty()) health.emplace(o.health);
@@ -410,6 +422,7 @@ int runFilter(const FilterCliOptions& o) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   printRun(res, opt, sum, o.input, wall_s);
+  if (pozyx_fused) fmt::print("note: {}\n", fused_note);
   if (health) writeHealth(*health, o.health, res);
 
   if (tum) {

@@ -112,6 +112,11 @@ void BaselineEkf::setObstacleBody(const Eigen::Vector2d& pb, const Eigen::Matrix
   P_ = 0.5 * (P_ + P_.transpose()).eval();
 }
 
+void BaselineEkf::inflatePositionCovariance(double var) {
+  P_(kBx, kBx) += var;
+  P_(kBy, kBy) += var;
+}
+
 void BaselineEkf::initObstacleFromSonar(double range) {
   setObstacleBody(sonarPointBody(range), sonarPointCovBody(range));
   obstacle_initialised_ = true;

@@ -44,6 +44,7 @@ class BaselineEkf : public Estimator {
   UpdateResult correct(Measurement& m, double gate) override;
   bool obstacleInitialised() const override { return obstacle_initialised_; }
   void initObstacleFromSonar(double range_m) override;
+  void inflatePositionCovariance(double var_m2) override;
 
  private:
   /// The model's state for this estimate (obstacle in the base frame, Cartesian) and the

@@ -65,7 +65,10 @@ struct SensorStats {
   long dropouts = 0;           ///< invalid readings (sonar 0 / out of range, encoder gaps)
   long skipped = 0;            ///< not used by choice (sensor disabled)
   long reinitialisations = 0;  ///< sonar: obstacle re-initialised after repeated rejections
-  long dropout_episodes = 0;   ///< runs of consecutive dropouts (a failing sensor's episodes)
+  /// Pozyx: times the position covariance was inflated and a gated reading applied, after
+  /// pozyx_inflate_after_rejections consecutive rejections (EkfOptions.h)
+  long inflated = 0;
+  long dropout_episodes = 0;  ///< runs of consecutive dropouts (a failing sensor's episodes)
   // NIS over the ACCEPTED updates.
   long nis_count = 0;
   double nis_sum = 0;

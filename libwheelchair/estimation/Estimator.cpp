@@ -300,7 +300,25 @@ void Estimator::pozyx(double t, const Eigen::Vector2d& z_anchor) {
   const Eigen::Vector2d z(c * d.x() + s * d.y(), -s * d.x() + c * d.y());
   const Eigen::Matrix2d R = opt_.pozyx_noise_m * opt_.pozyx_noise_m * Eigen::Matrix2d::Identity();
   const double g = gate(2);
-  record(Sensor::Pozyx, t, correct(pozyxModel(state(), z, R), g), g);
+  const UpdateResult r = correct(pozyxModel(state(), z, R), g);
+  record(Sensor::Pozyx, t, r, g);
+  if (r.accepted) {
+    consecutive_pozyx_rejections_ = 0;
+    pozyx_accepted_ = true;
+  } else if (pozyx_accepted_ && opt_.pozyx_inflate_after_rejections > 0 && std::isfinite(r.nis) &&
+             ++consecutive_pozyx_rejections_ >= opt_.pozyx_inflate_after_rejections) {
+    // The filter, not the tag, has drifted and its position covariance says otherwise: add
+    // alpha to the variances of x and y (d tag / d (x, y) = I, so S grows by alpha I), with
+    // alpha such that y' (S + alpha I)^-1 y <= |y|^2 / (s_min + alpha) = gate, then apply.
+    const Eigen::Matrix2d S = r.S;
+    const double tr = S.trace(), det = S(0, 0) * S(1, 1) - S(0, 1) * S(1, 0);
+    const double s_min = 0.5 * tr - std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
+    inflatePositionCovariance(std::max(0.0, r.innovation.squaredNorm() / g - s_min));
+    if (correct(pozyxModel(state(), z, R), 0.0).accepted) {
+      ++st.inflated;
+      consecutive_pozyx_rejections_ = 0;
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

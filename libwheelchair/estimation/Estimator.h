@@ -97,7 +97,10 @@ class Estimator {
   /// Sonar range (m): 0 or outside [min, max] is a dropout; the first valid one initialises the
   /// obstacle (initial_obstacle = first_sonar); repeated gated readings re-initialise it.
   void sonar(double t_s, double range_m);
-  /// Pozyx position in the anchor frame (m).
+  /// Pozyx tag position in the anchor frame (m): mapped into the start frame
+  /// (pozyx_anchor_*), a measurement of the tag at its lever arm ([pozyx] lever_x_m,
+  /// lever_y_m, body frame), gated; after pozyx_inflate_after_rejections consecutive gated
+  /// readings the position covariance is inflated until the reading fits (EkfOptions.h).
   void pozyx(double t_s, const Eigen::Vector2d& p_anchor_m);
 
   /// Whether record() keeps every update attempt in result().nis (default true; counts and
@@ -126,6 +129,8 @@ class Estimator {
   virtual bool obstacleInitialised() const = 0;
   /// Obstacle at `range` along the sonar axis, covariance from the sonar datasheet.
   virtual void initObstacleFromSonar(double range_m) = 0;
+  /// Adds var_m2 to the variances of the position (x, y) (the filter found itself drifted).
+  virtual void inflatePositionCovariance(double var_m2) = 0;
 
   /// Books an update attempt: counts, NIS statistics, rejected list.
   void record(Sensor s, double t_s, const UpdateResult& r, double gate);
@@ -153,6 +158,10 @@ class Estimator {
  private:
   mutable std::map<int, double> gates_;
   int consecutive_sonar_rejections_ = 0;
+  int consecutive_pozyx_rejections_ = 0;
+  /// A Pozyx reading has passed the gate: one rejected from the first on is a wrong anchor
+  /// frame (pozyx_anchor_*), not a drift, and is never forced in.
+  bool pozyx_accepted_ = false;
   bool sonar_failing_ = false;  ///< the last sonar reading was a dropout (episode counting)
   bool keep_nis_records_ = true;
 };

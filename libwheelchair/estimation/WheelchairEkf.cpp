@@ -236,6 +236,13 @@ void WheelchairEkf::initObstacleFromSonar(double range) {
   obstacle_initialised_ = true;
 }
 
+void WheelchairEkf::inflatePositionCovariance(double var) {
+  Eigen::MatrixXd P = ekf_.P();
+  P(model::kIdxX, model::kIdxX) += var;
+  P(model::kIdxY, model::kIdxY) += var;
+  ekf_.setCovariance(P);
+}
+
 void WheelchairEkf::predictTo(double t) {
   double ta = ekf_.time();
   if (t <= ta) return;

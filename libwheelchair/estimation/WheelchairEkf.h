@@ -119,6 +119,7 @@ class WheelchairEkf : public Estimator {
   UpdateResult correct(Measurement& m, double gate) override;
   bool obstacleInitialised() const override { return obstacle_initialised_; }
   void initObstacleFromSonar(double range_m) override;
+  void inflatePositionCovariance(double var_m2) override;
 
  private:
   model::FilterState head() const;
