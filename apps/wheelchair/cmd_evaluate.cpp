@@ -1,6 +1,6 @@
 // wheelchair evaluate FILES... [--config F] [-j N] [--csv OUT.csv] [--json OUT.json]
 //                     [--markdown OUT.md] [--alignment none|origin|se2|se2-first:SECONDS]
-//                     [--no-baseline]
+//                     [--no-baseline] [--truth T.json...]
 // Trajectory metrics of every recording and variant (ekf, encoders, encoders_gyro, baseline)
 // against the recording's ground truth (libwheelchair/evaluation/Batch.h). Recordings with
 // landmark sightings / a landmark map (MRCLAM imports) get the variants ekf (command-driven
@@ -28,7 +28,7 @@ namespace wheelchair::cli {
 namespace {
 
 struct EvaluateOptions {
-  std::vector<std::string> files;
+  std::vector<std::string> files, truth;
   std::string config_path, csv, json, markdown, alignment = "se2";
   unsigned jobs = 0;
   bool no_baseline = false, quiet = false, salvage = false;
@@ -39,6 +39,14 @@ int runEvaluate(const EvaluateOptions& o) {
   if (!parseAlignmentFor("evaluate", o.alignment, bo.metrics)) return kExitUsage;
   const auto cfg = o.config_path.empty() ? config::WheelchairConfig()
                                          : config::WheelchairConfig::load(o.config_path);
+  if (!o.truth.empty() && o.truth.size() != o.files.size()) {
+    fmt::print(stderr,
+               "wheelchair evaluate: --truth needs one truth file per recording ({} given "
+               "for {} recordings)\n",
+               o.truth.size(), o.files.size());
+    return kExitUsage;
+  }
+  for (std::size_t i = 0; i < o.truth.size(); ++i) bo.truth[o.files[i]] = o.truth[i];
   bo.jobs = o.jobs;
   bo.baseline = !o.no_baseline;
   bo.salvage = o.salvage;
@@ -103,6 +111,11 @@ const RegisterCommand reg{Command{
       sub.add_option("--alignment", o->alignment, "none | origin | se2 | se2-first:SECONDS")
           ->default_val("se2");
       sub.add_flag("--no-baseline", o->no_baseline, "Skip the baseline filter");
+      sub.add_option("--truth", o->truth,
+                     "Simulator truth (NAME.truth.json of `wheelchair simulate`), one per "
+                     "recording in order: the ground truth instead of the recording's streams "
+                     "(needed when the filters fuse the Pozyx, use_pozyx = 1)")
+          ->take_all();
       sub.add_flag("-q,--quiet", o->quiet, "No progress bar or summary on stderr");
       sub.add_flag("--salvage", o->salvage, kSalvageHelp);
       return [o] { return runEvaluate(*o); };

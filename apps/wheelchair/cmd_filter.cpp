@@ -93,92 +93,53 @@ std::string missingForWheelchairFilter(const io::Recording& rec,
   return s;
 }
 
-// Poses re-expressed in the frame of `origin` (T_origin^-1 * T).
-evaluation::Trajectory relativeTo(const evaluation::Trajectory& traj,
-                                  const evaluation::Pose2DStamped& origin) {
-  evaluation::Trajectory out;
-  out.reserve(traj.size());
-  const double c = std::cos(origin.phi_rad), s = std::sin(origin.phi_rad);
-  for (const auto& p : traj) {
-    const double dx = p.x_m - origin.x_m, dy = p.y_m - origin.y_m;
-    out.push_back({p.t_s, c * dx + s * dy, -s * dx + c * dy,
-                   std::remainder(p.phi_rad - origin.phi_rad, 2 * M_PI)});
-  }
-  return out;
+// The command-driven EKF's options: the [mrclam_*] sections of --config, else the defaults;
+// `note` says where they came from. Empty when the configuration file does not exist.
+std::optional<estimation::CommandDrivenEkfOptions> commandDrivenOptions(const FilterCliOptions& o,
+                                                                        std::string& note) {
+  note = "built-in defaults (nominal response: velocities = commands)";
+  if (o.config_path.empty()) return estimation::CommandDrivenEkfOptions{};
+  if (!std::filesystem::exists(o.config_path)) return std::nullopt;
+  const auto cfg = config::WheelchairConfig::load(o.config_path);  // strict key check
+  const auto& ini = cfg.ini();
+  note = o.config_path;
+  if (!estimation::hasCommandDrivenSections(ini))
+    note += " (no [mrclam_filter] / [mrclam_response] section: defaults, nominal response)";
+  return estimation::loadCommandDrivenEkfOptions(ini);
 }
 
-int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progress& progress) {
-  const auto fail = [&](const std::string& why) {
-    std::cerr << "wheelchair filter: " << o.input << ": " << why << "\n";
-    return kExitBadInput;
-  };
-  estimation::CommandDrivenEkfOptions opt;
-  std::string config_note = "built-in defaults (nominal response: velocities = commands)";
-  if (!o.config_path.empty()) {
-    if (!std::filesystem::exists(o.config_path))
-      return fail("configuration " + o.config_path + ": no such file");
-    const auto cfg = config::WheelchairConfig::load(o.config_path);  // strict key check
-    const auto& ini = cfg.ini();
-    opt = estimation::loadCommandDrivenEkfOptions(ini);
-    config_note = o.config_path;
-    if (!estimation::hasCommandDrivenSections(ini))
-      config_note +=
-          " (no [mrclam_filter] / [mrclam_response] section: defaults, nominal response)";
-  }
-  if (o.pozyx || !o.obstacle_form.empty())
-    fmt::print("note: --pozyx / --obstacle-form apply to the wheelchair filters only: ignored\n");
-  const auto missing = estimation::missingForCommandDrivenEkf(rec);
-  if (!missing.empty()) {
-    std::string why =
-        "the command-driven EKF (commands + landmark range-bearing, map known) needs ";
-    for (std::size_t i = 0; i < missing.size(); ++i) why += (i ? "; " : "") + missing[i];
-    why += "; the recording lacks it";
-    if (rec.encoders.empty() && rec.imu.empty() && rec.sonar.empty())
-      why += " (and it has no encoder/gyro/sonar measurements for the wheelchair filter)";
-    return fail(why);
-  }
-  const auto map = io::landmarkMap(rec);
-  const auto t0 = std::chrono::steady_clock::now();
-  const auto res = estimation::runCommandDrivenEkf(
-      rec, map, opt, [&](double f) { progress.update(f, "filtering"); });
-  progress.stop();
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!res.initialised)
-    return fail(fmt::format(
-        "the command-driven EKF could not initialise: no two sightings of mapped landmarks at "
-        "least {} m apart within {} s ({} sightings of mapped landmarks, {} of unmapped "
-        "subjects)",
-        opt.init_min_separation_m, opt.init_window_s, rec.landmarks.size() - res.unmapped,
-        res.unmapped));
-
+// The command-driven run on the console: speed, frame, the sightings' NIS table (the common
+// SensorStats of Sensor::Landmarks), the command input and the final pose.
+void printCommandDrivenRun(const estimation::CommandDrivenEkfResult& res,
+                           const estimation::CommandDrivenEkfOptions& opt, const io::Recording& rec,
+                           std::size_t landmarks, const std::string& input,
+                           const std::string& config_note, double wall_s) {
   const double duration_s = rec.endTime() - rec.startTime();
   const double filtered_s = res.trajectory.back().t_s - res.t_start_s;
   fmt::print(
       "{}: {:.1f} s of recording, command-driven EKF (commands + landmark range-bearing, {} "
       "mapped landmarks), {:.1f} s filtered in {:.3f} s ({:.0f}x real time)\n",
-      o.input, duration_s, map.size(), filtered_s, wall_s, wall_s > 0 ? filtered_s / wall_s : 0.0);
+      input, duration_s, landmarks, filtered_s, wall_s, wall_s > 0 ? filtered_s / wall_s : 0.0);
   fmt::print("configuration: {}\n", config_note);
   fmt::print(
       "frame: map (landmark map = Vicon frame for MRCLAM); started at t = {:.3f} s "
       "({:.1f} s into the recording) from two landmark sightings\n",
       res.t_start_s, res.t_start_s - rec.startTime());
-  const std::size_t attempts = res.accepted + res.rejected;
-  const auto band = res.meanNisBand95();
+  const auto& st = res.landmarks();
+  const auto band = st.meanNisBand95();
   fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10} {:>14} {:>8} {:>9}\n", "sensor", "used",
              "rejected", "unmapped", "pre-init", "mean NIS", "95% band", "mean ok", "in band");
   fmt::print("{:<9} {:>7} {:>9} {:>9} {:>9} {:>10.3f} {:>6.2f}..{:<6.2f} {:>8} {:>8.1f}%\n",
-             "landmarks", res.accepted, res.rejected, res.unmapped, res.before_start, res.mean_nis,
-             band.first, band.second,
-             nisVerdict(res.mean_nis, band, static_cast<long>(res.accepted)),
-             100 * res.fractionInside95());
+             "landmarks", st.used, st.rejected, res.unmapped, res.before_start, st.meanNis(),
+             band.first, band.second, nisVerdict(st.meanNis(), band, st.nis_count),
+             100 * st.fractionInside95());
   fmt::print("{:<9} {:>7} (input: {} (0,0) blips dropped{})\n", "commands", res.commands,
              res.dropped_zero_runs, opt.ignore_zero_runs ? "" : "; ignore_zero_runs off");
   fmt::print(
       "(NIS: range-bearing, 2 dof; mean over the accepted updates, {:.3f} over all {} attempts "
       "incl. gated out; gate chi2(2) at p = {}; 'pre-init': mapped sightings up to the "
       "initialisation; 'unmapped': sightings of other robots, skipped)\n",
-      res.mean_nis_all, attempts, opt.gate_probability);
+      res.mean_nis_all, st.used + st.rejected, opt.gate_probability);
   if (!rec.ground_truth.empty())
     fmt::print(
         "ground truth ({} GROUND_TRUTH poses) not used: compare with `wheelchair evaluate`\n",
@@ -187,14 +148,23 @@ int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progre
   fmt::print(
       "final pose x = {:.3f} +- {:.3f} m, y = {:.3f} +- {:.3f} m, phi = {:.1f} deg (map frame)\n",
       f.x_m, std::sqrt(f.var_x), f.y_m, std::sqrt(f.var_y), f.phi_rad * 180 / M_PI);
+}
 
+// The command-driven outputs (library writers): TUM trajectory (map frame, or --frame start),
+// estimates CSV, the options used, and the open-loop commands variant.
+void writeCommandDrivenOutputs(const FilterCliOptions& o, const io::Recording& rec,
+                               const estimation::CommandDrivenEkfResult& res,
+                               const estimation::CommandDrivenEkfOptions& opt,
+                               const std::string& config_note) {
   const bool start_frame = o.frame == "start";
-  const auto traj = evaluation::toTrajectory(res.trajectory);
   const std::string frame_text =
       start_frame ? "frame: start (the first estimated pose, from the landmark initialisation)"
                   : "frame: map (landmark map; the Vicon frame for MRCLAM)";
+  const auto framed = [&](const evaluation::Trajectory& t) {
+    return start_frame ? evaluation::relativeTo(t, t.front()) : t;
+  };
   if (!o.trajectory.empty()) {
-    evaluation::writeTum(o.trajectory, start_frame ? relativeTo(traj, traj.front()) : traj,
+    evaluation::writeTum(o.trajectory, framed(evaluation::toTrajectory(res.trajectory)),
                          {"wheelchair filter " + o.input + ": command-driven EKF", frame_text});
     fmt::print("trajectory (TUM, {}): {}\n", start_frame ? "start frame" : "map frame",
                o.trajectory);
@@ -220,13 +190,51 @@ int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progre
     const auto dr_traj = evaluation::toTrajectory(dr);
     const std::string path = withSuffix(base, "_commands");
     evaluation::writeTum(
-        path, start_frame ? relativeTo(dr_traj, dr_traj.front()) : dr_traj,
+        path, framed(dr_traj),
         {"wheelchair filter " + o.input +
              ": open-loop dead reckoning of the commands from the EKF's initial pose",
          frame_text});
     fmt::print("open-loop commands variant: {} (d_path {:.2f} m)\n", path,
                evaluation::pathLength(dr_traj));
   }
+}
+
+int runCommandDriven(const FilterCliOptions& o, const io::Recording& rec, Progress& progress) {
+  const auto fail = [&](const std::string& why) {
+    std::cerr << "wheelchair filter: " << o.input << ": " << why << "\n";
+    return kExitBadInput;
+  };
+  std::string config_note;
+  const auto opt = commandDrivenOptions(o, config_note);
+  if (!opt) return fail("configuration " + o.config_path + ": no such file");
+  if (o.pozyx || !o.obstacle_form.empty())
+    fmt::print("note: --pozyx / --obstacle-form apply to the wheelchair filters only: ignored\n");
+  const auto missing = estimation::missingForCommandDrivenEkf(rec);
+  if (!missing.empty()) {
+    std::string why =
+        "the command-driven EKF (commands + landmark range-bearing, map known) needs ";
+    for (std::size_t i = 0; i < missing.size(); ++i) why += (i ? "; " : "") + missing[i];
+    why += "; the recording lacks it";
+    if (rec.encoders.empty() && rec.imu.empty() && rec.sonar.empty())
+      why += " (and it has no encoder/gyro/sonar measurements for the wheelchair filter)";
+    return fail(why);
+  }
+  const auto map = io::landmarkMap(rec);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto res = estimation::runCommandDrivenEkf(
+      rec, map, *opt, [&](double f) { progress.update(f, "filtering"); });
+  progress.stop();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!res.initialised)
+    return fail(fmt::format(
+        "the command-driven EKF could not initialise: no two sightings of mapped landmarks at "
+        "least {} m apart within {} s ({} sightings of mapped landmarks, {} of unmapped "
+        "subjects)",
+        opt->init_min_separation_m, opt->init_window_s, rec.landmarks.size() - res.unmapped,
+        res.unmapped));
+  printCommandDrivenRun(res, *opt, rec, map.size(), o.input, config_note, wall_s);
+  writeCommandDrivenOutputs(o, rec, res, *opt, config_note);
   return kExitOk;
 }
 
@@ -255,6 +263,11 @@ void printRun(const estimation::EstimationResult& res, const estimation::EkfOpti
       "'in band': share of single NIS values inside chi2(dof)'s two-sided 95% interval)\n");
   for (const auto& v : estimation::sensorVerdicts(res, opt.gate_probability))
     fmt::print("verdict: {}\n", v);
+  if (const auto& p = res.stats(estimation::Sensor::Pozyx); p.inflated > 0)
+    fmt::print(
+        "pozyx: the filter had drifted {} times (after {} consecutive gated readings each): "
+        "position covariance inflated until the reading fitted, then applied\n",
+        p.inflated, opt.pozyx_inflate_after_rejections);
   if (res.cvode.intervals > 0) {
     const auto& c = res.cvode;
     fmt::print(
@@ -380,9 +393,16 @@ int runFilter(const FilterCliOptions& o) {
   }
   // The outputs are streamed while the filter runs (memory flat in the drive's length); their
   // temporaries are created first, so a bad path fails before the run.
+  // Fused, the Pozyx is no longer an independent ground truth for these estimates.
+  const bool pozyx_fused = opt.use_pozyx && sum.count(StreamKind::Pozyx) > 0;
+  const std::string fused_note =
+      "Pozyx fused (use_pozyx = 1): not an independent ground truth for these estimates; "
+      "evaluate against a GROUND_TRUTH stream or the simulator's truth (evaluate --truth)";
   std::optional<evaluation::TumEstimateSink> tum;
   std::optional<estimation::EstimatesCsvWriter> csv;
-  if (!o.trajectory.empty()) tum.emplace(o.trajectory);
+  if (!o.trajectory.empty())
+    tum.emplace(o.trajectory,
+                pozyx_fused ? std::vector<std::string>{fused_note} : std::vector<std::string>{});
   if (!o.estimates.empty()) csv.emplace(o.estimates);
   std::optional<util::AtomicFile> health;
   if (!o.health.empty()) health.emplace(o.health);
@@ -402,6 +422,7 @@ int runFilter(const FilterCliOptions& o) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   printRun(res, opt, sum, o.input, wall_s);
+  if (pozyx_fused) fmt::print("note: {}\n", fused_note);
   if (health) writeHealth(*health, o.health, res);
 
   if (tum) {

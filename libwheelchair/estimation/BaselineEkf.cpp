@@ -28,6 +28,10 @@ BaselineEkf::BaselineEkf(const config::WheelchairConfig& cfg, const EkfOptions& 
       opt_.baseline_q_obstacle_m2_s;
   x_ = Eigen::VectorXd::Zero(kBaselineStateDim);
   P_ = Eigen::MatrixXd::Identity(kBaselineStateDim, kBaselineStateDim);
+  enc_m_ = Measurement(Sensor::Encoders, 2, kBaselineStateDim);
+  gyro_m_ = Measurement(Sensor::Gyro, 1, kBaselineStateDim);
+  sonar_m_ = Measurement(Sensor::Sonar, 1, kBaselineStateDim);
+  pozyx_m_ = Measurement(Sensor::Pozyx, 2, kBaselineStateDim);
 }
 
 void BaselineEkf::start(double t0) {
@@ -60,15 +64,16 @@ void BaselineEkf::predictTo(double t) {
   t_ = t;
 }
 
-model::FilterState BaselineEkf::toModelState(Eigen::Matrix<double, 7, 7>* J) const {
-  const double phi = x_(kBphi), c = std::cos(phi), s = std::sin(phi);
+model::FilterState BaselineEkf::toModelState(const Eigen::VectorXd& xb,
+                                             Eigen::Matrix<double, 7, 7>* J) {
+  const double phi = xb(kBphi), c = std::cos(phi), s = std::sin(phi);
   Eigen::Matrix2d Rt;  // R(phi)'
   Rt << c, s, -s, c;
   Eigen::Matrix2d dRt;  // d R(phi)' / d phi
   dRt << -s, c, -c, -s;
-  const Eigen::Vector2d rel(x_(kBox) - x_(kBx), x_(kBoy) - x_(kBy));
+  const Eigen::Vector2d rel(xb(kBox) - xb(kBx), xb(kBoy) - xb(kBy));
   model::FilterState m;
-  m << x_(kBv), x_(kBomega), x_(kBx), x_(kBy), phi, Rt * rel;
+  m << xb(kBv), xb(kBomega), xb(kBx), xb(kBy), phi, Rt * rel;
   if (J) {
     J->setZero();
     (*J)(model::kIdxV, kBv) = 1;
@@ -107,14 +112,18 @@ void BaselineEkf::setObstacleBody(const Eigen::Vector2d& pb, const Eigen::Matrix
   P_ = 0.5 * (P_ + P_.transpose()).eval();
 }
 
+void BaselineEkf::inflatePositionCovariance(double var) {
+  P_(kBx, kBx) += var;
+  P_(kBy, kBy) += var;
+}
+
 void BaselineEkf::initObstacleFromSonar(double range) {
   setObstacleBody(sonarPointBody(range), sonarPointCovBody(range));
   obstacle_initialised_ = true;
 }
 
-UpdateResult BaselineEkf::apply(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,
-                                const Eigen::MatrixXd& R, double g) {
-  const UpdateResult r = josephUpdate(x_, P_, y, H, R, g);
+UpdateResult BaselineEkf::correct(Measurement& m, double g) {
+  const UpdateResult r = estimation::correct(x_, P_, m, g);
   x_(kBphi) = model::wrapAngle(x_(kBphi));
   return r;
 }
@@ -131,43 +140,54 @@ void BaselineEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     ++st.dropouts;
     return;
   }
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, kBaselineStateDim);
-  H(0, kBv) = 1;
-  H(1, kBomega) = 1;
-  const Eigen::Vector2d y(iv.v_m_s - x_(kBv), iv.omega_rad_s - x_(kBomega));
+  // The mean speeds of the interval taken as (v, omega) at its end.
+  Measurement& m = enc_m_;
+  m.H.setZero();
+  m.H(0, kBv) = 1;
+  m.H(1, kBomega) = 1;
+  m.z << iv.v_m_s, iv.omega_rad_s;
+  m.h << x_(kBv), x_(kBomega);
+  m.R = encoderNoise(dt);
   const double g = gate(2);
-  record(Sensor::Encoders, iv.t1_s, apply(y, H, encoderNoise(dt), g), g);
+  record(Sensor::Encoders, iv.t1_s, correct(m, g), g);
 }
 
-UpdateResult BaselineEkf::gyroUpdate(double z, double R, double g) {
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, kBaselineStateDim);
-  H(0, kBomega) = 1;
-  Eigen::VectorXd y(1);
-  y(0) = z - x_(kBomega);
-  return apply(y, H, Eigen::MatrixXd::Constant(1, 1, R), g);
+Measurement& BaselineEkf::gyroModel(const Eigen::VectorXd& x, double z, double R) {
+  Measurement& m = gyro_m_;
+  m.H.setZero();
+  m.H(0, kBomega) = 1;
+  m.z(0) = z;
+  m.h(0) = x(kBomega);
+  m.R(0, 0) = R;
+  return m;
 }
 
-UpdateResult BaselineEkf::sonarUpdate(double z, double R, double g) {
+Measurement& BaselineEkf::sonarModel(const Eigen::VectorXd& x, double z, double R) {
   Eigen::Matrix<double, 7, 7> J;
-  const model::FilterState m = toModelState(&J);
-  const Eigen::MatrixXd H = fm_.HSonar(m) * J;
-  Eigen::VectorXd y(1);
-  y(0) = z - fm_.hSonar(m);
-  return apply(y, H, Eigen::MatrixXd::Constant(1, 1, R), g);
+  const model::FilterState ms = toModelState(x, &J);
+  Measurement& m = sonar_m_;
+  m.H = fm_.HSonar(ms) * J;
+  m.z(0) = z;
+  m.h(0) = fm_.hSonar(ms);
+  m.R(0, 0) = R;
+  return m;
 }
 
-UpdateResult BaselineEkf::pozyxUpdate(const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                                      double g) {
+Measurement& BaselineEkf::pozyxModel(const Eigen::VectorXd& x, const Eigen::Vector2d& z,
+                                     const Eigen::Matrix2d& R) {
   Eigen::Matrix<double, 7, 7> J;
-  const model::FilterState m = toModelState(&J);
-  const Eigen::MatrixXd H = fm_.HPozyx(m) * J;
-  const Eigen::VectorXd y = z - fm_.hPozyx(m);
-  return apply(y, H, R, g);
+  const model::FilterState ms = toModelState(x, &J);
+  Measurement& m = pozyx_m_;
+  m.H = fm_.HPozyx(ms) * J;
+  m.z = z;
+  m.h = fm_.hPozyx(ms);
+  m.R = R;
+  return m;
 }
 
 EstimateSample BaselineEkf::estimate() const {
   Eigen::Matrix<double, 7, 7> J;
-  const model::FilterState m = toModelState(&J);
+  const model::FilterState m = toModelState(x_, &J);
   const Eigen::MatrixXd Pm = J * P_ * J.transpose();
   return canonicalFromFilterState(t_, m, Pm, model::ObstacleForm::Cartesian, obstacle_initialised_);
 }

@@ -31,21 +31,26 @@ class BaselineEkf : public Estimator {
   const Eigen::VectorXd& x() const { return x_; }
   const Eigen::MatrixXd& P() const { return P_; }
 
+  const Eigen::VectorXd& state() const override { return x_; }
+  Measurement& gyroModel(const Eigen::VectorXd& x, double z, double R) override;
+  /// Sonar and Pozyx: model::FilterModel's h and H on the model state of x, H chained with
+  /// d(model state)/d(baseline state).
+  Measurement& sonarModel(const Eigen::VectorXd& x, double z, double R) override;
+  Measurement& pozyxModel(const Eigen::VectorXd& x, const Eigen::Vector2d& z_start,
+                          const Eigen::Matrix2d& R) override;
+
  protected:
-  UpdateResult gyroUpdate(double z, double R, double gate) override;
-  UpdateResult sonarUpdate(double z, double R, double gate) override;
-  UpdateResult pozyxUpdate(const Eigen::Vector2d& z_start, const Eigen::Matrix2d& R,
-                           double gate) override;
+  /// Measurement.h correct(), then phi wrapped.
+  UpdateResult correct(Measurement& m, double gate) override;
   bool obstacleInitialised() const override { return obstacle_initialised_; }
   void initObstacleFromSonar(double range_m) override;
+  void inflatePositionCovariance(double var_m2) override;
 
  private:
   /// The model's state for this estimate (obstacle in the base frame, Cartesian) and the
   /// Jacobian d(model state)/d(baseline state).
-  model::FilterState toModelState(Eigen::Matrix<double, 7, 7>* J) const;
+  static model::FilterState toModelState(const Eigen::VectorXd& x, Eigen::Matrix<double, 7, 7>* J);
   void setObstacleBody(const Eigen::Vector2d& p_body, const Eigen::Matrix2d& cov_body);
-  UpdateResult apply(const Eigen::VectorXd& y, const Eigen::MatrixXd& H, const Eigen::MatrixXd& R,
-                     double gate);
 
   model::FilterModel fm_;
   double t_ = 0;
@@ -53,6 +58,7 @@ class BaselineEkf : public Estimator {
   Eigen::MatrixXd P_;
   Eigen::Matrix<double, 7, 1> q_;
   bool obstacle_initialised_ = false;
+  Measurement enc_m_, gyro_m_, sonar_m_, pozyx_m_;  ///< preallocated (sized once)
 };
 
 }  // namespace wheelchair::estimation

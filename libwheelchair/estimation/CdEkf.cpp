@@ -1,5 +1,7 @@
 #include "libwheelchair/estimation/CdEkf.h"
 
+#include "libwheelchair/estimation/Measurement.h"
+
 #include <limits>
 
 #include <cvode/cvode.h>
@@ -686,6 +688,10 @@ UpdateResult josephUpdate(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Eigen::V
 UpdateResult CdEkf::update(const Eigen::VectorXd& y, const Eigen::MatrixXd& H,
                            const Eigen::MatrixXd& R, double gate) {
   return josephUpdate(x_, P_, y, H, R, gate);
+}
+
+UpdateResult CdEkf::correct(Measurement& m, double gate) {
+  return estimation::correct(x_, P_, m, gate);
 }
 
 }  // namespace wheelchair::estimation

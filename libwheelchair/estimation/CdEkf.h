@@ -46,6 +46,8 @@
 
 namespace wheelchair::estimation {
 
+struct Measurement;  // estimation/Measurement.h
+
 /// A continuous-time process model xdot = f(x, u) with Jacobian and noise density.
 class CdModel {
  public:
@@ -149,6 +151,10 @@ class CdEkf {
   /// is applied only if NIS <= gate (gate <= 0: no gating).
   UpdateResult update(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H,
                       const Eigen::MatrixXd& R, double gate);
+
+  /// The library's one update path (estimation/Measurement.h correct()): innovation z - h with
+  /// the angular rows wrapped, gate, Joseph form with the non-positive-definite guard.
+  UpdateResult correct(Measurement& m, double gate);
 
   /// NIS of a would-be update, without changing anything.
   double nis(const Eigen::VectorXd& innovation, const Eigen::MatrixXd& H,

@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "libwheelchair/estimation/Measurement.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/stats/Distributions.h"
 
@@ -152,11 +153,6 @@ std::vector<std::string> missingForCommandDrivenEkf(const io::Recording& rec) {
   return missing;
 }
 
-std::pair<double, double> CommandDrivenEkfResult::meanNisBand95() const {
-  if (!accepted) return {0.0, 0.0};
-  return stats::chi2MeanBand(0.95, 2, static_cast<double>(accepted));
-}
-
 namespace {
 [[maybe_unused]] const bool kRegistered = config::registerOptions([] {
   auto o = std::make_shared<CommandDrivenEkfOptions>();
@@ -273,6 +269,109 @@ Eigen::Vector2d rangeBearing(const model::CommandState& x, const Eigen::Vector2d
   return {r, wrapAngle(std::atan2(dy, dx) - x(2))};
 }
 
+namespace {
+
+/// The filter's start from the first two sightings z[i], z[j] of mapped landmarks at least
+/// init_min_separation_m apart within init_window_s: closed-form pose (map frame: heading from
+/// the landmark pair, position from L_j), with init_from_geometry the sighting noise
+/// propagated through it (numerical Jacobian; else 0), the index of the first sighting after
+/// them (j + 1) and the time of z[j].
+struct SightingStart {
+  bool found = false;
+  Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
+  std::size_t next = 0;
+  double t_s = 0;
+};
+
+SightingStart startFromSightings(const std::vector<io::LandmarkSample>& z,
+                                 const std::map<int, Eigen::Vector2d>& L,
+                                 const CommandDrivenEkfOptions& o) {
+  SightingStart s0;
+  const auto initPose = [](const Eigen::Vector2d& Li, const Eigen::Vector2d& Lj,
+                           const Eigen::Vector4d& m) {
+    const Eigen::Vector2d bi = m(0) * Eigen::Vector2d(std::cos(m(1)), std::sin(m(1)));
+    const Eigen::Vector2d bj = m(2) * Eigen::Vector2d(std::cos(m(3)), std::sin(m(3)));
+    const double phi = wrapAngle(std::atan2(Lj(1) - Li(1), Lj(0) - Li(0)) -
+                                 std::atan2(bj(1) - bi(1), bj(0) - bi(0)));
+    const Eigen::Vector2d p = Lj - Eigen::Vector2d(std::cos(phi) * bj(0) - std::sin(phi) * bj(1),
+                                                   std::sin(phi) * bj(0) + std::cos(phi) * bj(1));
+    return Eigen::Vector3d(p(0), p(1), phi);
+  };
+  for (std::size_t i = 0; i < z.size(); ++i)
+    for (std::size_t j = i + 1; j < z.size() && z[j].t_s - z[i].t_s <= o.init_window_s; ++j) {
+      const Eigen::Vector2d Li = L.at(z[i].landmark_id), Lj = L.at(z[j].landmark_id);
+      if ((Lj - Li).norm() < o.init_min_separation_m) continue;
+      const Eigen::Vector4d m(z[i].range_m, z[i].bearing_rad, z[j].range_m, z[j].bearing_rad);
+      s0.pose = initPose(Li, Lj, m);
+      Eigen::Matrix<double, 3, 4> J;
+      for (int k = 0; k < 4; ++k) {
+        const double h = k % 2 ? 1e-6 : 1e-6 * std::max(1.0, m(k));
+        Eigen::Vector4d a = m, b = m;
+        a(k) += h;
+        b(k) -= h;
+        Eigen::Vector3d d = initPose(Li, Lj, a) - initPose(Li, Lj, b);
+        d(2) = wrapAngle(d(2));
+        J.col(k) = d / (2 * h);
+      }
+      const Eigen::Vector4d r_var(
+          o.range_sigma_m * o.range_sigma_m, o.bearing_sigma_rad * o.bearing_sigma_rad,
+          o.range_sigma_m * o.range_sigma_m, o.bearing_sigma_rad * o.bearing_sigma_rad);
+      if (o.init_from_geometry) s0.P = J * r_var.asDiagonal() * J.transpose();
+      s0.next = j + 1;
+      s0.t_s = z[j].t_s;
+      s0.found = true;
+      return s0;
+    }
+  return s0;
+}
+
+/// The lagged velocity states (v, omega) at t_s: the drive response integrated on the dt_s
+/// grid from the first command (steps counted in time relative to it, independent of the
+/// clock offset).
+Eigen::Vector2d responseAt(const model::CommandDrivenModel& mdl, const model::CommandSignal& sig,
+                           const CommandDrivenEkfOptions& o, double t_s) {
+  double yv = 0, yw = 0;
+  const double t0 = sig.startTime(), span_s = t_s - t0;
+  for (long i = 0; static_cast<double>(i) * o.dt_s < span_s; ++i) {
+    const Eigen::Vector2d u = mdl.target(sig, t0 + (static_cast<double>(i) + 0.5) * o.dt_s);
+    yv = model::lagStep(yv, u(0), o.dt_s, o.response.v.time_constant_s).y_next;
+    yw = model::lagStep(yw, u(1), o.dt_s, o.response.omega.time_constant_s).y_next;
+  }
+  return {yv, yw};
+}
+
+/// One grid step of h seconds (input: the target at the step's midpoint t_mid): the mean by
+/// the model's exact step (+ the unmodeled velocities of the command at t_mid), the
+/// covariance P <- Phi P Phi' + G_w Qc G_w' h with Phi = I + F h + (F h)^2 / 2 and white noise
+/// on the pose rates (v along the heading, omega) and, for a lagged channel, on its velocity.
+void predictStep(const model::CommandDrivenModel& mdl, const model::CommandSignal& sig,
+                 const CommandDrivenEkfOptions& o, double t_mid, double h, model::CommandState& x,
+                 Eigen::Matrix<double, 5, 5>& P) {
+  const bool lag_v = o.response.v.time_constant_s > 0, lag_w = o.response.omega.time_constant_s > 0;
+  const Eigen::Vector2d u = mdl.target(sig, t_mid);
+  const auto Fc = mdl.F(x, u);
+  const Eigen::Matrix<double, 5, 5> A = Fc * h;
+  const Eigen::Matrix<double, 5, 5> Phi = Eigen::Matrix<double, 5, 5>::Identity() + A + 0.5 * A * A;
+  // Noise input: on the pose rates (unmodelled velocity error, both forms) and, for a
+  // lagged channel, also on its velocity state.
+  Eigen::Matrix<double, 5, 4> Gw = Eigen::Matrix<double, 5, 4>::Zero();
+  const double c = std::cos(x(2)), s = std::sin(x(2));
+  Gw(0, 0) = c;
+  Gw(1, 0) = s;
+  Gw(2, 1) = 1;
+  if (lag_v) Gw(3, 2) = 1;
+  if (lag_w) Gw(4, 3) = 1;
+  const Eigen::Matrix4d Qc = Eigen::Vector4d(o.q_v, o.q_omega, o.q_v, o.q_omega).asDiagonal();
+  x = mdl.step(x, u, h);
+  Eigen::Matrix<double, 5, 5> Phi_u = Phi;
+  if (o.hasUnmodeled()) addUnmodeled(x, o.unmodeledVelocity(sig.at(t_mid)), h, &Phi_u);
+  P = Phi_u * P * Phi_u.transpose() + Gw * Qc * Gw.transpose() * h;
+  P = 0.5 * (P + P.transpose());
+}
+
+}  // namespace
+
 CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
                                            const std::vector<io::LandmarkPosition>& map,
                                            const CommandDrivenEkfOptions& o,
@@ -294,50 +393,13 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
       ++res.unmapped;
   }
   // Initialisation from two sightings of well separated landmarks.
-  std::size_t start = z.size();
-  bool found = false;
+  const SightingStart s0 = startFromSightings(z, L, o);
+  if (!s0.found) return res;
   CommandState x = CommandState::Zero();
-  // Closed form from sightings (r_i, b_i) of L_i and (r_j, b_j) of L_j: heading from the
-  // landmark pair, position from L_j. With init_from_geometry its covariance is the sighting
-  // noise propagated through it (numerical Jacobian), added to the configured initial one.
-  const auto initPose = [](const Eigen::Vector2d& Li, const Eigen::Vector2d& Lj,
-                           const Eigen::Vector4d& m) {
-    const Eigen::Vector2d bi = m(0) * Eigen::Vector2d(std::cos(m(1)), std::sin(m(1)));
-    const Eigen::Vector2d bj = m(2) * Eigen::Vector2d(std::cos(m(3)), std::sin(m(3)));
-    const double phi = wrapAngle(std::atan2(Lj(1) - Li(1), Lj(0) - Li(0)) -
-                                 std::atan2(bj(1) - bi(1), bj(0) - bi(0)));
-    const Eigen::Vector2d p = Lj - Eigen::Vector2d(std::cos(phi) * bj(0) - std::sin(phi) * bj(1),
-                                                   std::sin(phi) * bj(0) + std::cos(phi) * bj(1));
-    return Eigen::Vector3d(p(0), p(1), phi);
-  };
-  Eigen::Matrix3d P_init = Eigen::Matrix3d::Zero();
-  for (std::size_t i = 0; i < z.size() && !found; ++i)
-    for (std::size_t j = i + 1; j < z.size() && z[j].t_s - z[i].t_s <= o.init_window_s; ++j) {
-      const Eigen::Vector2d Li = L[z[i].landmark_id], Lj = L[z[j].landmark_id];
-      if ((Lj - Li).norm() < o.init_min_separation_m) continue;
-      const Eigen::Vector4d m(z[i].range_m, z[i].bearing_rad, z[j].range_m, z[j].bearing_rad);
-      const Eigen::Vector3d pose = initPose(Li, Lj, m);
-      Eigen::Matrix<double, 3, 4> J;
-      for (int k = 0; k < 4; ++k) {
-        const double h = k % 2 ? 1e-6 : 1e-6 * std::max(1.0, m(k));
-        Eigen::Vector4d a = m, b = m;
-        a(k) += h;
-        b(k) -= h;
-        Eigen::Vector3d d = initPose(Li, Lj, a) - initPose(Li, Lj, b);
-        d(2) = wrapAngle(d(2));
-        J.col(k) = d / (2 * h);
-      }
-      const Eigen::Vector4d r_var(
-          o.range_sigma_m * o.range_sigma_m, o.bearing_sigma_rad * o.bearing_sigma_rad,
-          o.range_sigma_m * o.range_sigma_m, o.bearing_sigma_rad * o.bearing_sigma_rad);
-      if (o.init_from_geometry) P_init = J * r_var.asDiagonal() * J.transpose();
-      x << pose(0), pose(1), pose(2), 0, 0;
-      start = j + 1;
-      res.t_start_s = z[j].t_s;
-      found = true;
-      break;
-    }
-  if (!found) return res;
+  x << s0.pose(0), s0.pose(1), s0.pose(2), 0, 0;
+  const std::size_t start = s0.next;
+  res.t_start_s = s0.t_s;
+  const Eigen::Matrix3d& P_init = s0.P;
   res.initialised = true;
   res.before_start = start;
   res.start_pose_xy = x.head<2>();
@@ -354,22 +416,10 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   res.commands = sig.samples().size();
   res.dropped_zero_runs = sig.droppedZeroRuns();
   const model::CommandDrivenModel mdl(o.response);
-  const bool lag_v = o.response.v.time_constant_s > 0, lag_w = o.response.omega.time_constant_s > 0;
-  const bool unmodeled = o.hasUnmodeled();
   // Velocity states: start at the model's response (integrated from the first command).
-  {
-    // Steps counted in time relative to the first command (independent of the clock offset).
-    double yv = 0, yw = 0;
-    const double t0 = sig.startTime(), span_s = res.t_start_s - t0;
-    for (long i = 0; static_cast<double>(i) * o.dt_s < span_s; ++i) {
-      const Eigen::Vector2d u = mdl.target(sig, t0 + (static_cast<double>(i) + 0.5) * o.dt_s);
-      yv = model::lagStep(yv, u(0), o.dt_s, o.response.v.time_constant_s).y_next;
-      yw = model::lagStep(yw, u(1), o.dt_s, o.response.omega.time_constant_s).y_next;
-    }
-    x(3) = yv;
-    x(4) = yw;
-    res.start_velocity = {yv, yw};
-  }
+  res.start_velocity = responseAt(mdl, sig, o, res.t_start_s);
+  x(3) = res.start_velocity(0);
+  x(4) = res.start_velocity(1);
   const double gate = o.gate_probability > 0 ? stats::chi2Quantile(o.gate_probability, 2) : 0.0;
   Eigen::Matrix2d R =
       Eigen::Vector2d(o.range_sigma_m * o.range_sigma_m, o.bearing_sigma_rad * o.bearing_sigma_rad)
@@ -380,8 +430,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   const double t_ref = res.t_start_s;
   double tau = 0, next_out_tau = 0, t = t_ref;
   const double t_end = std::max(sig.endTime(), z.empty() ? t : z.back().t_s);
-  double nis_sum = 0, nis_sum_all = 0;
-  const double band_lo = stats::chi2Quantile(0.025, 2), band_hi = stats::chi2Quantile(0.975, 2);
+  double nis_sum_all = 0;
   const double t_first = t, span = std::max(t_end - t_first, 1e-9);
   double next_progress = t_first;
   const auto emit = [&] {
@@ -407,26 +456,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
     while (tau < tau1 - 1e-12) {
       const double h = std::min(o.dt_s, tau1 - tau);
       const double t_mid = t_ref + (tau + h / 2);
-      const Eigen::Vector2d u = mdl.target(sig, t_mid);
-      const auto Fc = mdl.F(x, u);
-      const Eigen::Matrix<double, 5, 5> A = Fc * h;
-      const Eigen::Matrix<double, 5, 5> Phi =
-          Eigen::Matrix<double, 5, 5>::Identity() + A + 0.5 * A * A;
-      // Noise input: on the pose rates (unmodelled velocity error, both forms) and, for a
-      // lagged channel, also on its velocity state.
-      Eigen::Matrix<double, 5, 4> Gw = Eigen::Matrix<double, 5, 4>::Zero();
-      const double c = std::cos(x(2)), s = std::sin(x(2));
-      Gw(0, 0) = c;
-      Gw(1, 0) = s;
-      Gw(2, 1) = 1;
-      if (lag_v) Gw(3, 2) = 1;
-      if (lag_w) Gw(4, 3) = 1;
-      const Eigen::Matrix4d Qc = Eigen::Vector4d(o.q_v, o.q_omega, o.q_v, o.q_omega).asDiagonal();
-      x = mdl.step(x, u, h);
-      Eigen::Matrix<double, 5, 5> Phi_u = Phi;
-      if (unmodeled) addUnmodeled(x, o.unmodeledVelocity(sig.at(t_mid)), h, &Phi_u);
-      P = Phi_u * P * Phi_u.transpose() + Gw * Qc * Gw.transpose() * h;
-      P = 0.5 * (P + P.transpose());
+      predictStep(mdl, sig, o, t_mid, h, x, P);
       tau += h;
       t = t_ref + tau;
       if (tau >= next_out_tau - 1e-9) {
@@ -435,30 +465,31 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
       }
     }
   };
+  // The library's one update path (Measurement.h) on work copies of the fixed-size state.
+  Measurement meas(Sensor::Landmarks, 2, 5);
+  meas.R = R;
+  meas.angular_rows = 0b10;  // the bearing
+  Eigen::VectorXd xw(5);
+  Eigen::MatrixXd Pw(5, 5);
   for (; k < z.size(); ++k) {
     propagateTo(z[k].t_s);
     Eigen::Matrix<double, 2, 5> H;
-    const Eigen::Vector2d h = rangeBearing(x, L[z[k].landmark_id], &H);
-    Eigen::Vector2d y(z[k].range_m - h(0), wrapAngle(z[k].bearing_rad - h(1)));
-    const Eigen::Matrix2d S = H * P * H.transpose() + R;
-    const double nis = y.dot(S.ldlt().solve(y));
-    nis_sum_all += nis;
-    if (gate > 0 && nis > gate) {
-      ++res.rejected;
-      continue;
-    }
-    const Eigen::Matrix<double, 5, 2> K = P * H.transpose() * S.inverse();
-    x += K * y;
-    const Eigen::Matrix<double, 5, 5> IKH = Eigen::Matrix<double, 5, 5>::Identity() - K * H;
-    P = IKH * P * IKH.transpose() + K * R * K.transpose();
-    ++res.accepted;
-    nis_sum += nis;
-    res.nis_inside95 += nis >= band_lo && nis <= band_hi;
+    meas.h = rangeBearing(x, L[z[k].landmark_id], &H);
+    meas.H = H;
+    meas.z << z[k].range_m, z[k].bearing_rad;
+    xw = x;
+    Pw = P;
+    const UpdateResult r = correct(xw, Pw, meas, gate);
+    bookUpdate(res, Sensor::Landmarks, z[k].t_s, r, gate, false);
+    nis_sum_all += r.nis;
+    if (!r.accepted) continue;
+    x = xw;
+    P = Pw;
   }
   propagateTo(t_end);
-  res.mean_nis = res.accepted ? nis_sum / res.accepted : 0;
-  const std::size_t attempts = res.accepted + res.rejected;
-  res.mean_nis_all = attempts ? nis_sum_all / attempts : 0;
+  const SensorStats& st = res.landmarks();
+  const long attempts = st.used + st.rejected;
+  res.mean_nis_all = attempts ? nis_sum_all / double(attempts) : 0;
   if (progress) progress(1.0);
   return res;
 }

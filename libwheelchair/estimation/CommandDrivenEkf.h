@@ -8,7 +8,10 @@
 //                white noise on the pose rates (v along the heading, omega) and, for a lagged
 //                channel, the same density on its velocity state;
 //   measurement: range-bearing to a mapped landmark, h = (|L - p|, wrap(atan2(L - p) - phi)),
-//                analytic H, chi-square gate on the NIS (2 dof); sightings of unmapped subjects
+//                analytic H (rangeBearing), through the library's one update path
+//                (estimation/Measurement.h: bearing row wrapped, chi-square gate on the NIS
+//                (2 dof), Joseph form with the non-positive-definite guard) and its NIS
+//                bookkeeping (result.stats(Sensor::Landmarks)); sightings of unmapped subjects
 //                (other robots) are skipped and counted;
 //   start:       the first two sightings of mapped landmarks at least init_min_separation_m
 //                apart within init_window_s: closed-form pose (heading from the landmark pair,
@@ -31,6 +34,7 @@
 #pragma once
 
 #include "libwheelchair/config/Options.h"
+#include "libwheelchair/estimation/EstimationTypes.h"
 #include "libwheelchair/io/MrclamImport.h"
 #include "libwheelchair/io/Recording.h"
 #include "libwheelchair/model/CommandDriven.h"
@@ -105,23 +109,24 @@ struct CommandDrivenEstimate {
   double v_m_s = 0, omega_rad_s = 0, var_v = 0, var_omega = 0;
 };
 
-struct CommandDrivenEkfResult {
+/// The run's result: the common EstimationResult (filter "command"; the sightings' counts, NIS
+/// statistics and rejected list under Sensor::Landmarks, booked by Measurement.h bookUpdate
+/// like every filter's) with the map-frame trajectory and what the initialisation found.
+struct CommandDrivenEkfResult : EstimationResult {
+  CommandDrivenEkfResult() { filter = "command"; }
   std::vector<CommandDrivenEstimate> trajectory;
   double t_start_s = 0;  ///< time of the landmark initialisation
   bool initialised = false;
-  std::size_t accepted = 0, rejected = 0, unmapped = 0;
+  std::size_t unmapped = 0;      ///< sightings of unmapped subjects (skipped)
   std::size_t before_start = 0;  ///< mapped sightings up to the initialisation (incl. its two)
-  double mean_nis = 0;           ///< over accepted updates
   double mean_nis_all = 0;       ///< over every update attempt (accepted and gated out)
-  std::size_t nis_inside95 = 0;  ///< accepted NIS inside the two-sided 95 % band of chi2(2)
   std::size_t commands = 0;      ///< command rows in the signal (after the quirk handling)
   std::size_t dropped_zero_runs = 0;
   Eigen::Vector2d start_pose_xy = Eigen::Vector2d::Zero();  ///< initial pose (map frame)
   double start_phi_rad = 0;
   Eigen::Vector2d start_velocity = Eigen::Vector2d::Zero();  ///< (v, omega) at t_start_s
-  /// Two-sided 95 % band of mean_nis for a consistent filter (chi2(2), `accepted` samples).
-  std::pair<double, double> meanNisBand95() const;
-  double fractionInside95() const { return accepted ? double(nis_inside95) / accepted : 0.0; }
+  /// The landmark sightings' counts and NIS statistics (used = accepted updates).
+  const SensorStats& landmarks() const { return stats(Sensor::Landmarks); }
 };
 
 /// Called with the fraction (0..1) of the recording's time span processed.

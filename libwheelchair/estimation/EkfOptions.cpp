@@ -52,6 +52,10 @@ config::Options EkfOptions::options(const std::string& section) {
       .integer("sonar_reinit_after_rejections", sonar_reinit_after_rejections,
                "re-initialise the obstacle after this many gated readings (count; 0 = never)",
                nonneg)
+      .integer("pozyx_inflate_after_rejections", pozyx_inflate_after_rejections,
+               "after this many consecutive gated Pozyx readings, inflate the position "
+               "covariance until the reading fits the gate (count; 0 = never)",
+               nonneg)
       .choice("cvode_method", c.method, kMethod, "CVODE method")
       .real("cvode_rel_tol", c.rel_tol, "CVODE relative tolerance (-)", pos)
       .real("cvode_abs_tol_state", c.abs_tol_state, "CVODE absolute tolerance, state", pos)
@@ -156,6 +160,8 @@ void EkfOptions::validate() const {
   nonneg(gate_probability, "gate_probability");
   if (sonar_reinit_after_rejections < 0)
     throw std::invalid_argument("sonar_reinit_after_rejections must be >= 0");
+  if (pozyx_inflate_after_rejections < 0)
+    throw std::invalid_argument("pozyx_inflate_after_rejections must be >= 0");
   pos(cvode.rel_tol, "cvode_rel_tol");
   pos(cvode.abs_tol_state, "cvode_abs_tol_state");
   pos(cvode.abs_tol_cov, "cvode_abs_tol_cov");

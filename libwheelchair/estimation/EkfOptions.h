@@ -49,6 +49,13 @@ struct EkfOptions {
   /// After this many consecutive gated sonar readings the obstacle is re-initialised from the
   /// reading (a different obstacle took over the echo); 0: never.
   int sonar_reinit_after_rejections = 5;
+  /// Pozyx outliers (multipath, a blocked anchor) fail the gate and are counted as rejected.
+  /// After this many CONSECUTIVE gated Pozyx readings it is the filter, not the tag, that has
+  /// drifted while its covariance says otherwise: the position variances are inflated until
+  /// the reading fits the gate, and it is applied (counted as `inflated`). Only once a reading
+  /// has passed the gate: a Pozyx rejected from its first reading on is in a wrong anchor
+  /// frame. A burst of outliers longer than this would be taken for the truth. 0: never.
+  int pozyx_inflate_after_rejections = 20;
 
   // --- integrator -------------------------------------------------------------------------
   CvodeOptions cvode;

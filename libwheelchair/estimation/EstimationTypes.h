@@ -23,9 +23,10 @@ constexpr int kCanonicalDim = 7;
 using CanonicalState = Eigen::Matrix<double, kCanonicalDim, 1>;
 using CanonicalCov = Eigen::Matrix<double, kCanonicalDim, kCanonicalDim>;
 
-/// Sensors whose measurements the filters use (index into EstimationResult::sensors).
-enum class Sensor { Encoders = 0, Gyro = 1, Sonar = 2, Pozyx = 3 };
-constexpr int kNumSensors = 4;
+/// Sensors whose measurements the filters use (index into EstimationResult::sensors): the
+/// wheelchair filters' four, and the command-driven EKF's landmark range-bearing sightings.
+enum class Sensor { Encoders = 0, Gyro = 1, Sonar = 2, Pozyx = 3, Landmarks = 4 };
+constexpr int kNumSensors = 5;
 const char* sensorName(Sensor s);
 
 struct EstimateSample {
@@ -64,7 +65,10 @@ struct SensorStats {
   long dropouts = 0;           ///< invalid readings (sonar 0 / out of range, encoder gaps)
   long skipped = 0;            ///< not used by choice (sensor disabled)
   long reinitialisations = 0;  ///< sonar: obstacle re-initialised after repeated rejections
-  long dropout_episodes = 0;   ///< runs of consecutive dropouts (a failing sensor's episodes)
+  /// Pozyx: times the position covariance was inflated and a gated reading applied, after
+  /// pozyx_inflate_after_rejections consecutive rejections (EkfOptions.h)
+  long inflated = 0;
+  long dropout_episodes = 0;  ///< runs of consecutive dropouts (a failing sensor's episodes)
   // NIS over the ACCEPTED updates.
   long nis_count = 0;
   double nis_sum = 0;
@@ -141,7 +145,7 @@ struct HealthEvent {
 };
 
 struct EstimationResult {
-  std::string filter;  ///< "physics" or "baseline"
+  std::string filter;  ///< "physics", "baseline" or "command"
   /// All estimates (runEstimator without a sink); empty when they went to an EstimateSink.
   EstimateSeries estimates;
   std::size_t n_estimates = 0;  ///< estimates produced (stored or streamed)

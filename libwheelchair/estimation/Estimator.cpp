@@ -2,6 +2,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/estimation/BaselineEkf.h"
+#include "libwheelchair/estimation/Measurement.h"
 #include "libwheelchair/estimation/WheelchairEkf.h"
 #include "libwheelchair/io/MrclamImport.h"
 #include "libwheelchair/stats/Distributions.h"
@@ -54,6 +55,8 @@ const char* sensorName(Sensor s) {
       return "sonar";
     case Sensor::Pozyx:
       return "pozyx";
+    case Sensor::Landmarks:
+      return "landmarks";
   }
   return "?";
 }
@@ -185,25 +188,7 @@ double Estimator::gate(int dof) const {
 }
 
 void Estimator::record(Sensor s, double t, const UpdateResult& r, double g) {
-  SensorStats& st = stats(s);
-  st.dof = r.dof;
-  if (keep_nis_records_) res_.nis.push_back({t, s, r.nis, r.dof, r.accepted});
-  if (r.accepted) {
-    ++st.used;
-    ++st.nis_count;
-    st.nis_sum += r.nis;
-    // Two-sided 95 % band of one chi2(dof) value (cached through gates_ with negative keys).
-    auto q = [this](double p, int dof, int key) {
-      auto it = gates_.find(key);
-      if (it != gates_.end()) return it->second;
-      return gates_[key] = stats::chi2Quantile(p, dof);
-    };
-    const double lo = q(0.025, r.dof, -2 * r.dof), hi = q(0.975, r.dof, -2 * r.dof - 1);
-    if (r.nis >= lo && r.nis <= hi) ++st.nis_inside95;
-  } else {
-    ++st.rejected;
-    res_.rejected.push_back({t, s, r.nis, r.dof, g, r.innovation});
-  }
+  bookUpdate(res_, s, t, r, g, keep_nis_records_);
 }
 
 Eigen::Matrix2d Estimator::encoderNoise(double dt) const {
@@ -260,7 +245,8 @@ void Estimator::gyro(double t, double z) {
     return;
   }
   const double g = gate(1);
-  record(Sensor::Gyro, t, gyroUpdate(z, opt_.gyro_noise_rad_s * opt_.gyro_noise_rad_s, g), g);
+  const double R = opt_.gyro_noise_rad_s * opt_.gyro_noise_rad_s;
+  record(Sensor::Gyro, t, correct(gyroModel(state(), z, R), g), g);
 }
 
 void Estimator::sonar(double t, double range) {
@@ -283,7 +269,8 @@ void Estimator::sonar(double t, double range) {
     return;
   }
   const double g = gate(1);
-  const UpdateResult r = sonarUpdate(range, opt_.sonar_noise_m * opt_.sonar_noise_m, g);
+  const double R = opt_.sonar_noise_m * opt_.sonar_noise_m;
+  const UpdateResult r = correct(sonarModel(state(), range, R), g);
   record(Sensor::Sonar, t, r, g);
   if (r.accepted) {
     consecutive_sonar_rejections_ = 0;
@@ -313,7 +300,25 @@ void Estimator::pozyx(double t, const Eigen::Vector2d& z_anchor) {
   const Eigen::Vector2d z(c * d.x() + s * d.y(), -s * d.x() + c * d.y());
   const Eigen::Matrix2d R = opt_.pozyx_noise_m * opt_.pozyx_noise_m * Eigen::Matrix2d::Identity();
   const double g = gate(2);
-  record(Sensor::Pozyx, t, pozyxUpdate(z, R, g), g);
+  const UpdateResult r = correct(pozyxModel(state(), z, R), g);
+  record(Sensor::Pozyx, t, r, g);
+  if (r.accepted) {
+    consecutive_pozyx_rejections_ = 0;
+    pozyx_accepted_ = true;
+  } else if (pozyx_accepted_ && opt_.pozyx_inflate_after_rejections > 0 && std::isfinite(r.nis) &&
+             ++consecutive_pozyx_rejections_ >= opt_.pozyx_inflate_after_rejections) {
+    // The filter, not the tag, has drifted and its position covariance says otherwise: add
+    // alpha to the variances of x and y (d tag / d (x, y) = I, so S grows by alpha I), with
+    // alpha such that y' (S + alpha I)^-1 y <= |y|^2 / (s_min + alpha) = gate, then apply.
+    const Eigen::Matrix2d S = r.S;
+    const double tr = S.trace(), det = S(0, 0) * S(1, 1) - S(0, 1) * S(1, 0);
+    const double s_min = 0.5 * tr - std::sqrt(std::max(0.0, 0.25 * tr * tr - det));
+    inflatePositionCovariance(std::max(0.0, r.innovation.squaredNorm() / g - s_min));
+    if (correct(pozyxModel(state(), z, R), 0.0).accepted) {
+      ++st.inflated;
+      consecutive_pozyx_rejections_ = 0;
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

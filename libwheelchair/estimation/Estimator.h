@@ -21,6 +21,7 @@
 #include "libwheelchair/estimation/CdEkf.h"
 #include "libwheelchair/estimation/EkfOptions.h"
 #include "libwheelchair/estimation/EstimationTypes.h"
+#include "libwheelchair/estimation/Measurement.h"
 #include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/io/Recording.h"
 #include "libwheelchair/sensors/Encoders.h"
@@ -96,7 +97,10 @@ class Estimator {
   /// Sonar range (m): 0 or outside [min, max] is a dropout; the first valid one initialises the
   /// obstacle (initial_obstacle = first_sonar); repeated gated readings re-initialise it.
   void sonar(double t_s, double range_m);
-  /// Pozyx position in the anchor frame (m).
+  /// Pozyx tag position in the anchor frame (m): mapped into the start frame
+  /// (pozyx_anchor_*), a measurement of the tag at its lever arm ([pozyx] lever_x_m,
+  /// lever_y_m, body frame), gated; after pozyx_inflate_after_rejections consecutive gated
+  /// readings the position covariance is inflated until the reading fits (EkfOptions.h).
   void pozyx(double t_s, const Eigen::Vector2d& p_anchor_m);
 
   /// Whether record() keeps every update attempt in result().nis (default true; counts and
@@ -106,15 +110,27 @@ class Estimator {
   EstimationResult& result() { return res_; }
   const EkfOptions& options() const { return opt_; }
 
+  /// The filter's own state vector (its layout: WheelchairEkf.h, BaselineEkf.h).
+  virtual const Eigen::VectorXd& state() const = 0;
+  // The filter's measurement models linearised at a state x of its own layout
+  // (estimation/Measurement.h): z, h(x), H = dh/dx, R in the filter's preallocated storage,
+  // valid until the next call for that sensor. The updates use them at state(); the tests
+  // check each H against central differences of h.
+  virtual Measurement& gyroModel(const Eigen::VectorXd& x, double z_rad_s, double R) = 0;
+  virtual Measurement& sonarModel(const Eigen::VectorXd& x, double z_m, double R) = 0;
+  /// z_start: the tag position in the start frame (m).
+  virtual Measurement& pozyxModel(const Eigen::VectorXd& x, const Eigen::Vector2d& z_start,
+                                  const Eigen::Matrix2d& R) = 0;
+
  protected:
-  // Filter-specific parts of the measurement updates (state already at the measurement time).
-  virtual UpdateResult gyroUpdate(double z, double R, double gate) = 0;
-  virtual UpdateResult sonarUpdate(double z, double R, double gate) = 0;
-  virtual UpdateResult pozyxUpdate(const Eigen::Vector2d& z_start, const Eigen::Matrix2d& R,
-                                   double gate) = 0;
+  /// The one update path (Measurement.h correct() on the filter's state), then the filter's
+  /// angle wrapping. The state is already at the measurement time.
+  virtual UpdateResult correct(Measurement& m, double gate) = 0;
   virtual bool obstacleInitialised() const = 0;
   /// Obstacle at `range` along the sonar axis, covariance from the sonar datasheet.
   virtual void initObstacleFromSonar(double range_m) = 0;
+  /// Adds var_m2 to the variances of the position (x, y) (the filter found itself drifted).
+  virtual void inflatePositionCovariance(double var_m2) = 0;
 
   /// Books an update attempt: counts, NIS statistics, rejected list.
   void record(Sensor s, double t_s, const UpdateResult& r, double gate);
@@ -142,6 +158,10 @@ class Estimator {
  private:
   mutable std::map<int, double> gates_;
   int consecutive_sonar_rejections_ = 0;
+  int consecutive_pozyx_rejections_ = 0;
+  /// A Pozyx reading has passed the gate: one rejected from the first on is a wrong anchor
+  /// frame (pozyx_anchor_*), not a drift, and is never forced in.
+  bool pozyx_accepted_ = false;
   bool sonar_failing_ = false;  ///< the last sonar reading was a dropout (episode counting)
   bool keep_nis_records_ = true;
 };

@@ -166,7 +166,13 @@ WheelchairEkf::WheelchairEkf(const config::WheelchairConfig& cfg, const EkfOptio
       ekf_(pm_, opt_.cvode) {
   if (!input_) input_ = &zero_input_;
   u_in_.signal = input_;
-  xs_.resize(pm_.stateDim());
+  const int n = pm_.stateDim();
+  xs_.resize(n);
+  da_.setZero(2, n);
+  enc_m_ = Measurement(Sensor::Encoders, 2, n);
+  gyro_m_ = Measurement(Sensor::Gyro, 1, n);
+  sonar_m_ = Measurement(Sensor::Sonar, 1, n);
+  pozyx_m_ = Measurement(Sensor::Pozyx, 2, n);
 }
 
 FilterState WheelchairEkf::head() const {
@@ -228,6 +234,13 @@ void WheelchairEkf::setObstacle(const Eigen::Vector2d& p, const Eigen::Matrix2d&
 void WheelchairEkf::initObstacleFromSonar(double range) {
   setObstacle(sonarPointBody(range), sonarPointCovBody(range));
   obstacle_initialised_ = true;
+}
+
+void WheelchairEkf::inflatePositionCovariance(double var) {
+  Eigen::MatrixXd P = ekf_.P();
+  P(model::kIdxX, model::kIdxX) += var;
+  P(model::kIdxY, model::kIdxY) += var;
+  ekf_.setCovariance(P);
 }
 
 void WheelchairEkf::predictTo(double t) {
@@ -305,14 +318,12 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     resetAccumulators(iv.t1_s);
     return;
   }
-  const Eigen::Vector2d z(iv.v_m_s, iv.omega_rad_s);
   const int n = pm_.stateDim();
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, n);
-  Eigen::Vector2d h;
   const Eigen::VectorXd& x = ekf_.x();
   // a = the true mean speeds the encoders see and d a / d x.
   Eigen::Vector2d a;
-  Eigen::Matrix<double, 2, Eigen::Dynamic> da = Eigen::MatrixXd::Zero(2, n);
+  Eigen::Matrix<double, 2, Eigen::Dynamic>& da = da_;
+  da.setZero();
   if (opt_.encoder_model == EncoderMeasurementModel::Mean) {
     a << x(kIdxSv) / dt, x(kIdxSomega) / dt;
     da(0, kIdxSv) = 1.0 / dt;
@@ -323,18 +334,22 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     da.block<1, 7>(1, 0) = model::FilterModel::HOmega();
   }
   const double g = gate(2);
-  UpdateResult r;
+  Measurement& m = enc_m_;
+  m.z << iv.v_m_s, iv.omega_rad_s;
+  Eigen::Matrix2d R = encoderNoise(dt);
   if (n > kPhysicsStateDim) {
     Eigen::Matrix2d dz_da, dz_dk;
-    h = scaledEncoderSpeeds(a, x(kIdxEncScaleS), x(kIdxEncScaleD), track_width_m_, &dz_da, &dz_dk);
-    H = dz_da * da;
-    H.block<2, 2>(0, kIdxEncScaleS) = dz_dk;
-    Eigen::Matrix2d R = encoderNoise(dt);
-    learnableScaleColumns(da, a, H, R);
-    r = ekf_.update(z - h, H, R, g);
+    m.h =
+        scaledEncoderSpeeds(a, x(kIdxEncScaleS), x(kIdxEncScaleD), track_width_m_, &dz_da, &dz_dk);
+    m.H = dz_da * da;
+    m.H.block<2, 2>(0, kIdxEncScaleS) = dz_dk;
+    learnableScaleColumns(da, a, m.H, R);
   } else {
-    r = ekf_.update(z - a, da, encoderNoise(dt), g);
+    m.h = a;
+    m.H = da;
   }
+  m.R = R;
+  const UpdateResult r = ekf_.correct(m, g);
   record(Sensor::Encoders, iv.t1_s, r, g);
   if (n > kPhysicsStateDim && opt_.estimate_encoder_scales) {
     // Health monitor: CUSUM on the z_omega innovation (accepted or gated); an alarm re-opens
@@ -375,38 +390,45 @@ void WheelchairEkf::learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::
   H.block<2, 2>(0, kIdxEncScaleS) = Hk.cwiseProduct(learn);
 }
 
-UpdateResult WheelchairEkf::gyroUpdate(double z, double R, double g) {
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, pm_.stateDim());
-  H.block<1, 7>(0, 0) = model::FilterModel::HOmega();
-  Eigen::VectorXd y(1);
-  y(0) = z - model::FilterModel::hOmega(head());
+Measurement& WheelchairEkf::gyroModel(const Eigen::VectorXd& x, double z, double R) {
+  Measurement& m = gyro_m_;
+  m.H.setZero();
+  m.H.block<1, 7>(0, 0) = model::FilterModel::HOmega();
+  m.z(0) = z;
+  m.h(0) = model::FilterModel::hOmega(x.head<7>());
   if (pm_.stateDim() > kPhysicsStateDim) {  // z = omega + b_g
-    H(0, kIdxGyroBias) = 1.0;
-    y(0) -= ekf_.x()(kIdxGyroBias);
+    m.H(0, kIdxGyroBias) = 1.0;
+    m.h(0) += x(kIdxGyroBias);
   }
-  const UpdateResult r = ekf_.update(y, H, Eigen::MatrixXd::Constant(1, 1, R), g);
-  wrap();
-  return r;
+  m.R(0, 0) = R;
+  return m;
 }
 
-UpdateResult WheelchairEkf::sonarUpdate(double z, double R, double g) {
-  const FilterState x7 = head();
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, pm_.stateDim());
-  H.block<1, 7>(0, 0) = filterModel().HSonar(x7);
-  Eigen::VectorXd y(1);
-  y(0) = z - filterModel().hSonar(x7);
-  const UpdateResult r = ekf_.update(y, H, Eigen::MatrixXd::Constant(1, 1, R), g);
-  wrap();
-  return r;
+Measurement& WheelchairEkf::sonarModel(const Eigen::VectorXd& x, double z, double R) {
+  const FilterState x7 = x.head<7>();
+  Measurement& m = sonar_m_;
+  m.H.setZero();
+  m.H.block<1, 7>(0, 0) = filterModel().HSonar(x7);
+  m.z(0) = z;
+  m.h(0) = filterModel().hSonar(x7);
+  m.R(0, 0) = R;
+  return m;
 }
 
-UpdateResult WheelchairEkf::pozyxUpdate(const Eigen::Vector2d& z, const Eigen::Matrix2d& R,
-                                        double g) {
-  const FilterState x7 = head();
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, pm_.stateDim());
-  H.block<2, 7>(0, 0) = filterModel().HPozyx(x7);
-  const Eigen::VectorXd y = z - filterModel().hPozyx(x7);
-  const UpdateResult r = ekf_.update(y, H, R, g);
+Measurement& WheelchairEkf::pozyxModel(const Eigen::VectorXd& x, const Eigen::Vector2d& z,
+                                       const Eigen::Matrix2d& R) {
+  const FilterState x7 = x.head<7>();
+  Measurement& m = pozyx_m_;
+  m.H.setZero();
+  m.H.block<2, 7>(0, 0) = filterModel().HPozyx(x7);
+  m.z = z;
+  m.h = filterModel().hPozyx(x7);
+  m.R = R;
+  return m;
+}
+
+UpdateResult WheelchairEkf::correct(Measurement& m, double g) {
+  const UpdateResult r = ekf_.correct(m, g);
   wrap();
   return r;
 }

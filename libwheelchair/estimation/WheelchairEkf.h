@@ -42,6 +42,7 @@
 #include "libwheelchair/estimation/CdEkf.h"
 #include "libwheelchair/estimation/Estimator.h"
 #include "libwheelchair/estimation/HealthMonitor.h"
+#include "libwheelchair/estimation/Measurement.h"
 #include "libwheelchair/model/FilterModel.h"
 
 #include <memory>
@@ -107,13 +108,18 @@ class WheelchairEkf : public Estimator {
   const std::vector<HealthEvent>& healthEvents() const { return health_.events(); }
   const model::FilterModel& filterModel() const { return pm_.filterModel(); }
 
+  const Eigen::VectorXd& state() const override { return ekf_.x(); }
+  Measurement& gyroModel(const Eigen::VectorXd& x, double z, double R) override;
+  Measurement& sonarModel(const Eigen::VectorXd& x, double z, double R) override;
+  Measurement& pozyxModel(const Eigen::VectorXd& x, const Eigen::Vector2d& z_start,
+                          const Eigen::Matrix2d& R) override;
+
  protected:
-  UpdateResult gyroUpdate(double z, double R, double gate) override;
-  UpdateResult sonarUpdate(double z, double R, double gate) override;
-  UpdateResult pozyxUpdate(const Eigen::Vector2d& z_start, const Eigen::Matrix2d& R,
-                           double gate) override;
+  /// CdEkf::correct, then the angles wrapped.
+  UpdateResult correct(Measurement& m, double gate) override;
   bool obstacleInitialised() const override { return obstacle_initialised_; }
   void initObstacleFromSonar(double range_m) override;
+  void inflatePositionCovariance(double var_m2) override;
 
  private:
   model::FilterState head() const;
@@ -149,6 +155,9 @@ class WheelchairEkf : public Estimator {
   InputSignal zero_input_;
   SignalInput u_in_;
   Eigen::VectorXd xs_;  // scratch state
+  // Preallocated measurement storage (sized once: no allocation per update).
+  Eigen::Matrix<double, 2, Eigen::Dynamic> da_;  // d (mean encoder speeds) / dx
+  Measurement enc_m_, gyro_m_, sonar_m_, pozyx_m_;
   WheelchairProcessModel pm_;
   CdEkf ekf_;
   HealthMonitor health_;

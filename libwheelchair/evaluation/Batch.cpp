@@ -5,6 +5,7 @@
 #include "libwheelchair/estimation/Estimator.h"
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/RawlogStream.h"
+#include "libwheelchair/simulation/Simulator.h"
 #include "libwheelchair/util/AtomicFile.h"
 
 #include <fmt/core.h>
@@ -61,6 +62,30 @@ estimation::EkfOptions ekfOptions(const config::WheelchairConfig& cfg,
   return opt;
 }
 
+/// BatchOptions::warning, serialised over the worker threads.
+void warn(const BatchOptions& options, const std::string& text) {
+  if (!options.warning) return;
+  static std::mutex warning_mutex;
+  const std::lock_guard<std::mutex> lock(warning_mutex);
+  options.warning(text);
+}
+
+/// The simulator's truth (`wheelchair simulate`'s NAME.truth.json) as ground truth: body
+/// poses in the start frame with heading, lever arm 0. Throws naming the file.
+GroundTruth simulatorTruth(const std::string& path) {
+  GroundTruth g;
+  g.source = GroundTruthSource::SimulatorTruth;
+  try {
+    for (const auto& s : simulation::readTruth(path).truth.samples)
+      g.samples.push_back({s.t_s, s.x_m, s.y_m, s.phi_rad});
+  } catch (const std::exception& e) {
+    throw std::runtime_error("truth " + path + ": " + e.what());
+  }
+  if (g.samples.empty()) throw std::runtime_error("truth " + path + ": no trajectory");
+  sortByTimeKeepLast(g.samples);
+  return g;
+}
+
 }  // namespace
 
 const char* toString(GroundTruthSource s) {
@@ -69,6 +94,8 @@ const char* toString(GroundTruthSource s) {
       return "pozyx";
     case GroundTruthSource::GroundTruthStream:
       return "ground_truth";
+    case GroundTruthSource::SimulatorTruth:
+      return "simulator";
     default:
       return "none";
   }
@@ -375,16 +402,24 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
     // Pass 1 (io/RawlogStream.h): what the file holds, the salvage rule; the variants then
     // read it as a stream. Command-driven recordings (small: MRCLAM) are read whole.
     const io::RecordingSummary sum = io::scanRawlogSalvaging(path, options.salvage, &salvaged);
-    if (!salvaged.empty() && options.warning) {
-      static std::mutex warning_mutex;
-      const std::lock_guard<std::mutex> lock(warning_mutex);
-      options.warning(salvaged);
-    }
+    if (!salvaged.empty()) warn(options, salvaged);
     const bool command_driven =
         estimation::selectEstimator(sum) == estimation::EstimatorFamily::CommandDriven;
     const io::Recording rec =
         command_driven ? io::readRawlogSalvaging(path, true, nullptr) : groundTruthStreams(path);
-    const GroundTruth gt = groundTruthOf(rec, cfg);
+    const auto truth_file = options.truth.find(path);
+    const GroundTruth gt = truth_file != options.truth.end() ? simulatorTruth(truth_file->second)
+                                                             : groundTruthOf(rec, cfg);
+    // The filters fuse the Pozyx: scored against it, they are not independently evaluated.
+    const bool pozyx_fused = !command_driven && gt.source == GroundTruthSource::Pozyx &&
+                             ekfOptions(cfg, estimation::FilterKind::Physics).use_pozyx &&
+                             sum.count(io::StreamKind::Pozyx) > 0;
+    if (pozyx_fused)
+      warn(options, path +
+                        ": the filters fuse the Pozyx (use_pozyx = 1), so the ekf and baseline "
+                        "rows scored against it are not an independent evaluation (ground "
+                        "truth 'pozyx_fused'); give the simulator's truth (--truth) or record a "
+                        "GROUND_TRUTH stream");
     MetricOptions mo = options.metrics;
     mo.lever_arm_m = gt.lever_arm_m;
     const auto addRow = [&](const std::string& variant, const std::string& err,
@@ -393,6 +428,8 @@ std::vector<BatchRow> evaluateRecording(const std::string& path,
       row.recording = path;
       row.variant = variant;
       row.ground_truth = toString(gt.source);
+      if (pozyx_fused && (variant == "ekf" || variant == "baseline"))
+        row.ground_truth = "pozyx_fused";
       row.error = oneLine(err);
       if (!command_driven) row.not_applicable = variantNotApplicable(variant, sum);
       if (!row.not_applicable.empty()) row.error.clear();
@@ -648,6 +685,13 @@ std::string batchTable(const BatchResult& r) {
       "(alignment {}; truth: pozyx = UWB tag positions, ground_truth = motion capture, none = "
       "no metrics against truth; '-' = not available)\n",
       alignmentText(r.alignment, r.align_first_s));
+  const auto any = [&r](const char* truth) {
+    return std::any_of(r.rows.begin(), r.rows.end(),
+                       [truth](const BatchRow& row) { return row.ground_truth == truth; });
+  };
+  if (any("simulator")) s += "(simulator = the simulator's truth, evaluate --truth)\n";
+  if (any("pozyx_fused"))
+    s += "(pozyx_fused = the Pozyx the filter fused (use_pozyx = 1): NOT an independent truth)\n";
   return s;
 }
 

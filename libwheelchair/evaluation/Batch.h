@@ -23,10 +23,15 @@
 // Both are in the map frame (= the Vicon frame for MRCLAM), so `--alignment none` is
 // meaningful for them as well as the default se2.
 //
-// Ground truth: the GROUND_TRUTH stream (motion-capture poses, with heading, lever arm 0) when
-// the recording has one, else the POZYX stream (tag positions in the anchor frame, no
-// heading, lever arm [pozyx] lever_x_m, lever_y_m), else none (only d_path_m and
-// loop_error_m are then available).
+// Ground truth: the simulator's truth when BatchOptions::truth names one for the recording
+// (`evaluate --truth`: body poses in the start frame, with heading, lever arm 0), else the
+// GROUND_TRUTH stream (motion-capture poses, with heading, lever arm 0) when the recording has
+// one, else the POZYX stream (tag positions in the anchor frame, no heading, lever arm [pozyx]
+// lever_x_m, lever_y_m), else none (only d_path_m and loop_error_m are then available).
+// When the filters FUSE the Pozyx ([estimator] use_pozyx = 1 and the recording has POZYX),
+// Pozyx is no longer an independent truth for the ekf and baseline rows: with no other truth
+// they are still scored against it, but their ground_truth says "pozyx_fused" and
+// BatchOptions::warning says so (the dead-reckoning rows do not use Pozyx and stay "pozyx").
 //
 // Recordings are processed by a pool of std::threads; every recording is evaluated on its
 // own (own copy of the configuration), and rows are returned in input order (file, then the
@@ -54,13 +59,15 @@
 
 #include <cstddef>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
 namespace wheelchair::evaluation {
 
-enum class GroundTruthSource { None, Pozyx, GroundTruthStream };
-const char* toString(GroundTruthSource s);  ///< "none", "pozyx", "ground_truth"
+enum class GroundTruthSource { None, Pozyx, GroundTruthStream, SimulatorTruth };
+/// "none", "pozyx", "ground_truth", "simulator"
+const char* toString(GroundTruthSource s);
 
 struct GroundTruth {
   GroundTruthSource source = GroundTruthSource::None;
@@ -158,6 +165,9 @@ struct BatchOptions {
   /// and report where it broke through `warning` (called serialised, from worker threads).
   bool salvage = false;
   std::function<void(const std::string&)> warning;
+  /// Simulator truth files (NAME.truth.json of `wheelchair simulate`) by recording path as
+  /// given: used as that recording's ground truth (header comment).
+  std::map<std::string, std::string> truth;
   /// Called (serialised, from worker threads) after each recording: (done, total, path).
   std::function<void(std::size_t, std::size_t, const std::string&)> progress;
 };

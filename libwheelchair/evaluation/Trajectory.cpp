@@ -158,6 +158,18 @@ Eigen::Vector2d bodyPointPosition(const Pose2DStamped& p, const Eigen::Vector2d&
   return {p.x_m + c * l.x() - s * l.y(), p.y_m + s * l.x() + c * l.y()};
 }
 
+Trajectory relativeTo(const Trajectory& traj, const Pose2DStamped& origin) {
+  Trajectory out;
+  out.reserve(traj.size());
+  const double c = std::cos(origin.phi_rad), s = std::sin(origin.phi_rad);
+  for (const auto& p : traj) {
+    const double dx = p.x_m - origin.x_m, dy = p.y_m - origin.y_m;
+    out.push_back({p.t_s, c * dx + s * dy, -s * dx + c * dy,
+                   std::remainder(p.phi_rad - origin.phi_rad, 2 * M_PI)});
+  }
+  return out;
+}
+
 Trajectory applyLeverArm(const Trajectory& traj, const Eigen::Vector2d& l) {
   Trajectory out = traj;
   for (auto& p : out) {

@@ -92,6 +92,10 @@ Eigen::Vector2d bodyPointPosition(const Pose2DStamped& pose, const Eigen::Vector
 /// The same trajectory with the position moved to the body point `lever_arm_m` (heading kept).
 Trajectory applyLeverArm(const Trajectory& traj, const Eigen::Vector2d& lever_arm_m);
 
+/// The poses re-expressed in the frame of the pose `origin` (T_origin^-1 T; headings wrapped to
+/// [-pi, pi]). Example: relativeTo(traj, traj.front()) starts at (0, 0, 0).
+Trajectory relativeTo(const Trajectory& traj, const Pose2DStamped& origin);
+
 /// Linear interpolation of the pose at t_s (angle along the shorter arc, result in (-pi, pi]).
 /// Empty when t_s is outside [front.t, back.t] or the bracketing samples are more than
 /// `max_gap_s` apart (a sample exactly at t_s is always returned).

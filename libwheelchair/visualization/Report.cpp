@@ -415,6 +415,7 @@ std::string indexMarkdown(const DriveData& d, const std::vector<ReportFigure>& f
         "|\n|---|---:|---:|---:|---:|\n";
     for (int s = 0; s < estimation::kNumSensors; ++s) {
       const auto& st = ekf.sensors[s];
+      if (s == int(estimation::Sensor::Landmarks)) continue;  // the command-driven EKF's
       md += fmt::format("| {} | {} | {} | {} | {} |\n",
                         estimation::sensorName(static_cast<estimation::Sensor>(s)), st.used,
                         st.rejected, st.dropouts, st.nis_count ? fmtNum(st.meanNis(), 2) : "–");

@@ -64,10 +64,10 @@ TEST(CommandDrivenEkf, TracksTheBundledMrclamSliceWithoutGroundTruth) {
     ASSERT_TRUE(r.initialised) << robot;
     const auto [pos, head] = errorsAgainstVicon(r, rec);
     std::cout << "robot " << robot << ": start " << r.t_start_s - rec.ground_truth.front().t_s
-              << " s, accepted " << r.accepted << ", rejected " << r.rejected << ", unmapped "
-              << r.unmapped << ", mean NIS " << r.mean_nis << ", position RMSE " << pos
-              << " m, heading RMS " << head << " deg\n";
-    EXPECT_GT(r.accepted, 10u);
+              << " s, accepted " << r.landmarks().used << ", rejected " << r.landmarks().rejected
+              << ", unmapped " << r.unmapped << ", mean NIS " << r.landmarks().meanNis()
+              << ", position RMSE " << pos << " m, heading RMS " << head << " deg\n";
+    EXPECT_GT(r.landmarks().used, 10);
     EXPECT_LT(pos, 0.5);
     EXPECT_LT(head, 20.0);
   }
@@ -91,8 +91,8 @@ TEST(CommandDrivenEkf, FullDatasetReport) {
       ASSERT_TRUE(r.initialised);
       const auto [pos, head] = errorsAgainstVicon(r, rec);
       std::cout << "| " << robot << " | " << (o == &nominal ? "nominal" : "extended") << " | "
-                << pos << " | " << head << " | " << r.accepted << " | " << r.rejected << " | "
-                << r.mean_nis << " |\n";
+                << pos << " | " << head << " | " << r.landmarks().used << " | "
+                << r.landmarks().rejected << " | " << r.landmarks().meanNis() << " |\n";
     }
   }
 }
