@@ -348,10 +348,23 @@ void riccatiPacked(int n_rt, const double* __restrict yP, const double* __restri
     }
   // FPt = (F P)' = P F' (P symmetric): column r of FPt accumulates F(r, j) P(:, j) over the
   // nonzeros F(r, j), contiguous axpys of length n.
-  for (int i = 0; i < n * n; ++i) FP[i] = 0.0;
+  // The first nonzero term initialises the row as 0 + F(r, j) P(:, j), the same operations as
+  // a zeroed accumulator without clearing n x n entries first.
   for (int r = 0; r < n; ++r) {
     double* FPr = FP + r * n;
-    for (int j = 0; j < n; ++j) {
+    int j = 0;
+    while (j < n && F[r + j * n] == 0.0) ++j;
+    if (j == n) {
+      for (int i = 0; i < n; ++i) FPr[i] = 0.0;
+      continue;
+    }
+    {
+      const double v = F[r + j * n];
+      const double* Pj = P + j * n;
+#pragma GCC unroll 16
+      for (int i = 0; i < n; ++i) FPr[i] = 0.0 + v * Pj[i];
+    }
+    for (++j; j < n; ++j) {
       const double v = F[r + j * n];
       if (v == 0.0) continue;
       const double* Pj = P + j * n;
