@@ -63,6 +63,19 @@ struct CdEkfAccess {
     }
     return 0;
   }
+  /// CVODE's error weights for scalar rtol and vector atol (its cvEwtSetSV: |y|, rtol |y| +
+  /// 1 atol, 1 / that; the same operations) in one pass instead of three vector kernels.
+  static int ewt(N_Vector y, N_Vector w, void* user) {
+    const auto* self = static_cast<const CdEkf*>(user);
+    const sunindextype n = NV_LENGTH_S(y);
+    const double* yd = NV_DATA_S(y);
+    const double* at = NV_DATA_S(self->cv_->abstol);
+    double* wd = NV_DATA_S(w);
+    const double rtol = self->opt_.rel_tol;
+#pragma GCC ivdep
+    for (sunindextype i = 0; i < n; ++i) wd[i] = 1.0 / (rtol * std::fabs(yd[i]) + 1.0 * at[i]);
+    return 0;
+  }
 };
 
 namespace {
@@ -476,7 +489,11 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
     pack(y);
     if (!cv_->initialised) {
       check(CVodeInit(mem, &CdEkfAccess::rhs, tau0, cv_->y), "CVodeInit");
-      check(CVodeSVtolerances(mem, opt_.rel_tol, cv_->abstol), "CVodeSVtolerances");
+      if (opt_.rel_tol >= 0 && std::all_of(NV_DATA_S(cv_->abstol), NV_DATA_S(cv_->abstol) + N,
+                                           [](double a) { return a > 0; }))
+        check(CVodeWFtolerances(mem, &CdEkfAccess::ewt), "CVodeWFtolerances");
+      else  // CVODE's own weights, with its check for a zero weight denominator
+        check(CVodeSVtolerances(mem, opt_.rel_tol, cv_->abstol), "CVodeSVtolerances");
       check(CVodeSetUserData(mem, this), "CVodeSetUserData");
       // Failures are reported by the exception of integrate() (one line naming the interval),
       // not by CVODE's own print to stderr.
