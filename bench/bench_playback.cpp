@@ -7,14 +7,25 @@
 //   BM_FilterPhysics       the CVODE-integrated continuous-discrete EKF over the recording
 //   BM_FilterBaseline      the kinematic baseline EKF
 //   BM_DecodeAndFilter     both, as `wheelchair filter` does
+// and the stages of `wheelchair filter D.rawlog [--estimates E.csv]` as the command runs them
+// (docs/benchmarks.md, "Third round"):
+//   BM_ScanRawlog          pass 1: io::scanRawlog (counts, lateness, break), decode only
+//   BM_StreamMerge         pass 2 without the filter: decode + the time-ordered window merge
+//   BM_FilterStatesOn      BM_FilterPhysics with the sensor-error states (k_R, k_L, b_g)
+//   BM_WriteEstimatesCsv   the estimates CSV of the run (EstimatesCsvWriter), write only
+//   BM_EndToEnd            scan + streamed filter + CSV written and committed, states off
+//   BM_EndToEndStatesOn    the same with the sensor-error states
+//   BM_EndToEndNoOutput    scan + streamed filter, no output file
 // Counters: measurements per second and the multiple of real time, per core.
 //
 // Run:   build/bench/bench_playback                      (600 s recording)
 //        WHEELCHAIR_BENCH_DURATION_S=30 build/bench/bench_playback   (quick)
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/estimation/EkfOptions.h"
+#include "libwheelchair/estimation/EstimateWriters.h"
 #include "libwheelchair/estimation/Estimator.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/simulation/Simulator.h"
 
 #include <benchmark/benchmark.h>
@@ -36,9 +47,9 @@ struct Fixture {
   Fixture() {
     // WHEELCHAIR_BENCH_CONFIG: another configuration (e.g. other CVODE tolerances).
     const char* cfg_env = std::getenv("WHEELCHAIR_BENCH_CONFIG");
-    cfg = config::WheelchairConfig::load(
-        cfg_env ? std::string(cfg_env)
-                : std::string(WHEELCHAIR_SOURCE_DIR) + "/config/wheelchair.ini");
+    cfg = config::WheelchairConfig::load(cfg_env ? std::string(cfg_env)
+                                                 : std::string(WHEELCHAIR_SOURCE_DIR) +
+                                                       "/config/wheelchair.ini");
     const char* env = std::getenv("WHEELCHAIR_BENCH_DURATION_S");
     const double duration = env ? std::atof(env) : 600.0;
     simulation::SimulationOptions so;
@@ -64,12 +75,33 @@ void setCounters(benchmark::State& state, const Fixture& f) {
   state.counters["x_real_time"] = benchmark::Counter(n * f.duration_s, benchmark::Counter::kIsRate);
 }
 
-estimation::EkfOptions options(const Fixture& f, estimation::FilterKind kind) {
+estimation::EkfOptions options(const Fixture& f, estimation::FilterKind kind,
+                               bool sensor_error_states = false) {
   estimation::EkfOptions opt;
   opt.loadFromConfig(f.cfg.ini());
   opt.resolveSensorDefaults(f.cfg);
   opt.filter = kind;
+  if (sensor_error_states) {
+    opt.estimate_encoder_scales = true;
+    opt.estimate_gyro_bias = true;
+  }
   return opt;
+}
+
+/// Counts the estimates (the sink of a run without output files).
+struct CountingSink : estimation::EstimateSink {
+  std::size_t n = 0;
+  void add(const estimation::EstimateSample&) override { ++n; }
+};
+
+/// Keeps the estimates (input of the writer benchmark).
+struct KeepingSink : estimation::EstimateSink {
+  std::vector<estimation::EstimateSample> all;
+  void add(const estimation::EstimateSample& e) override { all.push_back(e); }
+};
+
+std::string csvPath() {
+  return (std::filesystem::temp_directory_path() / "wheelchair_bench_playback.csv").string();
 }
 
 void BM_DecodeRawlog(benchmark::State& state) {
@@ -100,10 +132,106 @@ void BM_DecodeAndFilter(benchmark::State& state) {
   setCounters(state, f);
 }
 
+void BM_ScanRawlog(benchmark::State& state) {
+  auto& f = fixture();
+  for (auto _ : state) benchmark::DoNotOptimize(io::scanRawlog(f.path));
+  setCounters(state, f);
+}
+
+void BM_StreamMerge(benchmark::State& state) {
+  auto& f = fixture();
+  const io::RecordingSummary sum = io::scanRawlog(f.path);
+  for (auto _ : state) {
+    // The window merge of pass 2 (io/RawlogStream.h), each stream in time order.
+    io::RawlogWindowReader in(f.path, sum.lateness_s);
+    io::SortedStream<io::EncoderSample> enc(io::encoderLess);
+    io::SortedStream<io::ImuSample> imu(io::imuLess);
+    io::SortedStream<io::MotorSample> mot(io::motorLess);
+    double sum_t = 0;
+    const auto push = [&](const io::AnySample& s, std::size_t k) {
+      if (auto* e = std::get_if<io::EncoderSample>(&s)) enc.push(*e, k);
+      if (auto* g = std::get_if<io::ImuSample>(&s)) imu.push(*g, k);
+      if (auto* m = std::get_if<io::MotorSample>(&s)) mot.push(*m, k);
+    };
+    const auto drain = [&](auto& st) {
+      while (auto* h = st.head(in.watermark())) {
+        sum_t += h->t_s;
+        st.pop();
+      }
+    };
+    while (!in.eof()) {
+      in.read(push);
+      drain(enc);
+      drain(imu);
+      drain(mot);
+    }
+    benchmark::DoNotOptimize(sum_t);
+  }
+  setCounters(state, f);
+}
+
+void BM_FilterStatesOn(benchmark::State& state) {
+  auto& f = fixture();
+  const auto opt = options(f, estimation::FilterKind::Physics, true);
+  for (auto _ : state) benchmark::DoNotOptimize(estimation::runEstimator(f.rec, f.cfg, opt));
+  setCounters(state, f);
+}
+
+void BM_WriteEstimatesCsv(benchmark::State& state) {
+  auto& f = fixture();
+  KeepingSink keep;
+  estimation::runEstimator(f.rec, f.cfg, options(f, estimation::FilterKind::Physics), keep);
+  for (auto _ : state) {
+    estimation::EstimatesCsvWriter csv(csvPath());
+    for (const auto& e : keep.all) csv.add(e);
+    csv.commit();
+  }
+  std::filesystem::remove(csvPath());
+  setCounters(state, f);
+}
+
+/// `wheelchair filter PATH [--estimates CSV]`: both passes over the file, the streamed
+/// filter, the CSV written and committed (the command's own printing aside).
+void endToEnd(benchmark::State& state, bool states, bool write_csv) {
+  auto& f = fixture();
+  const auto opt = options(f, estimation::FilterKind::Physics, states);
+  for (auto _ : state) {
+    std::string warning;
+    const io::RecordingSummary sum = io::scanRawlogSalvaging(f.path, false, &warning);
+    if (write_csv) {
+      estimation::EstimatesCsvWriter csv(csvPath());
+      benchmark::DoNotOptimize(estimation::runEstimator(f.path, sum, f.cfg, opt, csv));
+      csv.commit();
+    } else {
+      CountingSink count;
+      benchmark::DoNotOptimize(estimation::runEstimator(f.path, sum, f.cfg, opt, count));
+    }
+  }
+  std::filesystem::remove(csvPath());
+  setCounters(state, f);
+}
+
+void BM_EndToEnd(benchmark::State& state) {
+  endToEnd(state, false, true);
+}
+void BM_EndToEndStatesOn(benchmark::State& state) {
+  endToEnd(state, true, true);
+}
+void BM_EndToEndNoOutput(benchmark::State& state) {
+  endToEnd(state, false, false);
+}
+
 }  // namespace
 
-BENCHMARK(BM_DecodeRawlog)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_FilterPhysics)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_FilterBaseline)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_DecodeAndFilter)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_DecodeRawlog)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FilterPhysics)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FilterBaseline)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DecodeAndFilter)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ScanRawlog)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_StreamMerge)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FilterStatesOn)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_WriteEstimatesCsv)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EndToEnd)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EndToEndStatesOn)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EndToEndNoOutput)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -1,5 +1,6 @@
 #include "libwheelchair/estimation/EstimateWriters.h"
 
+#include <fmt/compile.h>
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -28,11 +29,13 @@ EstimatesCsvWriter::EstimatesCsvWriter(const std::string& path) : file_(path) {
 void EstimatesCsvWriter::add(const EstimateSample& e) {
   const auto& x = e.x;
   const auto& sd = e.sd;
+  // A compiled format (no parsing per row) into a stack buffer: the row costs the 17 number
+  // conversions and one write into the file's buffer.
   fmt::memory_buffer buf;
   fmt::format_to(std::back_inserter(buf),
-                 "{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", e.t_s, x(0), x(1),
-                 x(2), x(3), x(4), x(5), x(6), e.obstacle_distance_m, sd(0), sd(1), sd(2), sd(3),
-                 sd(4), sd(5), sd(6), e.obstacle_distance_sd_m);
+                 FMT_COMPILE("{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n"), e.t_s,
+                 x(0), x(1), x(2), x(3), x(4), x(5), x(6), e.obstacle_distance_m, sd(0), sd(1),
+                 sd(2), sd(3), sd(4), sd(5), sd(6), e.obstacle_distance_sd_m);
   put(file_.stream(), buf);
   if (++rows_ % kCheckEvery == 0) file_.check();
 }

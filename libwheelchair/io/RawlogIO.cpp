@@ -349,41 +349,230 @@ std::optional<std::string> headerDamage(const mrpt::serialization::CSerializable
 
 /// mrpt::io::CStream reading a gzip (or, like MRPT's reader, an uncompressed) file through
 /// zlib, keeping zlib's error: MRPT's own reader turns a damaged gzip stream into a silent end
-/// of file, which at a record boundary would look like a clean end.
+/// of file, which at a record boundary would look like a clean end. The decompressed bytes go
+/// through a buffer (MRPT reads field by field; one gzread per field cost more than the
+/// decompression), which also lets nextSample() decode a record in place.
 struct RawlogReader::GzipIn : mrpt::io::CStream {
+  static constexpr std::size_t kBufBytes = 1 << 18;
   gzFile f = nullptr;
-  uint64_t pos = 0;
-  std::string error;  ///< set when zlib reported damage (never for a clean end)
+  uint64_t pos = 0;       ///< uncompressed bytes handed out (the reader's position)
+  uint64_t inflated = 0;  ///< uncompressed bytes zlib has produced
+  std::string error;      ///< set when zlib reported damage (never for a clean end)
+  bool eof = false;       ///< zlib has produced its last byte (clean end or damage)
+  std::vector<unsigned char> buf = std::vector<unsigned char>(kBufBytes);
+  std::size_t beg = 0, end = 0;  ///< buffered, not yet handed out: buf[beg, end)
+
   ~GzipIn() override {
     if (f) gzclose(f);
   }
-  size_t Read(void* buf, size_t n) override {
-    if (!error.empty() || n == 0) return 0;
-    const int got = gzread(f, buf, static_cast<unsigned>(std::min<size_t>(n, 1u << 30)));
-    if (got < 0 || static_cast<size_t>(got) < n) {
-      // A short read: the end of the data, clean or not (zlib reports a cut file as
-      // Z_BUF_ERROR with the data it could still decompress).
+  /// Decompresses more (one gzread into the free part of the buffer). A short read is the end
+  /// of the data, clean or not (zlib reports a cut file as Z_BUF_ERROR with the data it could
+  /// still decompress): no read after it.
+  void more() {
+    if (beg > 0) {
+      std::memmove(buf.data(), buf.data() + beg, end - beg);
+      end -= beg;
+      beg = 0;
+    }
+    const std::size_t room = buf.size() - end;
+    const int got = gzread(f, buf.data() + end, static_cast<unsigned>(room));
+    if (got > 0) {
+      end += static_cast<std::size_t>(got);
+      inflated += static_cast<uint64_t>(got);
+    }
+    if (got < 0 || static_cast<std::size_t>(got) < room) {
+      eof = true;
       int errnum = Z_OK;
       const char* msg = gzerror(f, &errnum);
       if (errnum != Z_OK) {
         const std::string m = msg && *msg ? msg : "read error";
-        const uint64_t at = pos + static_cast<uint64_t>(std::max(got, 0));
-        error =
-            errnum == Z_BUF_ERROR
-                ? fmt::format("file cut short: the gzip stream ends at uncompressed byte {}", at)
-                : fmt::format("compressed data damaged at uncompressed byte {} (zlib: {})", at,
-                              util::quoteInput(m));
+        error = errnum == Z_BUF_ERROR
+                    ? fmt::format("file cut short: the gzip stream ends at uncompressed byte {}",
+                                  inflated)
+                    : fmt::format("compressed data damaged at uncompressed byte {} (zlib: {})",
+                                  inflated, util::quoteInput(m));
       }
-      if (got < 0) return 0;
     }
-    pos += static_cast<uint64_t>(got);
-    return static_cast<size_t>(got);
+  }
+  /// At least `n` bytes buffered unless the data ends first; the number buffered.
+  std::size_t fill(std::size_t n) {
+    while (end - beg < n && !eof) more();
+    return end - beg;
+  }
+  void consume(std::size_t n) {
+    beg += n;
+    pos += n;
+  }
+  size_t Read(void* out, size_t n) override {
+    auto* o = static_cast<unsigned char*>(out);
+    std::size_t done = 0;
+    while (done < n) {
+      if (beg == end) {
+        if (eof) break;
+        more();
+        continue;
+      }
+      const std::size_t k = std::min(n - done, end - beg);
+      std::memcpy(o + done, buf.data() + beg, k);
+      beg += k;
+      done += k;
+    }
+    pos += done;
+    return done;
   }
   size_t Write(const void*, size_t) override { throw std::logic_error("GzipIn is read-only"); }
   uint64_t Seek(int64_t, TSeekOrigin) override { throw std::logic_error("GzipIn cannot seek"); }
   uint64_t getTotalBytesCount() const override { return pos; }
   uint64_t getPosition() const override { return pos; }
 };
+
+namespace {
+
+/// Reads MRPT's serialization of the records nextSample() decodes in place (little-endian,
+/// as MRPT writes on this platform): a class header (name length | 0x80, name, version byte),
+/// the fields, the end flag 0x88. Any mismatch sets ok = false (the caller falls back).
+struct FastCursor {
+  const unsigned char* p;
+  const unsigned char* e;
+  bool ok = true;
+
+  template <class T>
+  T get() {
+    T v{};
+    if (!ok || static_cast<std::size_t>(e - p) < sizeof(T)) {
+      ok = false;
+      return v;
+    }
+    std::memcpy(&v, p, sizeof(T));
+    p += sizeof(T);
+    return v;
+  }
+  void expect(std::string_view bytes) {
+    if (!ok || static_cast<std::size_t>(e - p) < bytes.size() ||
+        std::memcmp(p, bytes.data(), bytes.size()) != 0) {
+      ok = false;
+      return;
+    }
+    p += bytes.size();
+  }
+  void skip(std::size_t n) {
+    if (!ok || static_cast<std::size_t>(e - p) < n) {
+      ok = false;
+      return;
+    }
+    p += n;
+  }
+  /// A std::string field (uint32 length, bytes) equal to `s`.
+  void label(std::string_view s) {
+    if (get<uint32_t>() != s.size()) ok = false;
+    expect(s);
+  }
+  /// A std::string field; its text.
+  std::string_view label() {
+    const auto n = get<uint32_t>();
+    if (!ok || static_cast<std::size_t>(e - p) < n) {
+      ok = false;
+      return {};
+    }
+    std::string_view v(reinterpret_cast<const char*>(p), n);
+    p += n;
+    return v;
+  }
+  double time() {
+    const auto ticks = get<uint64_t>();
+    return mrpt::Clock::toDouble(mrpt::Clock::time_point(mrpt::Clock::duration(ticks)));
+  }
+  void endFlag() { expect(std::string_view("\x88", 1)); }
+  void emptyVectors(int n) {
+    for (int i = 0; i < n; ++i)
+      if (get<uint32_t>() != 0) ok = false;
+  }
+};
+
+/// MRPT's class header: name length | 0x80, the name, the version byte.
+std::string classHeader(std::string_view name, uint8_t version) {
+  std::string h(1, static_cast<char>(0x80 | name.size()));
+  h += name;
+  h += static_cast<char>(version);
+  return h;
+}
+
+/// The sample of one record at c.p in the layouts listed at RawlogReader::nextSample; the
+/// bytes it took, 0 if the record is not one of them.
+std::size_t decodeInPlace(FastCursor c, AnySample& s) {
+  static const std::string kOdometry = classHeader("mrpt::obs::CObservationOdometry", 2);
+  static const std::string kImu = classHeader("mrpt::obs::CObservationIMU", 4);
+  static const std::string kDaq = classHeader("mrpt::obs::CObservationRawDAQ", 0);
+  static const std::string kPose2D = classHeader("mrpt::poses::CPose2D", 1);
+  static const std::string kPose3D = classHeader("mrpt::poses::CPose3D", 3);
+  const unsigned char* const start = c.p;
+  const std::size_t left = static_cast<std::size_t>(c.e - c.p);
+  const auto is = [&](const std::string& h) {
+    return left >= h.size() && std::memcmp(c.p, h.data(), h.size()) == 0;
+  };
+  if (is(kImu)) {
+    constexpr std::size_t N = mrpt::obs::COUNT_IMU_DATA_FIELDS;
+    c.expect(kImu);
+    c.expect(kPose3D);  // sensorPose: x, y, z, 3x3 rotation
+    c.skip(12 * sizeof(double));
+    c.endFlag();
+    bool present[N];
+    for (std::size_t i = 0; i < N; ++i) {
+      const auto b = c.get<uint8_t>();
+      if (b > 1) c.ok = false;
+      present[i] = b == 1;
+    }
+    const double t = c.time();
+    double raw[N];
+    for (std::size_t i = 0; i < N; ++i) raw[i] = c.get<double>();
+    c.label("IMU");
+    c.endFlag();
+    if (!c.ok || !present[IMU_WZ]) return 0;
+    ImuSample x{t, raw[IMU_WZ], present[IMU_WX], {}};
+    if (x.has_extra)
+      for (int i = 0; i < 5; ++i) x.extra[i] = present[kImuExtra[i]] ? raw[kImuExtra[i]] : 0.0;
+    s = x;
+  } else if (is(kDaq)) {
+    c.expect(kDaq);
+    const std::string_view label = c.label();
+    const double t = c.time();
+    c.skip(sizeof(double));  // sample_rate
+    c.emptyVectors(4);       // AIN_8bits, AIN_16bits, AIN_32bits, AIN_float
+    const auto n = c.get<uint32_t>();
+    double a[4] = {};
+    if (n != 4 && n != 2) return 0;
+    for (uint32_t i = 0; i < n; ++i) a[i] = c.get<double>();
+    c.skip(sizeof(uint16_t) + sizeof(uint8_t));  // AIN_channel_count, AIN_interleaved
+    c.emptyVectors(8);  // AOUT_8bits, AOUT_16bits, AOUT_float, AOUT_double, DIN, DOUT, CNTRIN_*
+    c.endFlag();
+    if (!c.ok) return 0;
+    if (label == "MOTORS" && n == 4)
+      s = MotorSample{t, a[0], a[1], a[2], a[3]};
+    else if (label == "JOYSTICK" && n == 2)
+      s = JoystickSample{t, a[0], a[1]};
+    else
+      return 0;
+  } else if (is(kOdometry)) {
+    c.expect(kOdometry);
+    c.expect(kPose2D);  // odometry: x, y, phi
+    c.skip(3 * sizeof(double));
+    c.endFlag();
+    c.label("ENCODERS");
+    const double t = c.time();
+    if (c.get<uint8_t>() != 1) return 0;  // hasEncodersInfo
+    const auto left = c.get<int32_t>();
+    const auto right = c.get<int32_t>();
+    if (c.get<uint8_t>() != 0) return 0;  // hasVelocities
+    c.endFlag();
+    if (!c.ok) return 0;
+    s = EncoderSample{t, right, left};
+  } else {
+    return 0;
+  }
+  return static_cast<std::size_t>(c.p - start);
+}
+
+}  // namespace
 
 RawlogReader::RawlogReader(const std::string& path) : path_(path), in_(std::make_unique<GzipIn>()) {
   std::error_code ec;
@@ -396,6 +585,7 @@ RawlogReader::RawlogReader(const std::string& path) : path_(path), in_(std::make
   in_->f = gzopen(path.c_str(), "rb");
   if (!in_->f)
     throw std::runtime_error(fmt::format("{}: cannot open: {}", path, std::strerror(errno)));
+  gzbuffer(in_->f, 1 << 17);  // compressed input read in 128 KiB blocks (zlib: 8 KiB)
 }
 
 RawlogReader::~RawlogReader() = default;
@@ -442,6 +632,23 @@ bool RawlogReader::next(mrpt::serialization::CSerializable::Ptr& obj) {
   }
   ++index_;
   return true;
+}
+
+RawlogReader::Got RawlogReader::nextSample(AnySample& s,
+                                           mrpt::serialization::CSerializable::Ptr& obj) {
+  // Record 0 is the header (checked by next()); the largest record decoded in place is
+  // ~450 bytes.
+  constexpr std::size_t kWindow = 1024;
+  if (!error_ && index_ > 0) {
+    const std::size_t avail = in_->fill(kWindow);
+    const unsigned char* p = in_->buf.data() + in_->beg;
+    if (const std::size_t n = decodeInPlace(FastCursor{p, p + avail}, s)) {
+      in_->consume(n);
+      ++index_;
+      return Got::Sample;
+    }
+  }
+  return next(obj) ? Got::Object : Got::End;
 }
 
 std::optional<std::string> headerText(const mrpt::serialization::CSerializable& obj) {
@@ -497,8 +704,15 @@ bool isEmptyRegularFile(const std::string& path) {
 Recording readRecords(RawlogReader& in, RawlogReadReport& rep) {
   Recording rec;
   mrpt::serialization::CSerializable::Ptr obj;
-  while (in.next(obj)) {
+  AnySample sample;
+  for (;;) {
+    const auto got = in.nextSample(sample, obj);
+    if (got == RawlogReader::Got::End) break;
     ++rep.records;
+    if (got == RawlogReader::Got::Sample) {
+      append(rec, sample);
+      continue;
+    }
     auto o = std::dynamic_pointer_cast<CObservation>(obj);
     if (!o) {
       ++rep.ignored;

@@ -77,6 +77,17 @@ class RawlogReader {
   ~RawlogReader();
   /// Next record; false at a clean end of file or at the first broken record (see error()).
   bool next(mrpt::serialization::CSerializable::Ptr& obj);
+  /// What nextSample() returned.
+  enum class Got { Sample, Object, End };
+  /// next() without building the MRPT object for the bulk of a recording: a record in one of
+  /// the exact layouts this library writes for ENCODERS (CObservationOdometry v2, ticks, no
+  /// velocities), IMU (CObservationIMU v4) and MOTORS / JOYSTICK (CObservationRawDAQ v0, only
+  /// AIN_double) is decoded straight from the decompressed bytes into `s` (Got::Sample: the
+  /// same sample fromObservation gives for the object). Any other record -- the header,
+  /// sonar, Pozyx, foreign or damaged records, a record that does not match the layout byte
+  /// for byte -- goes through next(obj) (Got::Object; decode it with fromObservation), so
+  /// errors and their messages are next()'s. Got::End: clean end or break (error()).
+  Got nextSample(AnySample& s, mrpt::serialization::CSerializable::Ptr& obj);
   const std::optional<RawlogBreak>& error() const { return error_; }
   std::size_t recordsRead() const { return index_; }
   const std::string& path() const { return path_; }

@@ -46,7 +46,13 @@ RawlogSampleReader::RawlogSampleReader(const std::string& path) : in_(path) {}
 
 bool RawlogSampleReader::next(AnySample& s, std::size_t& stream_index) {
   mrpt::serialization::CSerializable::Ptr obj;
-  while (in_.next(obj)) {
+  for (;;) {
+    const auto got = in_.nextSample(s, obj);
+    if (got == RawlogReader::Got::End) break;
+    if (got == RawlogReader::Got::Sample) {
+      stream_index = index_[s.index()]++;
+      return true;
+    }
     auto o = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj);
     if (!o) {
       ++ignored_;
