@@ -119,14 +119,28 @@ class WheelchairEkf : public Estimator {
   model::FilterState head() const;
   void wrap();
   void resetAccumulators(double t_s);
-  /// Sets the encoder scale states' covariance back to the prior (cross-covariances 0): the
-  /// fault hypothesis after a health-monitor alarm.
+  /// Adds the prior variance to the encoder scale states (a step of unknown size; their
+  /// cross-covariances are kept): the fault hypothesis after a health-monitor alarm.
   void reopenEncoderScales();
+  /// The encoder fault prior (a faulty encoder reads short): once the wheels disagree and
+  /// before a turn, the wheel reading more is taken as healthy (one pseudo-measurement).
+  void fasterWheelIsRight();
   /// Keeps in the scale columns of the encoder Jacobian H only the entries the update may
   /// learn from and adds the others' variance to R (see the .cpp: excitation, motor model).
-  void learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::Dynamic>& da,
-                             const Eigen::Vector2d& a, Eigen::MatrixXd& H,
-                             Eigen::Matrix2d& R) const;
+  /// Returns which entries learn (rows z_v, z_omega; columns k_s, k_d; 1 learns, 0 not).
+  Eigen::Matrix2d learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::Dynamic>& da,
+                                        const Eigen::Vector2d& a, Eigen::MatrixXd& H,
+                                        Eigen::Matrix2d& R) const;
+  /// The encoder update with the sensor-error states: gain from the gain model (Hg, Rg) with
+  /// the scale rows restricted to `learn`, covariance by the Joseph form with the true H, R
+  /// (a consider update: honest for the gain used). NIS and gate from S = H P H' + R.
+  UpdateResult scaleConsiderUpdate(const Eigen::Vector2d& y, const Eigen::MatrixXd& H,
+                                   const Eigen::Matrix2d& R, const Eigen::MatrixXd& Hg,
+                                   const Eigen::Matrix2d& Rg, const Eigen::Matrix2d& learn,
+                                   double gate);
+  /// A scalar update (sonar) that does not learn the common encoder scale k_s (gain from the
+  /// covariance conditional on k_s; Joseph covariance with the true H).
+  UpdateResult scaleKnownUpdate(double y, const Eigen::MatrixXd& H, double R, double gate);
   /// Sets the obstacle components to a body-frame Cartesian point with covariance, in the
   /// configured form; cross-covariances with the rest of the state are zeroed.
   void setObstacle(const Eigen::Vector2d& p_m, const Eigen::Matrix2d& cov_m2);
@@ -149,10 +163,12 @@ class WheelchairEkf : public Estimator {
   InputSignal zero_input_;
   SignalInput u_in_;
   Eigen::VectorXd xs_;  // scratch state
+  Eigen::MatrixXd Pw_;  // scratch covariance (sized once)
   WheelchairProcessModel pm_;
   CdEkf ekf_;
   HealthMonitor health_;
   bool obstacle_initialised_ = false;
+  bool fault_prior_applied_ = false;
   double acc_start_s_ = -1e300;
   bool acc_valid_ = false;
 };
