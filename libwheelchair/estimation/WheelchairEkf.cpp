@@ -487,8 +487,14 @@ UpdateResult WheelchairEkf::scaleConsiderUpdate(const Eigen::Vector2d& y, const 
   }
   xs_ = ekf_.x();
   xs_ += K * y;
-  const MatN A = MatN::Identity() - K * Ht;
-  Pw_ = A * P * A.transpose() + K * R * K.transpose();
+  // Joseph form (I - K H) P (I - K H)' + K R K' without n x n x n products (any K):
+  // A = P - K (P H')', then A - (A H') K' + K R K'.
+  MatN Pn = P;
+  Pn.noalias() -= K * PHt.transpose();
+  const MatN2 AHt = Pn * Ht.transpose();
+  Pn.noalias() -= AHt * K.transpose();
+  Pn.noalias() += (K * R) * K.transpose();
+  Pw_ = Pn;
   ekf_.setState(xs_);
   ekf_.setCovariance(Pw_);
   r.accepted = true;
@@ -564,8 +570,12 @@ UpdateResult WheelchairEkf::scaleKnownUpdate(double y, const Eigen::MatrixXd& H,
   K(kIdxEncScaleS) = 0.0;
   xs_ = ekf_.x();
   xs_ += K * y;
-  const MatN A = MatN::Identity() - K * Ht;
-  Pw_ = A * P * A.transpose() + (K * R) * K.transpose();
+  MatN Pn = P;  // Joseph form as in scaleConsiderUpdate
+  Pn.noalias() -= K * PHt.transpose();
+  const VecN AHt = Pn * Ht.transpose();
+  Pn.noalias() -= AHt * K.transpose();
+  Pn.noalias() += (K * R) * K.transpose();
+  Pw_ = Pn;
   ekf_.setState(xs_);
   ekf_.setCovariance(Pw_);
   r.accepted = true;
