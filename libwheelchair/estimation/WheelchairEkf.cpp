@@ -200,6 +200,7 @@ void WheelchairEkf::start(double t0) {
   ekf_.reset(t0, x, P);
   health_ = HealthMonitor(t0);
   fault_prior_applied_ = false;
+  encoders_standstill_ = false;
   // Obstacle at its most likely place: configured position (also the placeholder until the
   // first valid sonar reading in first_sonar mode).
   setObstacle(configObstacle(), configObstacleCov());
@@ -336,10 +337,12 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
       !std::isfinite(iv.omega_rad_s) ||
       (opt_.encoder_model == EncoderMeasurementModel::Mean && !aligned)) {
     ++st.dropouts;
+    encoders_standstill_ = false;
     resetAccumulators(iv.t1_s);
     return;
   }
   const Eigen::Vector2d z(iv.v_m_s, iv.omega_rad_s);
+  encoders_standstill_ = iv.v_m_s == 0.0 && iv.omega_rad_s == 0.0;  // no tick on either wheel
   const int n = pm_.stateDim();
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, n);
   Eigen::Vector2d h;
@@ -375,7 +378,8 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
   if (n > kPhysicsStateDim && opt_.estimate_encoder_scales) {
     // Health monitor: CUSUM on the z_omega innovation (accepted or gated); an alarm re-opens
     // the scales, so the next updates estimate the fault instead of rejecting the encoders.
-    if (r.S.rows() == 2 && r.S(1, 1) > 0 &&
+    // (Not at standstill: there omega = 0 is exact and a disagreement is the gyro's.)
+    if (!encoders_standstill_ && r.S.rows() == 2 && r.S(1, 1) > 0 &&
         health_.encoderInnovation(iv.t1_s, r.innovation(1) / std::sqrt(r.S(1, 1))))
       reopenEncoderScales();
     fasterWheelIsRight();
@@ -513,6 +517,24 @@ UpdateResult WheelchairEkf::gyroUpdate(double z, double R, double g) {
   const UpdateResult r = pm_.stateDim() > kPhysicsStateDim
                              ? scaleKnownUpdate(y(0), H, R, g)
                              : ekf_.update(y, H, Eigen::MatrixXd::Constant(1, 1, R), g);
+  if (pm_.stateDim() > kPhysicsStateDim) {
+    // Health monitor: the gyro against the encoders' standstill (HealthMonitor.h); an alarm
+    // re-opens the bias state (a step: prior variance added, cross-covariances kept).
+    // At standstill the gyro is compared with the KNOWN omega = 0 (not with the filter's
+    // omega, which follows the more precise gyro): nu = (z - b_g) / sqrt(R + var b_g).
+    const double t = ekf_.time();
+    const double nu = (z - ekf_.x()(kIdxGyroBias)) /
+                      std::sqrt(R + std::max(0.0, ekf_.P()(kIdxGyroBias, kIdxGyroBias)));
+    if (encoders_standstill_ && health_.gyroInnovation(t, nu, opt_.estimate_gyro_bias) &&
+        opt_.estimate_gyro_bias) {
+      Pw_ = ekf_.P();
+      Pw_(kIdxGyroBias, kIdxGyroBias) += opt_.gyro_bias_sigma_rad_s * opt_.gyro_bias_sigma_rad_s;
+      ekf_.setCovariance(Pw_);
+    }
+    if (opt_.estimate_gyro_bias)
+      health_.gyroBias(t, ekf_.x()(kIdxGyroBias),
+                       std::sqrt(std::max(0.0, ekf_.P()(kIdxGyroBias, kIdxGyroBias))));
+  }
   wrap();
   return r;
 }
@@ -526,6 +548,24 @@ UpdateResult WheelchairEkf::sonarUpdate(double z, double R, double g) {
   const UpdateResult r = pm_.stateDim() > kPhysicsStateDim
                              ? scaleKnownUpdate(y(0), H, R, g)
                              : ekf_.update(y, H, Eigen::MatrixXd::Constant(1, 1, R), g);
+  if (pm_.stateDim() > kPhysicsStateDim) {
+    // Health monitor: the gyro against the encoders' standstill (HealthMonitor.h); an alarm
+    // re-opens the bias state (a step: prior variance added, cross-covariances kept).
+    // At standstill the gyro is compared with the KNOWN omega = 0 (not with the filter's
+    // omega, which follows the more precise gyro): nu = (z - b_g) / sqrt(R + var b_g).
+    const double t = ekf_.time();
+    const double nu = (z - ekf_.x()(kIdxGyroBias)) /
+                      std::sqrt(R + std::max(0.0, ekf_.P()(kIdxGyroBias, kIdxGyroBias)));
+    if (encoders_standstill_ && health_.gyroInnovation(t, nu, opt_.estimate_gyro_bias) &&
+        opt_.estimate_gyro_bias) {
+      Pw_ = ekf_.P();
+      Pw_(kIdxGyroBias, kIdxGyroBias) += opt_.gyro_bias_sigma_rad_s * opt_.gyro_bias_sigma_rad_s;
+      ekf_.setCovariance(Pw_);
+    }
+    if (opt_.estimate_gyro_bias)
+      health_.gyroBias(t, ekf_.x()(kIdxGyroBias),
+                       std::sqrt(std::max(0.0, ekf_.P()(kIdxGyroBias, kIdxGyroBias))));
+  }
   wrap();
   return r;
 }

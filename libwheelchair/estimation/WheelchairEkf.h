@@ -169,6 +169,7 @@ class WheelchairEkf : public Estimator {
   HealthMonitor health_;
   bool obstacle_initialised_ = false;
   bool fault_prior_applied_ = false;
+  bool encoders_standstill_ = false;  ///< the last encoder interval had no tick on either wheel
   double acc_start_s_ = -1e300;
   bool acc_valid_ = false;
 };
