@@ -25,13 +25,16 @@
 // (a fixed calibration). Observability (no other absolute speed reference): the gyro gives
 // omega, so z_omega - omega reveals k_R - k_L as soon as the chair moves (straight driving
 // gives the RATIO k_R / k_L); the common scale (k_R + k_L) / 2 needs both rim speeds in
-// different proportions, i.e. turning with a forward speed: the two rows then give two
-// independent combinations. On a straight-only drive the common scale is only weakly
-// constrained through the motor model (6) (currents -> speed), and at standstill nothing is
-// observable except b_g (omega = 0 is known from the encoders): the scale states keep their
-// prior (tests/estimation/test_sensor_error_states.cpp). A gyro SCALE is not a state: with the
-// encoders the only yaw-rate reference, it trades off exactly with the common encoder scale
-// (it needs an absolute heading or position reference such as Pozyx).
+// different proportions, i.e. turning: z_omega = k_s a_omega against the gyro. The common
+// scale never learns from z_v (whose regressor v is known only through the motor model (6),
+// ~9 % off) nor from the gyro or sonar; until a turn its uncertainty is carried into the pose
+// by a consider update (gains computed with k_s known, Joseph covariance with the true
+// Jacobian), and a turn corrects the pose along its sensitivity to k_s. Fault prior
+// (faulty_encoder_reads_short): once the ratio is known, the wheel reading more is taken as
+// healthy. At standstill nothing is observable except b_g (omega = 0 is known from the
+// encoders): the scale states keep their prior (tests/estimation/test_sensor_error_states.cpp). A
+// gyro SCALE is not a state: with the encoders the only yaw-rate reference, it trades off exactly
+// with the common encoder scale (it needs an absolute heading or position reference such as Pozyx).
 //
 // Example:
 //   InputSignal u;  u.setSamples(rec.motors);
