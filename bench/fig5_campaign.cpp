@@ -9,6 +9,7 @@
 //
 //   build/bench/fig5_campaign [--runs N] [--seed S] [--config F] [--effects a;b;...]
 //                             [--reference truth|pozyx] [--engine model|mujoco] [--check]
+//                             [--estimate-encoder-scales] [--check-ate M] [--check-nees X]
 //                             [--json OUT]
 //
 // --engine: the truth simulator (default model; mujoco = the chair as a MuJoCo multibody,
@@ -17,6 +18,11 @@
 // --check: exit 1 unless the EKF's trajectory error is lower than that of both raw variants
 // (encoders only; encoder v + gyro omega) and of the baseline filter, each with a paired
 // t < -2 (the CTest `fig5_campaign_smoke` runs it on 6 drives).
+//
+// --estimate-encoder-scales: the sensor-error states on ([estimator] estimate_encoder_scales);
+// --check-ate M / --check-nees X: exit 1 when the EKF's mean ATE (m) / mean position NEES
+// (2 dof, vs truth) exceeds it (CTest `fig5_campaign_scales_smoke`: the faulty chair with the
+// states on must stay <= 0.05 m and NEES <= 4).
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/effects/Effect.h"
 #include "libwheelchair/evaluation/Batch.h"
@@ -134,6 +140,9 @@ struct Args {
   int runs = 40;
   bool against_truth = true;
   bool check = false;
+  bool estimate_encoder_scales = false;  ///< [estimator] estimate_encoder_scales = 1
+  double check_ate_m = -1;               ///< > 0: fail when the EKF's mean ATE exceeds it
+  double check_nees = -1;                ///< > 0: fail when the EKF's mean position NEES does
   uint64_t seed = 20200612;
   std::string cfg_path, json_path, engine = "model";
   std::string effects_text =
@@ -159,6 +168,12 @@ int parseArgs(int argc, char** argv, Args& args) {
       args.effects_text = next();
     else if (a == "--check")
       args.check = true;
+    else if (a == "--estimate-encoder-scales")
+      args.estimate_encoder_scales = true;
+    else if (a == "--check-ate")
+      args.check_ate_m = std::stod(next());
+    else if (a == "--check-nees")
+      args.check_nees = std::stod(next());
     else if (a == "--reference") {
       const std::string r = next();
       if (r != "truth" && r != "pozyx") throw std::runtime_error("--reference: truth | pozyx");
@@ -173,7 +188,8 @@ int parseArgs(int argc, char** argv, Args& args) {
       args.json_path = next();
     else {
       std::cerr << "usage: fig5_campaign [--runs N] [--seed S] [--config F] [--effects a;b] "
-                   "[--reference truth|pozyx] [--engine model|mujoco] [--check] [--json OUT]\n";
+                   "[--reference truth|pozyx] [--engine model|mujoco] [--check] "
+                   "[--estimate-encoder-scales] [--check-ate M] [--check-nees X] [--json OUT]\n";
       return 2;
     }
   }
@@ -251,6 +267,7 @@ nlohmann::json report(const Args& args, Tally& t) {
   j["effects"] = args.effects_text;
   j["reference"] = args.against_truth ? "truth" : "pozyx";
   j["engine"] = args.engine;
+  j["estimate_encoder_scales"] = args.estimate_encoder_scales;
   fmt::print(
       "Fig. 5 campaign: three_task, {} drives (seeds {}..{}), engine {}, effects {}; reference: "
       "{}\n",
@@ -324,9 +341,10 @@ bool checkPasses(Tally& t) {
 int main(int argc, char** argv) {
   Args args;
   if (const int rc = parseArgs(argc, argv, args)) return rc;
-  const auto cfg = config::WheelchairConfig::load(
+  auto cfg = config::WheelchairConfig::load(
       args.cfg_path.empty() ? std::string(WHEELCHAIR_SOURCE_DIR) + "/config/wheelchair.ini"
                             : args.cfg_path);
+  if (args.estimate_encoder_scales) cfg.set("estimator", "estimate_encoder_scales", "1");
   std::vector<effects::EffectSpec> effects;
   std::stringstream ss(args.effects_text);
   for (std::string t; std::getline(ss, t, ';');)
@@ -339,6 +357,23 @@ int main(int argc, char** argv) {
   if (args.check) {
     if (!checkPasses(t)) return 1;
     fmt::print("check passed: EKF ATE below every other variant's (paired t < -2)\n");
+  }
+  if (args.check_ate_m > 0) {
+    const double ate = j["variants"]["ekf"]["ate_mean_m"].get<double>();
+    if (!(ate <= args.check_ate_m)) {
+      fmt::print("check FAILED: EKF mean ATE {:.4f} m > {:.4f} m\n", ate, args.check_ate_m);
+      return 1;
+    }
+    fmt::print("check passed: EKF mean ATE {:.4f} m <= {:.4f} m\n", ate, args.check_ate_m);
+  }
+  if (args.check_nees > 0) {
+    const double nees = j.contains("ekf_nees") ? j["ekf_nees"]["mean"].get<double>() : 1e300;
+    if (!(nees <= args.check_nees)) {
+      fmt::print("check FAILED: EKF mean position NEES {:.2f} > {:.2f} (or no truth)\n", nees,
+                 args.check_nees);
+      return 1;
+    }
+    fmt::print("check passed: EKF mean position NEES {:.2f} <= {:.2f}\n", nees, args.check_nees);
   }
   return 0;
 }

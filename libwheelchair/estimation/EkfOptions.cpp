@@ -96,6 +96,10 @@ config::Options EkfOptions::options(const std::string& section) {
       .real("encoder_scale_sigma", encoder_scale_sigma, "encoder scale prior 1 sigma (-)", pos)
       .real("q_encoder_scale_1_s", q_encoder_scale_1_s,
             "random-walk density of each encoder scale (1/s)", nonneg)
+      .flag("faulty_encoder_reads_short", faulty_encoder_reads_short,
+            "fault prior: the encoder reading more is the healthy one (until a turn tells)")
+      .real("healthy_encoder_scale_sigma", healthy_encoder_scale_sigma,
+            "1 sigma of a healthy encoder's scale (-)", pos)
       .flag("estimate_gyro_bias", estimate_gyro_bias, "estimate the gyro z bias (state b_g)")
       .real("gyro_bias_rad_s", gyro_bias_rad_s, "gyro bias prior mean (rad/s)")
       .real("gyro_bias_sigma_rad_s", gyro_bias_sigma_rad_s, "gyro bias prior 1 sigma (rad/s)", pos)
@@ -193,6 +197,7 @@ void EkfOptions::validate() const {
                       {encoder_scale_right, "encoder_scale_right"},
                       {encoder_scale_left, "encoder_scale_left"},
                       {encoder_scale_sigma, "encoder_scale_sigma"},
+                      {healthy_encoder_scale_sigma, "healthy_encoder_scale_sigma"},
                       {gyro_bias_sigma_rad_s, "gyro_bias_sigma_rad_s"}})
     pos(v, k);
 }

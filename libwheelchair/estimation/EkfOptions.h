@@ -87,6 +87,11 @@ struct EkfOptions {
   double encoder_scale_right = 1.0, encoder_scale_left = 1.0;  ///< prior means (-)
   double encoder_scale_sigma = 0.05;                           ///< prior 1 sigma of each scale (-)
   double q_encoder_scale_1_s = 1e-7;  ///< random-walk density of each scale (1/s)
+  /// Fault prior of the encoder scales: a faulty encoder LOSES counts (slip, missed ticks), so
+  /// once the wheels' ratio is known and before a turn, the wheel reading more is taken as
+  /// healthy, scale 1 +- healthy_encoder_scale_sigma (both when they agree).
+  bool faulty_encoder_reads_short = true;
+  double healthy_encoder_scale_sigma = 0.005;  ///< 1 sigma of a healthy encoder's scale (-)
   /// Estimate an additive gyro z bias b_g (z = omega + b_g) as a random walk.
   bool estimate_gyro_bias = false;
   double gyro_bias_rad_s = 0.0;         ///< prior mean (rad/s)

@@ -60,6 +60,57 @@ bool HealthMonitor::encoderInnovation(double t, double nu) {
   return true;
 }
 
+bool HealthMonitor::gyroInnovation(double t, double nu, bool bias_estimated) {
+  // Without a bias state nothing changes after an alarm: it is reported once.
+  if (!std::isfinite(nu) || gyro_latched_) return false;
+  ggp_ = std::max(0.0, ggp_ + nu - kDrift);
+  ggm_ = std::max(0.0, ggm_ - nu - kDrift);
+  if (ggp_ == 0) gzp_ = t;
+  if (ggm_ == 0) gzm_ = t;
+  if (ggp_ <= kThreshold && ggm_ <= kThreshold) return false;
+  gyro_onset_s_ = ggp_ > kThreshold ? gzp_ : gzm_;
+  HealthEvent e;
+  e.t_s = t;
+  e.sensor = "gyro";
+  e.kind = "inconsistent";
+  e.parameter = "cusum";
+  e.value = std::max(ggp_, ggm_);
+  e.since_s = gyro_onset_s_;
+  e.text = fmt::format(
+      "gyro reads {} than the standing chair's 0 since t = {:.1f} s (CUSUM {:.1f} > {:.0f}): {}",
+      ggp_ > kThreshold ? "higher" : "lower", gyro_onset_s_ - t0_, e.value, kThreshold,
+      bias_estimated ? "re-estimating its bias"
+                     : "its bias is not estimated (set estimate_gyro_bias = 1); the "
+                       "encoder scales will take the blame while moving");
+  events_.push_back(e);
+  gyro_latched_ = !bias_estimated;
+  ggp_ = ggm_ = 0;
+  gzp_ = gzm_ = t;
+  return true;
+}
+
+void HealthMonitor::gyroBias(double t, double b, double sd) {
+  constexpr double kReportSdRad = 0.002, kMinBiasRad = 0.005;  // rad/s
+  if (!(sd < kReportSdRad)) return;
+  const double margin = std::max(3 * sd, kMinBiasRad);
+  if (std::abs(b - gyro_reported_) <= std::max(margin, 3 * gyro_reported_sd_)) return;
+  if (std::abs(b) <= margin && gyro_reported_ == 0) return;
+  gyro_reported_ = b;
+  gyro_reported_sd_ = sd;
+  HealthEvent e;
+  e.t_s = t;
+  e.sensor = "gyro";
+  e.kind = "estimate";
+  e.effect = "gyro_bias";
+  e.parameter = "bias_rad_s";
+  e.value = b;
+  e.sd = sd;
+  e.since_s = gyro_onset_s_;
+  e.text = fmt::format("gyro reads {:+.3f} rad/s (+-{:.3f}) too {} (bias) since t = {:.1f} s", b,
+                       sd, b > 0 ? "high" : "low", gyro_onset_s_ - t0_);
+  events_.push_back(e);
+}
+
 void HealthMonitor::scales(double t, const SensorErrorEstimate& est) {
   if (!est.present) return;
   report(t, 0, est.encoder_scale_right, est.encoder_scale_right_sd);

@@ -14,6 +14,12 @@
 // estimate differs from the reported one by more than that (a new fault). Before a turn only
 // the RATIO k_R / k_L is known (straight driving): it is reported the same way (parameter
 // "scale_ratio", side ""), saying that the side needs a turn.
+// Gyro: the same CUSUM on the gyro's normalised innovation, but only while the encoders show
+// standstill (isolation: there omega = 0 is known without the gyro, so a persistent
+// disagreement is the gyro's; while moving, a gyro bias and an encoder ratio fault both
+// look like a yaw-rate disagreement). An alarm re-opens the bias state when it is estimated;
+// the bias estimate is reported like the scales ("gyro reads +0.020 rad/s (+-0.001) too high
+// (bias) since t = 3.0 s").
 // Example text: "left encoder reads 5.0 % short (+-0.3 %) since t = 12.4 s".
 #pragma once
 
@@ -27,13 +33,22 @@ namespace wheelchair::estimation {
 class HealthMonitor {
  public:
   /// t0_s: start of the recording (texts give times relative to it).
-  explicit HealthMonitor(double t0_s = 0) : t0_(t0_s), onset_s_(t0_s) {}
+  explicit HealthMonitor(double t0_s = 0)
+      : t0_(t0_s), onset_s_(t0_s), gzp_(t0_s), gzm_(t0_s), gyro_onset_s_(t0_s) {}
 
   /// One encoder z_omega normalised innovation (accepted or gated). Returns true on an alarm
   /// (then an "inconsistent" event has been added and the CUSUM restarted).
   bool encoderInnovation(double t_s, double nu);
   /// The scale estimates after an encoder update.
   void scales(double t_s, const SensorErrorEstimate& e);
+  /// One gyro normalised innovation taken while the encoders show standstill (no tick in
+  /// their last interval: omega = 0 is known without the gyro, so a disagreement is the
+  /// gyro's). Same two-sided CUSUM as the encoders'. `bias_estimated`: the filter carries a
+  /// gyro-bias state (the text says whether it is re-estimated). Returns true on an alarm.
+  bool gyroInnovation(double t_s, double nu, bool bias_estimated);
+  /// The gyro-bias estimate (estimate_gyro_bias on): reported once sd < 0.002 rad/s and
+  /// |b| > max(3 sd, 0.005 rad/s), and again when it moves by more than that.
+  void gyroBias(double t_s, double b_rad_s, double sd_rad_s);
 
   const std::vector<HealthEvent>& events() const { return events_; }
 
@@ -47,6 +62,10 @@ class HealthMonitor {
   double onset_s_;                  // onset of the current fault hypothesis
   double reported_[3] = {1, 1, 1};  // last reported scale per side, ratio (1: none)
   double reported_sd_[3] = {0, 0, 0};
+  double ggp_ = 0, ggm_ = 0, gzp_ = 0, gzm_ = 0;  // gyro CUSUM sums, last times they were 0
+  double gyro_onset_s_;
+  double gyro_reported_ = 0, gyro_reported_sd_ = 0;  // last reported bias (0: none)
+  bool gyro_latched_ = false;  // alarm reported and no bias state: no further gyro alarms
   std::vector<HealthEvent> events_;
 };
 

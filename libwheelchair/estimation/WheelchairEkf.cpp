@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace wheelchair::estimation {
 
@@ -173,6 +174,7 @@ WheelchairEkf::WheelchairEkf(const config::WheelchairConfig& cfg, const EkfOptio
   gyro_m_ = Measurement(Sensor::Gyro, 1, n);
   sonar_m_ = Measurement(Sensor::Sonar, 1, n);
   pozyx_m_ = Measurement(Sensor::Pozyx, 2, n);
+  Pw_.resize(n, n);
 }
 
 FilterState WheelchairEkf::head() const {
@@ -203,6 +205,8 @@ void WheelchairEkf::start(double t0) {
   P(model::kIdxPhi, model::kIdxPhi) = opt_.initial_sigma_phi_rad * opt_.initial_sigma_phi_rad;
   ekf_.reset(t0, x, P);
   health_ = HealthMonitor(t0);
+  fault_prior_applied_ = false;
+  encoders_standstill_ = false;
   // Obstacle at its most likely place: configured position (also the placeholder until the
   // first valid sonar reading in first_sonar mode).
   setObstacle(configObstacle(), configObstacleCov());
@@ -287,13 +291,44 @@ void WheelchairEkf::resetAccumulators(double t) {
 }
 
 void WheelchairEkf::reopenEncoderScales() {
-  Eigen::MatrixXd P = ekf_.P();
-  P.middleRows<2>(kIdxEncScaleS).setZero();
-  P.middleCols<2>(kIdxEncScaleS).setZero();
+  // A step k <- k + j, j ~ N(0, prior) independent of everything: its variance is ADDED and
+  // the cross-covariances of k with the pose are kept (the pose error accumulated so far is
+  // still correlated with the old scale, hence with the new one).
+  Pw_ = ekf_.P();
   const double s2 = opt_.encoder_scale_sigma * opt_.encoder_scale_sigma;
-  P(kIdxEncScaleS, kIdxEncScaleS) = 0.5 * s2;
-  P(kIdxEncScaleD, kIdxEncScaleD) = 2.0 * s2;
-  ekf_.setCovariance(P);
+  Pw_(kIdxEncScaleS, kIdxEncScaleS) += 0.5 * s2;
+  Pw_(kIdxEncScaleD, kIdxEncScaleD) += 2.0 * s2;
+  ekf_.setCovariance(Pw_);
+  fault_prior_applied_ = false;
+}
+
+void WheelchairEkf::fasterWheelIsRight() {
+  // The fault prior of an incremental encoder: it LOSES counts (a slipping pulley or belt,
+  // missed ticks), it does not invent them. So once the two wheels are known to disagree
+  // (the ratio k_R / k_L, observable from straight driving against the gyro) and before the
+  // common scale is (first turn), the wheel that reads MORE is taken as the healthy one:
+  // one pseudo-measurement max(k_R, k_L) = 1 +- sigma, i.e. k_s + |k_d| / 2 = 1. Full update:
+  // the pose driven so far at the old k_s is corrected along its correlation with k_s.
+  if (!opt_.estimate_encoder_scales || !opt_.faulty_encoder_reads_short || fault_prior_applied_)
+    return;
+  const Eigen::VectorXd& x = ekf_.x();
+  const Eigen::MatrixXd& P = ekf_.P();
+  const double kd = x(kIdxEncScaleD),
+               sd_d = std::sqrt(std::max(0.0, P(kIdxEncScaleD, kIdxEncScaleD)));
+  const double s2_prior = 0.5 * opt_.encoder_scale_sigma * opt_.encoder_scale_sigma;
+  // Ratio known to 0.5 %; k_s still near its prior (no turn yet since the last re-opening).
+  if (!(sd_d < 0.005)) return;
+  if (!(P(kIdxEncScaleS, kIdxEncScaleS) > 0.25 * s2_prior)) return;
+  // The wheels disagree (by more than 1 % and 3 sd): the faster is healthy; else both are.
+  const bool disagree = std::fabs(kd) > std::max(0.01, 3 * sd_d);
+  const double sh = opt_.healthy_encoder_scale_sigma;
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, pm_.stateDim());
+  H(0, kIdxEncScaleS) = 1.0;
+  H(0, kIdxEncScaleD) = disagree ? (kd > 0 ? 0.5 : -0.5) : 0.0;
+  Eigen::VectorXd y(1);
+  y(0) = 1.0 - (x(kIdxEncScaleS) + (disagree ? 0.5 * std::fabs(kd) : 0.0));
+  ekf_.update(y, H, Eigen::MatrixXd::Constant(1, 1, sh * sh), 0.0);
+  fault_prior_applied_ = true;
 }
 
 void WheelchairEkf::encoderStart(double t) {
@@ -315,9 +350,11 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
       !std::isfinite(iv.omega_rad_s) ||
       (opt_.encoder_model == EncoderMeasurementModel::Mean && !aligned)) {
     ++st.dropouts;
+    encoders_standstill_ = false;
     resetAccumulators(iv.t1_s);
     return;
   }
+  encoders_standstill_ = iv.v_m_s == 0.0 && iv.omega_rad_s == 0.0;  // no tick on either wheel
   const int n = pm_.stateDim();
   const Eigen::VectorXd& x = ekf_.x();
   // a = the true mean speeds the encoders see and d a / d x.
@@ -336,36 +373,42 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
   const double g = gate(2);
   Measurement& m = enc_m_;
   m.z << iv.v_m_s, iv.omega_rad_s;
-  Eigen::Matrix2d R = encoderNoise(dt);
+  const Eigen::Matrix2d R = encoderNoise(dt);
+  m.R = R;
+  UpdateResult r;
   if (n > kPhysicsStateDim) {
     Eigen::Matrix2d dz_da, dz_dk;
     m.h =
         scaledEncoderSpeeds(a, x(kIdxEncScaleS), x(kIdxEncScaleD), track_width_m_, &dz_da, &dz_dk);
     m.H = dz_da * da;
-    m.H.block<2, 2>(0, kIdxEncScaleS) = dz_dk;
-    learnableScaleColumns(da, a, m.H, R);
+    m.H.block<2, 2>(0, kIdxEncScaleS) = dz_dk;  // the true Jacobian: the covariance's
+    Eigen::MatrixXd Hg = m.H;  // the gain's model
+    Eigen::Matrix2d Rg = R;
+    const Eigen::Matrix2d learn = learnableScaleColumns(da, a, Hg, Rg);
+    r = scaleConsiderUpdate(m.z - m.h, m.H, R, Hg, Rg, learn, g);
   } else {
     m.h = a;
     m.H = da;
+    r = ekf_.correct(m, g);
   }
-  m.R = R;
-  const UpdateResult r = ekf_.correct(m, g);
   record(Sensor::Encoders, iv.t1_s, r, g);
   if (n > kPhysicsStateDim && opt_.estimate_encoder_scales) {
     // Health monitor: CUSUM on the z_omega innovation (accepted or gated); an alarm re-opens
     // the scales, so the next updates estimate the fault instead of rejecting the encoders.
-    if (r.S.rows() == 2 && r.S(1, 1) > 0 &&
+    // (Not at standstill: there omega = 0 is exact and a disagreement is the gyro's.)
+    if (!encoders_standstill_ && r.S.rows() == 2 && r.S(1, 1) > 0 &&
         health_.encoderInnovation(iv.t1_s, r.innovation(1) / std::sqrt(r.S(1, 1))))
       reopenEncoderScales();
+    fasterWheelIsRight();
     health_.scales(iv.t1_s, sensorErrors());
   }
   wrap();
   resetAccumulators(iv.t1_s);
 }
 
-void WheelchairEkf::learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::Dynamic>& da,
-                                          const Eigen::Vector2d& a, Eigen::MatrixXd& H,
-                                          Eigen::Matrix2d& R) const {
+Eigen::Matrix2d WheelchairEkf::learnableScaleColumns(
+    const Eigen::Matrix<double, 2, Eigen::Dynamic>& da, const Eigen::Vector2d& a,
+    Eigen::MatrixXd& H, Eigen::Matrix2d& R) const {
   // Rows z_v, z_omega; scale columns dz/d(k_s, k_d) = [[a_v, l_w a_omega / 4],
   // [a_omega, a_v / l_w]] (header). A scale LEARNS from an entry only through an excited
   // regressor, |a_j| > kExcitationSigmas sd(a_j): else the filter reads the regressor's own
@@ -388,6 +431,95 @@ void WheelchairEkf::learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::
   Hc(0, 0) = 0.0;                                    // k_s in z_v: taken as known
   R += Hc * P.block<2, 2>(kIdxEncScaleS, kIdxEncScaleS) * Hc.transpose();
   H.block<2, 2>(0, kIdxEncScaleS) = Hk.cwiseProduct(learn);
+  return learn;
+}
+
+namespace {
+Eigen::Matrix2d inverse2(const Eigen::Matrix2d& S, double det) {
+  Eigen::Matrix2d inv;
+  inv << S(1, 1), -S(0, 1), -S(1, 0), S(0, 0);
+  return inv / det;
+}
+}  // namespace
+
+UpdateResult WheelchairEkf::scaleConsiderUpdate(const Eigen::Vector2d& y, const Eigen::MatrixXd& H,
+                                                const Eigen::Matrix2d& R, const Eigen::MatrixXd& Hg,
+                                                const Eigen::Matrix2d& Rg,
+                                                const Eigen::Matrix2d& learn, double gate) {
+  // Gain from the gain model (Hg, Rg: the learnable scale entries, docs/estimation.md), the
+  // scale rows of the gain restricted to the entries they may learn from; covariance by the
+  // Joseph form with the TRUE Jacobian H and noise R, which is the exact (first-order)
+  // covariance of x + K y for ANY gain K: the pose keeps its correlation with the scales it
+  // was not allowed to learn (the common scale before the first turn), so its sd grows with the
+  // distance driven at an unknown scale and a later scale update corrects the pose as well.
+  constexpr int N = kPhysicsStateDim + kNumSensorErrorStates;
+  using MatN = Eigen::Matrix<double, N, N>;
+  using MatN2 = Eigen::Matrix<double, N, 2>;
+  using Mat2N = Eigen::Matrix<double, 2, N>;
+  UpdateResult r;
+  r.dof = 2;
+  r.innovation = y;
+  const MatN P = ekf_.P();
+  const Mat2N Ht = H, Hgt = Hg;
+  const MatN2 PHt = P * Ht.transpose();
+  Eigen::Matrix2d S = Ht * PHt + R;
+  S = 0.5 * (S + S.transpose());
+  r.S = S;
+  const double det = S(0, 0) * S(1, 1) - S(0, 1) * S(1, 0);
+  if (!(S(0, 0) > 0) || !(det > 0) || !std::isfinite(det)) {
+    r.nis = std::numeric_limits<double>::infinity();
+    return r;
+  }
+  r.nis = y.dot(inverse2(S, det) * y);
+  if (gate > 0 && !(r.nis <= gate)) return r;
+  // Gain of every state but k_s: computed as if k_s were known, from the covariance
+  // conditional on k_s, Pc = P - D P(k_s, .) with D = P(., k_s) / P(k_s, k_s) the pose's (and
+  // every state's) sensitivity to k_s. Without this the encoder innovation would be read as
+  // news about k_s (hence about the pose through D) whenever the motor model (6) claims to
+  // know v: its ~9 % friction error would move the pose.
+  MatN Pc = P;
+  Eigen::Matrix<double, N, 1> D = Eigen::Matrix<double, N, 1>::Zero();
+  const double pkk = P(kIdxEncScaleS, kIdxEncScaleS);
+  if (pkk > 0) {
+    D = P.col(kIdxEncScaleS) / pkk;
+    Pc -= D * P.row(kIdxEncScaleS);
+  }
+  const MatN2 PHg = Pc * Hgt.transpose();
+  Eigen::Matrix2d Sg = Hgt * PHg + Rg;
+  Sg = 0.5 * (Sg + Sg.transpose());
+  MatN2 K = PHg * inverse2(Sg, Sg(0, 0) * Sg(1, 1) - Sg(0, 1) * Sg(1, 0));
+  // k_d learns from its allowed rows (conditional gain); k_s only from z_omega while turning,
+  // with the unconditional gain of that row, and every other state follows k_s's step along
+  // its sensitivity D (the pose driven at the old scale is corrected: x += D dk_s).
+  {
+    constexpr int c = 1, i = kIdxEncScaleD;
+    const bool l0 = learn(0, c) != 0, l1 = learn(1, c) != 0;
+    if (!(l0 && l1)) {
+      K(i, 0) = l0 ? PHg(i, 0) / Sg(0, 0) : 0.0;
+      K(i, 1) = l1 ? PHg(i, 1) / Sg(1, 1) : 0.0;
+    }
+  }
+  K.row(kIdxEncScaleS).setZero();
+  if (learn(1, 0) != 0 && pkk > 0) {
+    const double kks = PHt(kIdxEncScaleS, 1) / S(1, 1);
+    for (int j = 0; j < N; ++j)
+      if (j != kIdxEncScaleS) K(j, 1) += D(j) * kks;
+    K(kIdxEncScaleS, 1) = kks;
+  }
+  xs_ = ekf_.x();
+  xs_ += K * y;
+  // Joseph form (I - K H) P (I - K H)' + K R K' without n x n x n products (any K):
+  // A = P - K (P H')', then A - (A H') K' + K R K'.
+  MatN Pn = P;
+  Pn.noalias() -= K * PHt.transpose();
+  const MatN2 AHt = Pn * Ht.transpose();
+  Pn.noalias() -= AHt * K.transpose();
+  Pn.noalias() += (K * R) * K.transpose();
+  Pw_ = Pn;
+  ekf_.setState(xs_);
+  ekf_.setCovariance(Pw_);
+  r.accepted = true;
+  return r;
 }
 
 Measurement& WheelchairEkf::gyroModel(const Eigen::VectorXd& x, double z, double R) {
@@ -428,8 +560,75 @@ Measurement& WheelchairEkf::pozyxModel(const Eigen::VectorXd& x, const Eigen::Ve
 }
 
 UpdateResult WheelchairEkf::correct(Measurement& m, double g) {
-  const UpdateResult r = ekf_.correct(m, g);
+  const bool error_states = pm_.stateDim() > kPhysicsStateDim;
+  // With the sensor-error states, the gyro and the sonar do not teach the common encoder
+  // scale k_s (scaleKnownUpdate; docs/estimation.md "Sensor-error states"); Pozyx does.
+  const bool scale_known = error_states && m.dim() == 1 &&
+                           (m.sensor == Sensor::Gyro || m.sensor == Sensor::Sonar);
+  const UpdateResult r =
+      scale_known ? scaleKnownUpdate(m.z(0) - m.h(0), m.H, m.R(0, 0), g) : ekf_.correct(m, g);
+  if (error_states && m.sensor == Sensor::Gyro) gyroHealth(m.z(0), m.R(0, 0));
   wrap();
+  return r;
+}
+
+void WheelchairEkf::gyroHealth(double z_rad_s, double R) {
+  // Health monitor: the gyro against the encoders' standstill (HealthMonitor.h); an alarm
+  // re-opens the bias state (a step: prior variance added, cross-covariances kept).
+  // At standstill the gyro is compared with the KNOWN omega = 0 (not with the filter's
+  // omega, which follows the more precise gyro): nu = (z - b_g) / sqrt(R + var b_g).
+  const double t = ekf_.time();
+  const double var_b = std::max(0.0, ekf_.P()(kIdxGyroBias, kIdxGyroBias));
+  const double nu = (z_rad_s - ekf_.x()(kIdxGyroBias)) / std::sqrt(R + var_b);
+  if (encoders_standstill_ && health_.gyroInnovation(t, nu, opt_.estimate_gyro_bias) &&
+      opt_.estimate_gyro_bias) {
+    Pw_ = ekf_.P();
+    Pw_(kIdxGyroBias, kIdxGyroBias) += opt_.gyro_bias_sigma_rad_s * opt_.gyro_bias_sigma_rad_s;
+    ekf_.setCovariance(Pw_);
+  }
+  if (opt_.estimate_gyro_bias)
+    health_.gyroBias(t, ekf_.x()(kIdxGyroBias),
+                     std::sqrt(std::max(0.0, ekf_.P()(kIdxGyroBias, kIdxGyroBias))));
+}
+
+UpdateResult WheelchairEkf::scaleKnownUpdate(double y, const Eigen::MatrixXd& H, double R,
+                                             double gate) {
+  // A scalar update that does not learn the common encoder scale k_s: gain from the
+  // covariance conditional on k_s (as in scaleConsiderUpdate), covariance by the Joseph form.
+  constexpr int N = kPhysicsStateDim + kNumSensorErrorStates;
+  using MatN = Eigen::Matrix<double, N, N>;
+  using VecN = Eigen::Matrix<double, N, 1>;
+  UpdateResult r;
+  r.dof = 1;
+  r.innovation = Eigen::VectorXd::Constant(1, y);
+  const MatN P = ekf_.P();
+  const Eigen::Matrix<double, 1, N> Ht = H;
+  const VecN PHt = P * Ht.transpose();
+  const double S = Ht.dot(PHt) + R;
+  r.S = Eigen::MatrixXd::Constant(1, 1, S);
+  if (!(S > 0) || !std::isfinite(S)) {
+    r.nis = std::numeric_limits<double>::infinity();
+    return r;
+  }
+  r.nis = y * y / S;
+  if (gate > 0 && !(r.nis <= gate)) return r;
+  VecN PcHt = PHt;
+  const double pkk = P(kIdxEncScaleS, kIdxEncScaleS);
+  if (pkk > 0) PcHt -= P.col(kIdxEncScaleS) * (PHt(kIdxEncScaleS) / pkk);
+  const double Sc = Ht.dot(PcHt) + R;
+  VecN K = PcHt / Sc;
+  K(kIdxEncScaleS) = 0.0;
+  xs_ = ekf_.x();
+  xs_ += K * y;
+  MatN Pn = P;  // Joseph form as in scaleConsiderUpdate
+  Pn.noalias() -= K * PHt.transpose();
+  const VecN AHt = Pn * Ht.transpose();
+  Pn.noalias() -= AHt * K.transpose();
+  Pn.noalias() += (K * R) * K.transpose();
+  Pw_ = Pn;
+  ekf_.setState(xs_);
+  ekf_.setCovariance(Pw_);
+  r.accepted = true;
   return r;
 }
 

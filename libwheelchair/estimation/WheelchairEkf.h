@@ -25,13 +25,16 @@
 // (a fixed calibration). Observability (no other absolute speed reference): the gyro gives
 // omega, so z_omega - omega reveals k_R - k_L as soon as the chair moves (straight driving
 // gives the RATIO k_R / k_L); the common scale (k_R + k_L) / 2 needs both rim speeds in
-// different proportions, i.e. turning with a forward speed: the two rows then give two
-// independent combinations. On a straight-only drive the common scale is only weakly
-// constrained through the motor model (6) (currents -> speed), and at standstill nothing is
-// observable except b_g (omega = 0 is known from the encoders): the scale states keep their
-// prior (tests/estimation/test_sensor_error_states.cpp). A gyro SCALE is not a state: with the
-// encoders the only yaw-rate reference, it trades off exactly with the common encoder scale
-// (it needs an absolute heading or position reference such as Pozyx).
+// different proportions, i.e. turning: z_omega = k_s a_omega against the gyro. The common
+// scale never learns from z_v (whose regressor v is known only through the motor model (6),
+// ~9 % off) nor from the gyro or sonar; until a turn its uncertainty is carried into the pose
+// by a consider update (gains computed with k_s known, Joseph covariance with the true
+// Jacobian), and a turn corrects the pose along its sensitivity to k_s. Fault prior
+// (faulty_encoder_reads_short): once the ratio is known, the wheel reading more is taken as
+// healthy. At standstill nothing is observable except b_g (omega = 0 is known from the
+// encoders): the scale states keep their prior (tests/estimation/test_sensor_error_states.cpp). A
+// gyro SCALE is not a state: with the encoders the only yaw-rate reference, it trades off exactly
+// with the common encoder scale (it needs an absolute heading or position reference such as Pozyx).
 //
 // Example:
 //   InputSignal u;  u.setSamples(rec.motors);
@@ -125,14 +128,31 @@ class WheelchairEkf : public Estimator {
   model::FilterState head() const;
   void wrap();
   void resetAccumulators(double t_s);
-  /// Sets the encoder scale states' covariance back to the prior (cross-covariances 0): the
-  /// fault hypothesis after a health-monitor alarm.
+  /// Adds the prior variance to the encoder scale states (a step of unknown size; their
+  /// cross-covariances are kept): the fault hypothesis after a health-monitor alarm.
   void reopenEncoderScales();
+  /// The encoder fault prior (a faulty encoder reads short): once the wheels disagree and
+  /// before a turn, the wheel reading more is taken as healthy (one pseudo-measurement).
+  void fasterWheelIsRight();
   /// Keeps in the scale columns of the encoder Jacobian H only the entries the update may
   /// learn from and adds the others' variance to R (see the .cpp: excitation, motor model).
-  void learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::Dynamic>& da,
-                             const Eigen::Vector2d& a, Eigen::MatrixXd& H,
-                             Eigen::Matrix2d& R) const;
+  /// Returns which entries learn (rows z_v, z_omega; columns k_s, k_d; 1 learns, 0 not).
+  Eigen::Matrix2d learnableScaleColumns(const Eigen::Matrix<double, 2, Eigen::Dynamic>& da,
+                                        const Eigen::Vector2d& a, Eigen::MatrixXd& H,
+                                        Eigen::Matrix2d& R) const;
+  /// The encoder update with the sensor-error states: gain from the gain model (Hg, Rg) with
+  /// the scale rows restricted to `learn`, covariance by the Joseph form with the true H, R
+  /// (a consider update: honest for the gain used). NIS and gate from S = H P H' + R.
+  UpdateResult scaleConsiderUpdate(const Eigen::Vector2d& y, const Eigen::MatrixXd& H,
+                                   const Eigen::Matrix2d& R, const Eigen::MatrixXd& Hg,
+                                   const Eigen::Matrix2d& Rg, const Eigen::Matrix2d& learn,
+                                   double gate);
+  /// A scalar update (gyro, sonar) that does not learn the common encoder scale k_s (gain from the
+  /// covariance conditional on k_s; Joseph covariance with the true H).
+  UpdateResult scaleKnownUpdate(double y, const Eigen::MatrixXd& H, double R, double gate);
+  /// The gyro's health monitor after its update: CUSUM of the reading against omega = 0 while
+  /// the encoders show standstill; an alarm re-opens the bias state (HealthMonitor.h).
+  void gyroHealth(double z_rad_s, double R);
   /// Sets the obstacle components to a body-frame Cartesian point with covariance, in the
   /// configured form; cross-covariances with the rest of the state are zeroed.
   void setObstacle(const Eigen::Vector2d& p_m, const Eigen::Matrix2d& cov_m2);
@@ -158,10 +178,13 @@ class WheelchairEkf : public Estimator {
   // Preallocated measurement storage (sized once: no allocation per update).
   Eigen::Matrix<double, 2, Eigen::Dynamic> da_;  // d (mean encoder speeds) / dx
   Measurement enc_m_, gyro_m_, sonar_m_, pozyx_m_;
+  Eigen::MatrixXd Pw_;  // scratch covariance (sized once)
   WheelchairProcessModel pm_;
   CdEkf ekf_;
   HealthMonitor health_;
   bool obstacle_initialised_ = false;
+  bool fault_prior_applied_ = false;
+  bool encoders_standstill_ = false;  ///< the last encoder interval had no tick on either wheel
   double acc_start_s_ = -1e300;
   bool acc_valid_ = false;
 };

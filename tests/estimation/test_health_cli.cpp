@@ -89,3 +89,39 @@ TEST(HealthCli, CleanDriveReportsNoEncoderFaultAndBadPathFailsFirst) {
   EXPECT_NE(bad.exit_code, 0);
   EXPECT_EQ(bad.out.find("health:"), std::string::npos) << bad.out;
 }
+
+TEST(HealthCli, AGyroBiasIsBlamedOnTheGyroAtStandstillAndEstimated) {
+  // A 0.02 rad/s gyro bias: while the chair stands (no encoder tick) omega = 0 is known, so
+  // the disagreement is the gyro's (not the encoders'); with the bias state on it is
+  // re-estimated and reported in diagnose's words (effect gyro_bias).
+  TempDir tmp;
+  const std::string rec = tmp / "gb.rawlog", ini = tmp / "gb.ini";
+  ASSERT_EQ(
+      cli("simulate --scenario three_task --seed 7 --effect gyro_bias:bias_rad_s=0.02 -o " + rec)
+          .exit_code,
+      0);
+  std::string cfg = test::readFile(std::string(WHEELCHAIR_SOURCE_DIR) + "/config/wheelchair.ini");
+  const std::string key = "estimate_gyro_bias = 0";
+  ASSERT_NE(cfg.find(key), std::string::npos);
+  cfg.replace(cfg.find(key), key.size(), "estimate_gyro_bias = 1");
+  test::writeFile(ini, cfg);
+  const auto f =
+      cli("filter " + rec + " --config " + ini + " --no-progress --health " + (tmp / "h.jsonl"));
+  ASSERT_EQ(f.exit_code, 0) << f.out;
+  EXPECT_NE(f.out.find("gyro reads higher than the standing chair's 0"), std::string::npos)
+      << f.out;
+  EXPECT_NE(f.out.find("gyro reads +0.020 rad/s"), std::string::npos) << f.out;
+  EXPECT_EQ(f.out.find("encoders inconsistent"), std::string::npos) << f.out;
+  bool estimated = false;
+  std::istringstream lines(test::readFile(tmp / "h.jsonl"));
+  for (std::string line; std::getline(lines, line);) {
+    const auto e = nlohmann::json::parse(line);
+    if (e["sensor"] == "gyro" && e["kind"] == "estimate") {
+      estimated = true;
+      EXPECT_EQ(e["effect"], "gyro_bias");
+      EXPECT_NEAR(e["value"].get<double>(), 0.02, 3 * e["sd"].get<double>());
+      EXPECT_LT(e["t_s"].get<double>(), 5.0) << e.dump();  // from the first standstill
+    }
+  }
+  EXPECT_TRUE(estimated);
+}
