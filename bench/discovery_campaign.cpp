@@ -9,10 +9,11 @@
 // --check-named-rate R: exit 1 unless at least a fraction R of the single-effect drives has
 // the concealed effect named (and nothing else of the catalogue; `unmodeled` findings set
 // aside); the CTest discovery_campaign_mujoco_smoke runs a small seeded MuJoCo campaign so.
-// --check-false-alarms N: exit 1 if more than N clean drives have any finding that is not the
-// truth engine's own physics (`engine_false_alarms`: on MuJoCo its effective wheel geometry
-// and centre-of-mass current terms, measured on the multibody, simulation/MujocoTruth.h, are
-// not false; on the model engine every finding is); CTest discovery_campaign_mujoco_clean.
+// --check-false-alarms N: exit 1 if any clean drive has a catalogue finding, or more than N
+// clean drives have any finding that is not the truth engine's own physics (`engine_false_alarms`:
+// on MuJoCo its effective wheel geometry and centre-of-mass current terms, measured on the
+// multibody, simulation/MujocoTruth.h, are not false; on the model engine every finding is); CTest
+// discovery_campaign_mujoco_clean.
 //
 // --engine mujoco: the drives come from the MuJoCo multibody (docs/simulation.md), whose
 // physics is not the model the diagnosis fits. --unknown N (mujoco only): N drives with one
@@ -116,9 +117,13 @@ int main(int argc, char** argv) {
   int status = 0;
   if (check_false_alarms >= 0) {
     const int fa = res["clean"]["engine_false_alarms"].get<int>();
-    std::cerr << "check " << (fa > check_false_alarms ? "FAILED" : "passed") << ": " << fa
-              << " clean drive(s) with a false finding (at most " << check_false_alarms << ")\n";
-    if (fa > check_false_alarms) status = 1;
+    const int named = res["clean"]["named_false_alarms"].get<int>();
+    const bool bad = fa > check_false_alarms || named > 0;
+    std::cerr << "check " << (bad ? "FAILED" : "passed") << ": " << named
+              << " clean drive(s) with a catalogue name (none allowed), " << fa
+              << " with any finding that is not the engine's physics (at most "
+              << check_false_alarms << ")\n";
+    if (bad) status = 1;
   }
   if (check_named_rate >= 0) {
     const double rate = res["single_named_rate"].get<double>();

@@ -846,8 +846,13 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
   for (int s2 = 0; s2 < 2; ++s2) {
     Eigen::MatrixXd L = df2.lib.middleRows(s2 * nRf, nRf);
     Eigen::MatrixXd Lv = dv2.lib.middleRows(s2 * nRv2, nRv2);
-    // i_self is the measured quantity itself: keep it out (it would absorb everything)
+    // i_self is the measured quantity itself: keep it out (it would absorb everything); the
+    // other motor's measured current carries the other equation's error (what both channels
+    // share, e.g. a forward drag, and its noise): as a regressor it borrows that error instead
+    // of describing a physical term, so it is kept out as well (issue 16; its physics - the
+    // coupling through the chassis - is spanned by vdot and omegadot).
     L.col(12).setZero(), Lv.col(12).setZero();
+    L.col(13).setZero(), Lv.col(13).setZero();
     SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
                             rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
                             lags, opt, opt.min_relevance * cfg.motors.current_noise_A);
