@@ -117,7 +117,7 @@ int main(int argc, char** argv) {
   int status = 0;
   if (check_false_alarms >= 0) {
     const int fa = res["clean"]["engine_false_alarms"].get<int>();
-    const int named = res["clean"]["named_false_alarms"].get<int>();
+    const int named = res["clean"]["catalogue_false_alarms"].get<int>();
     const bool bad = fa > check_false_alarms || named > 0;
     std::cerr << "check " << (bad ? "FAILED" : "passed") << ": " << named
               << " clean drive(s) with a catalogue name (none allowed), " << fa

@@ -6,7 +6,7 @@
 // -0.1 % radius and +0.05-0.1 % track on MuJoCo drives; this says whether that is the engine's
 // physics (docs/discovery.md, "MuJoCo's wheel geometry").
 //
-//   ./build/bench/mujoco_rolling_radius [--current A] [--turn A]
+//   ./build/bench/mujoco_rolling_radius [--current A] [--turn A] [--body-mass KG]
 // (the last line: the engine truth of simulation/MujocoTruth.h, which the campaign scores with)
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
@@ -21,15 +21,18 @@
 using namespace wheelchair;
 
 int main(int argc, char** argv) {
-  double current = 6, turn = 2;
+  double current = 6, turn = 2, payload_kg = 0;
   for (int k = 1; k + 1 < argc; k += 2) {
     const std::string a = argv[k];
     if (a == "--current")
       current = std::atof(argv[k + 1]);
     else if (a == "--turn")
       turn = std::atof(argv[k + 1]);
+    else if (a == "--body-mass")
+      payload_kg = std::atof(argv[k + 1]);
     else {
-      fmt::print(stderr, "usage: mujoco_rolling_radius [--current A] [--turn A]\n");
+      fmt::print(stderr,
+                 "usage: mujoco_rolling_radius [--current A] [--turn A] [--body-mass KG]\n");
       return 2;
     }
   }
@@ -57,16 +60,21 @@ int main(int argc, char** argv) {
       "configured {:.4f} m)\n",
       current + turn, current - turn, t.dphi_rad, b_eff, 100 * (b_eff / b - 1), b);
   // The engine truth the discovery campaign scores against (MujocoTruth.h).
-  const auto truth = simulation::measureMujocoTruth(cfg, {});
+  std::vector<effects::EffectSpec> effects;
+  if (payload_kg > 0)  // the engine truth of a chair with payload_mass:body_mass_kg=KG
+    effects.push_back(
+        effects::parseValidEffect(fmt::format("payload_mass:body_mass_kg={}", payload_kg)));
+  const auto truth = simulation::measureMujocoTruth(cfg, effects);
   for (const auto& d : truth.drives)
     fmt::print("  operating point {:+.1f} / {:+.1f} A: v {:.2f} m/s, omega {:+.2f} rad/s\n",
                d.current_right_A, d.current_left_A, d.speed_m_s, d.turn_rate_rad_s);
   fmt::print(
       "engine truth: radius {:+.3f} .. {:+.3f} %, track {:+.3f} .. {:+.3f} %, mass {:.1f} kg, "
       "centre of mass {:.4f} m ahead of the axle; current terms per side: v*omega {:+.3f} "
-      "(right; left -), omega^2 {:+.3f} A\n",
+      "(right; left -), omega^2 {:+.3f}, vdot {:+.3f} (both), omegadot {:+.3f} A (right; left -)\n",
       100 * truth.radius_rel_min, 100 * truth.radius_rel_max, 100 * truth.track_rel_min,
       100 * truth.track_rel_max, truth.mass_kg, truth.mass_moment_kg_m / truth.mass_kg,
-      truth.vOmegaCurrentCoefficient(cfg), truth.omegaSquaredCurrentCoefficient(cfg));
+      truth.vOmegaCurrentCoefficient(cfg), truth.omegaSquaredCurrentCoefficient(cfg), truth.vdot_A,
+      truth.omegadot_A);
   return 0;
 }

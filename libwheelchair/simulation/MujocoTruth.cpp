@@ -1,5 +1,6 @@
 #include "libwheelchair/simulation/MujocoTruth.h"
 
+#include "libwheelchair/model/DriveDynamics.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 
 #include <algorithm>
@@ -21,6 +22,35 @@ std::vector<effects::EffectSpec> chairEffects(const std::vector<effects::EffectS
   for (const auto& e : effects)
     if (e.id != "ground_slope") out.push_back(e);
   return out;
+}
+/// The right motor's current per unit acceleration beyond (6), from rest with the currents
+/// (iR, iL) held: accelerations from the hinge speeds over [0.1, 0.4] s (after the first
+/// transient), (6)'s currents for that motion with the chair's true body mass subtracted.
+double accelerationTerm(const config::WheelchairConfig& cfg,
+                        const std::vector<effects::EffectSpec>& effects, double iR, double iL,
+                        bool yaw) {
+  std::vector<effects::EffectSpec> mass;
+  model::VehicleParams P = cfg.vehicle;
+  for (const auto& e : effects)
+    if (e.id == "payload_mass") mass.push_back(e), P.geom.body_mass_kg = e.number("body_mass_kg");
+  MujocoChair chair(cfg, optionsOf(cfg), mass, {});
+  const double h = 0.005, r = cfg.vehicle.geom.wheel_radius_m;
+  const double lw = cfg.vehicle.geom.track_width_m;
+  const Eigen::Vector2d i(iR, iL);
+  auto motion = [&]() {
+    const ChairState s = chair.state();
+    const double uR = r * s.psidot_right_rad_s, uL = r * s.psidot_left_rad_s;
+    return Eigen::Vector2d(0.5 * (uR + uL), (uR - uL) / lw);
+  };
+  double t = 0;
+  for (; t < 0.1 - 1e-9; t += h) chair.step(i, h);
+  const Eigen::Vector2d m1 = motion();
+  for (; t < 0.4 - 1e-9; t += h) chair.step(i, h);
+  const Eigen::Vector2d m2 = motion();
+  const Eigen::Vector2d acc = (m2 - m1) / 0.3, mid = 0.5 * (m1 + m2);
+  const model::DriveTrain dt = model::DriveTrain::symmetric(P);
+  const Eigen::Vector2d pred = dt.currents({mid(0), mid(1), 0.0}, acc(0), acc(1));
+  return (iR - pred(0)) / (yaw ? acc(1) : acc(0));
 }
 }  // namespace
 
@@ -74,6 +104,8 @@ MujocoTruth measureMujocoTruth(const config::WheelchairConfig& cfg,
     for (const MujocoPart& p : chair.parts())
       if (p.mass_kg > 0) t.mass_kg += p.mass_kg, t.mass_moment_kg_m += p.mass_kg * (p.x_m - s.x_m);
   }
+  t.vdot_A = accelerationTerm(cfg, effects, 4, 4, false);
+  t.omegadot_A = accelerationTerm(cfg, effects, 3, -3, true);
   const double r = cfg.vehicle.geom.wheel_radius_m, b = cfg.vehicle.geom.track_width_m;
   const double inf = std::numeric_limits<double>::infinity();
   t.radius_rel_min = t.track_rel_min = inf;

@@ -15,7 +15,13 @@
 //                             (A) the terms  +-(moment c / l_w) v omega  (right +, left -: the
 //                             yaw moment m d v omega the drive wheels must supply) and
 //                             -(moment c / 2) omega^2 (the forward force m d omega^2), with
-//                             c = r / (eta k_m r_G) the current per newton of wheel force.
+//                             c = r / (eta k_m r_G) the current per newton of wheel force;
+//   acceleration terms        the current per unit acceleration the multibody needs beyond
+//                             model (6) with the same mass (castor wheels' spin, the payload's
+//                             yaw inertia about the axle, ...): from rest, currents held 0.4 s
+//                             (both +4 A: vdot; +-3 A: omegadot), accelerations from the wheel
+//                             hinge speeds, minus (6)'s inverse dynamics (model::DriveTrain)
+//                             at the measured motion, per unit acceleration.
 //
 // Example (nominal chair: r_eff -0.12 %, track +0.0..+0.45 % by turn rate, d = 0.070 m):
 //   MujocoTruth t = measureMujocoTruth(cfg, {});
@@ -48,7 +54,10 @@ struct MujocoTruth {
   double track_rel_min = 0, track_rel_max = 0;    ///< b_eff / track_width_m - 1
   double mass_kg = 0;                             ///< total mass of the multibody
   double mass_moment_kg_m = 0;                    ///< sum m x about the axle (kg m)
-  std::vector<MujocoSteadyDrive> drives;          ///< the operating points measured
+  /// Right motor current per unit acceleration beyond (6): vdot (A s^2/m; left the same),
+  /// omegadot (A s^2/rad; left the opposite).
+  double vdot_A = 0, omegadot_A = 0;
+  std::vector<MujocoSteadyDrive> drives;  ///< the operating points measured
   /// Current per newton of wheel force, c = r / (eta k_m r_G) (A/N).
   static double currentPerNewton(const config::WheelchairConfig& cfg);
   /// Expected coefficient of v*omega in the RIGHT motor's current (A s^2/(m rad)); left: -.

@@ -46,6 +46,7 @@ TEST(DiagnoseCampaign, MujocoEngineTruthScoresOnlyTheEnginesOwnPhysics) {
                                 {"track_rel", {t.track_rel_min, t.track_rel_max}},
                                 {"v_omega_A", k},
                                 {"omega2_A", t.omegaSquaredCurrentCoefficient(cfg)},
+                                {"omegadot_A", t.omegadot_A},
                                 {"slope_cos_A", 0.0},
                                 {"slope_sin_A", 0.0}};
   diagnosis::Finding g;
@@ -66,6 +67,11 @@ TEST(DiagnoseCampaign, MujocoEngineTruthScoresOnlyTheEnginesOwnPhysics) {
   EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
   u.parameters["v*omega"] = -k;
   EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["omegadot"] = -t.omegadot_A;  // the yaw-inertia term, left motor: opposite sign
+  EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["omegadot"] = t.omegadot_A;
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["omegadot"] = -t.omegadot_A;
   u.parameters["i_other"] = 0.5;  // a term the engine truth does not contain
   EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
   u.parameters = {{"channel", "gyro_vs_encoders"}, {"v*omega", -k}};
