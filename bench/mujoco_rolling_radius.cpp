@@ -6,9 +6,11 @@
 // -0.1 % radius and +0.05-0.1 % track on MuJoCo drives; this says whether that is the engine's
 // physics (docs/discovery.md, "MuJoCo's wheel geometry").
 //
-//   ./build/bench/mujoco_rolling_radius [--current A] [--turn A]
+//   ./build/bench/mujoco_rolling_radius [--current A] [--turn A] [--body-mass KG]
+// (the last line: the engine truth of simulation/MujocoTruth.h, which the campaign scores with)
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
+#include "libwheelchair/simulation/MujocoTruth.h"
 
 #include <fmt/core.h>
 
@@ -18,44 +20,19 @@
 
 using namespace wheelchair;
 
-namespace {
-
-struct Drive {
-  double ds_m = 0, dpsi_r = 0, dpsi_l = 0, dphi = 0;
-};
-
-// Drives with the currents held for settle_s, then measures over measure_s.
-Drive drive(const config::WheelchairConfig& cfg, double iR, double iL, double settle_s,
-            double measure_s) {
-  simulation::MujocoChair chair(cfg, simulation::MujocoOptions{}, {}, {});
-  const double h = 0.005;
-  const Eigen::Vector2d i(iR, iL);
-  for (double t = 0; t < settle_s; t += h) chair.step(i, h);
-  const auto a = chair.state();
-  double s = 0;
-  auto prev = a;
-  for (double t = 0; t < measure_s; t += h) {
-    chair.step(i, h);
-    const auto b = chair.state();
-    s += std::hypot(b.x_m - prev.x_m, b.y_m - prev.y_m);
-    prev = b;
-  }
-  return {s, prev.psi_right_rad - a.psi_right_rad, prev.psi_left_rad - a.psi_left_rad,
-          prev.phi_rad - a.phi_rad};
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
-  double current = 6, turn = 2;
+  double current = 6, turn = 2, payload_kg = 0;
   for (int k = 1; k + 1 < argc; k += 2) {
     const std::string a = argv[k];
     if (a == "--current")
       current = std::atof(argv[k + 1]);
     else if (a == "--turn")
       turn = std::atof(argv[k + 1]);
+    else if (a == "--body-mass")
+      payload_kg = std::atof(argv[k + 1]);
     else {
-      fmt::print(stderr, "usage: mujoco_rolling_radius [--current A] [--turn A]\n");
+      fmt::print(stderr,
+                 "usage: mujoco_rolling_radius [--current A] [--turn A] [--body-mass KG]\n");
       return 2;
     }
   }
@@ -70,17 +47,34 @@ int main(int argc, char** argv) {
             "({:+.3f} % of the radius)\n",
             p.name, p.radius_m, p.z_m, 1e3 * (p.radius_m - p.z_m), 100 * (p.z_m / p.radius_m - 1));
   }
-  const Drive s = drive(cfg, current, current, 4, 6);
-  const double r_eff = s.ds_m / (0.5 * (s.dpsi_r + s.dpsi_l));
+  const auto s = simulation::mujocoSteadyDrive(cfg, {}, current, current, 4, 6);
+  const double r_eff = s.distance_m / (0.5 * (s.dpsi_right_rad + s.dpsi_left_rad));
   fmt::print(
       "straight ({} A each): {:.3f} m in 6 s, effective rolling radius {:.5f} m "
       "({:+.3f} % of the configured {:.4f} m)\n",
-      current, s.ds_m, r_eff, 100 * (r_eff / r - 1), r);
-  const Drive t = drive(cfg, current + turn, current - turn, 4, 6);
-  const double b_eff = r_eff * (t.dpsi_r - t.dpsi_l) / t.dphi;
+      current, s.distance_m, r_eff, 100 * (r_eff / r - 1), r);
+  const auto t = simulation::mujocoSteadyDrive(cfg, {}, current + turn, current - turn, 4, 6);
+  const double b_eff = r_eff * (t.dpsi_right_rad - t.dpsi_left_rad) / t.dphi_rad;
   fmt::print(
       "turning ({} / {} A): {:.2f} rad in 6 s, effective track {:.5f} m ({:+.3f} % of the "
       "configured {:.4f} m)\n",
-      current + turn, current - turn, t.dphi, b_eff, 100 * (b_eff / b - 1), b);
+      current + turn, current - turn, t.dphi_rad, b_eff, 100 * (b_eff / b - 1), b);
+  // The engine truth the discovery campaign scores against (MujocoTruth.h).
+  std::vector<effects::EffectSpec> effects;
+  if (payload_kg > 0)  // the engine truth of a chair with payload_mass:body_mass_kg=KG
+    effects.push_back(
+        effects::parseValidEffect(fmt::format("payload_mass:body_mass_kg={}", payload_kg)));
+  const auto truth = simulation::measureMujocoTruth(cfg, effects);
+  for (const auto& d : truth.drives)
+    fmt::print("  operating point {:+.1f} / {:+.1f} A: v {:.2f} m/s, omega {:+.2f} rad/s\n",
+               d.current_right_A, d.current_left_A, d.speed_m_s, d.turn_rate_rad_s);
+  fmt::print(
+      "engine truth: radius {:+.3f} .. {:+.3f} %, track {:+.3f} .. {:+.3f} %, mass {:.1f} kg, "
+      "centre of mass {:.4f} m ahead of the axle; current terms per side: v*omega {:+.3f} "
+      "(right; left -), omega^2 {:+.3f}, vdot {:+.3f} (both), omegadot {:+.3f} A (right; left -)\n",
+      100 * truth.radius_rel_min, 100 * truth.radius_rel_max, 100 * truth.track_rel_min,
+      100 * truth.track_rel_max, truth.mass_kg, truth.mass_moment_kg_m / truth.mass_kg,
+      truth.vOmegaCurrentCoefficient(cfg), truth.omegaSquaredCurrentCoefficient(cfg), truth.vdot_A,
+      truth.omegadot_A);
   return 0;
 }

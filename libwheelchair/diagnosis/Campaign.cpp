@@ -1,5 +1,8 @@
 #include "libwheelchair/diagnosis/Campaign.h"
 
+#include "libwheelchair/diagnosis/KinematicCalibration.h"
+#include "libwheelchair/simulation/MujocoEngine.h"
+#include "libwheelchair/simulation/MujocoTruth.h"
 #include "libwheelchair/simulation/Simulator.h"
 #include "libwheelchair/stats/Descriptive.h"
 
@@ -91,6 +94,86 @@ double parameterError(const effects::EffectSpec& t, const Finding& f,
   return nan;
 }
 
+bool engineTruthFinding(const Finding& f, const nlohmann::json& truth) {
+  if (truth.is_null()) return false;
+  auto num = [&](const char* k) {
+    return f.parameters.contains(k) && f.parameters[k].is_number() ? f.parameters[k].get<double>()
+                                                                   : std::nan("");
+  };
+  auto within = [](double x, const nlohmann::json& range) {
+    const double lo = range[0].get<double>(), hi = range[1].get<double>();
+    const double tol = 0.25 * std::max(std::abs(lo), std::abs(hi));
+    return x >= lo - tol && x <= hi + tol;
+  };
+  if (f.effect == kWheelGeometryEffect) {
+    bool ok = true;
+    for (const char* k : {"wheel_radius_right_rel", "wheel_radius_left_rel"})
+      if (const double x = num(k); x != 0) ok = ok && within(x, truth["radius_rel"]);
+    if (const double x = num("track_rel"); x != 0) ok = ok && within(x, truth["track_rel"]);
+    return ok;
+  }
+  if (f.effect == "unmodeled" && f.parameters.contains("channel")) {
+    const std::string ch = f.parameters["channel"].get<std::string>();
+    if (ch != "current_right" && ch != "current_left") return false;
+    const double sign = ch == "current_right" ? 1.0 : -1.0;  // antisymmetric (yaw) terms
+    auto close = [](double est, double tru) { return std::abs(est - tru) <= 0.25 * std::abs(tru); };
+    int known = 0;
+    for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it) {
+      const std::string& k = it.key();
+      if (k == "channel") continue;
+      if (k != "v*omega" && k != "omega^2" && k != "omegadot" && k != "cos(phi)" && k != "sin(phi)")
+        return false;
+      ++known;
+    }
+    if (known == 0) return false;
+    if (f.parameters.contains("v*omega") &&
+        !close(num("v*omega"), sign * truth["v_omega_A"].get<double>()))
+      return false;
+    if (f.parameters.contains("omega^2") && !close(num("omega^2"), truth["omega2_A"].get<double>()))
+      return false;
+    if (f.parameters.contains("omegadot") &&
+        !close(num("omegadot"), sign * truth["omegadot_A"].get<double>()))
+      return false;
+    if (f.parameters.contains("cos(phi)") || f.parameters.contains("sin(phi)")) {
+      const double c = f.parameters.contains("cos(phi)") ? num("cos(phi)") : 0.0;
+      const double sn = f.parameters.contains("sin(phi)") ? num("sin(phi)") : 0.0;
+      const double tc = sign * truth["slope_cos_A"].get<double>();
+      const double ts = sign * truth["slope_sin_A"].get<double>();
+      const double len = std::hypot(tc, ts);
+      if (!(len > 0) || std::hypot(c - tc, sn - ts) > 0.25 * len) return false;
+    }
+    return true;
+  }
+  return false;
+}
+
+namespace {
+nlohmann::json engineTruthJson(const config::WheelchairConfig& cfg,
+                               const std::vector<effects::EffectSpec>& effects) {
+  const simulation::MujocoTruth t = simulation::measureMujocoTruth(cfg, effects);
+  // On a slope the centre of mass ahead of the axle turns the chair across the slope: the
+  // right motor's current gets -A sin(h - phi) = -A sin(h) cos(phi) + A cos(h) sin(phi), with
+  // A = c (sum m x) g sin(angle) / l_w (h = downhill heading), the left the opposite.
+  double slope_cos = 0, slope_sin = 0;
+  for (const auto& e : effects)
+    if (e.id == "ground_slope") {
+      const double a = e.number("angle_deg") * M_PI / 180,
+                   h = e.number("downhill_heading_deg") * M_PI / 180;
+      const double A = t.vOmegaCurrentCoefficient(cfg) * 9.81 * std::sin(a);
+      slope_cos = -A * std::sin(h), slope_sin = A * std::cos(h);
+    }
+  return {{"radius_rel", {t.radius_rel_min, t.radius_rel_max}},
+          {"slope_cos_A", slope_cos},
+          {"slope_sin_A", slope_sin},
+          {"track_rel", {t.track_rel_min, t.track_rel_max}},
+          {"com_ahead_m", t.mass_moment_kg_m / t.mass_kg},
+          {"v_omega_A", t.vOmegaCurrentCoefficient(cfg)},
+          {"omega2_A", t.omegaSquaredCurrentCoefficient(cfg)},
+          {"omegadot_A", t.omegadot_A},
+          {"vdot_A", t.vdot_A}};
+}
+}  // namespace
+
 nlohmann::json CaseResult::toJson() const {
   nlohmann::json j;
   std::vector<std::string> t;
@@ -104,6 +187,9 @@ nlohmann::json CaseResult::toJson() const {
   j["runtime_s"] = runtime_s;
   j["mismatch"] = mismatch;
   j["named_correct"] = named_correct;
+  j["engine_correct"] = engine_correct;
+  j["findings"] = findings;
+  if (!engine_truth.is_null()) j["engine_truth"] = engine_truth;
   return j;
 }
 
@@ -131,6 +217,25 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
   c.correct = rset == tset;
   rset.erase("unmodeled");
   c.named_correct = rset == tset;
+  // Scored against the engine's own physics: MuJoCo's effective geometry and centre of mass
+  // (measured on the multibody with this drive's effects; not for its mujoco-only effects,
+  // whose truth is what the `unknown` drives ask the diagnosis to find).
+  bool engine_only = false;
+  for (const auto& e : effects)
+    for (const auto& m : simulation::mujocoEffectCatalogue()) engine_only |= m.id == e.id;
+  if (engine == "mujoco" && !engine_only) c.engine_truth = engineTruthJson(cfg, effects);
+  std::set<std::string> eset;
+  bool engine_ok = true;
+  for (const auto& f : rep.findings) {
+    c.findings.push_back({{"effect", f.effect}, {"parameters", f.parameters}});
+    if (f.effect == "unmodeled" || f.effect == kWheelGeometryEffect) {
+      const bool ok = engineTruthFinding(f, c.engine_truth);
+      c.findings.back()["engine_truth"] = ok;
+      engine_ok = engine_ok && ok;
+    } else
+      eset.insert(f.effect);
+  }
+  c.engine_correct = engine_ok && eset == tset;
   for (auto& e : effects) {
     double err = 1.0;
     for (auto& f : rep.findings)
@@ -162,9 +267,9 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       std::cerr << label << (c.correct ? " OK  " : " FAIL") << " " << c.toJson().dump() << "\n";
   };
   nlohmann::json single = nlohmann::json::object();
-  int tot = 0, totc = 0, totn = 0;
+  int tot = 0, totc = 0, totn = 0, tote = 0;
   for (auto& id : opt.effects) {
-    int n = 0, ok = 0, named = 0;
+    int n = 0, ok = 0, named = 0, eng = 0;
     std::vector<double> errs;
     for (int k = 0; k < opt.runs_per_effect; ++k) {
       auto e = randomEffect(id, rng);
@@ -172,18 +277,19 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       uint64_t seed = rng();
       CaseResult c = runCase(cfg, sc, seed % 1000000, opt.duration_s, {e}, dopt, opt.engine);
       log(sc, c);
-      ++n, ok += c.correct, named += c.named_correct;
+      ++n, ok += c.correct, named += c.named_correct, eng += c.engine_correct;
       errs.push_back(c.param_errors[0]);
       auto j = c.toJson();
       j["scenario"] = sc, j["seed"] = seed % 1000000, j["kind"] = "single";
       cases.push_back(j);
     }
-    tot += n, totc += ok, totn += named;
+    tot += n, totc += ok, totn += named, tote += eng;
     int within = 0;
     for (double e : errs) within += e <= 0.25;
     single[id] = {{"runs", n},
                   {"correct", ok},
                   {"named_correct", named},
+                  {"engine_correct", eng},
                   {"rate", n ? double(ok) / n : 0},
                   {"median_param_error", median(errs)},
                   {"p90_param_error", quantile(errs, 0.9)},
@@ -192,9 +298,10 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
   out["single"] = single;
   out["single_rate"] = tot ? double(totc) / tot : 0;
   out["single_named_rate"] = tot ? double(totn) / tot : 0;
+  out["single_engine_rate"] = tot ? double(tote) / tot : 0;
   // Drives with k distinct concealed effects (pairs, triples): counts and parameter errors.
   auto combinations = [&](std::size_t k, int runs, const char* kind) {
-    int n = 0, ok = 0, named = 0;
+    int n = 0, ok = 0, named = 0, eng = 0;
     std::vector<double> errs;
     for (int r = 0; r < runs && opt.effects.size() >= k; ++r) {
       std::vector<std::size_t> idx;
@@ -208,7 +315,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       const uint64_t seed = rng() % 1000000;
       const CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
       log(sc, c);
-      ++n, ok += c.correct, named += c.named_correct;
+      ++n, ok += c.correct, named += c.named_correct, eng += c.engine_correct;
       for (double e : c.param_errors) errs.push_back(e);
       auto j = c.toJson();
       j["scenario"] = sc, j["seed"] = seed, j["kind"] = kind;
@@ -219,6 +326,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
     return nlohmann::json{{"runs", n},
                           {"correct", ok},
                           {"named_correct", named},
+                          {"engine_correct", eng},
                           {"rate", n ? double(ok) / n : 0},
                           {"median_param_error", median(errs)},
                           {"within_25pct", within},
@@ -226,13 +334,17 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
   };
   out["pairs"] = combinations(2, opt.pair_runs, "pair");
   {
-    int n = 0, alarms = 0, named_alarms = 0;
+    int n = 0, alarms = 0, named_alarms = 0, engine_alarms = 0, catalogue_alarms = 0;
     for (int k = 0; k < opt.clean_runs; ++k) {
       std::string sc = pickScenario();
       uint64_t seed = rng() % 1000000;
       CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {}, dopt, opt.engine);
       log(sc, c);
       ++n, alarms += !c.correct, named_alarms += !c.named_correct;
+      engine_alarms += !c.engine_correct;
+      bool named = false;  // a catalogue name (not `unmodeled`, not `wheel_geometry`)
+      for (const auto& f : c.findings) named |= !f.contains("engine_truth");
+      catalogue_alarms += named;
       auto j = c.toJson();
       j["scenario"] = sc, j["seed"] = seed, j["kind"] = "clean";
       cases.push_back(j);
@@ -240,7 +352,9 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
     out["clean"] = {{"runs", n},
                     {"false_alarms", alarms},
                     {"rate", n ? double(alarms) / n : 0},
-                    {"named_false_alarms", named_alarms}};
+                    {"named_false_alarms", named_alarms},
+                    {"engine_false_alarms", engine_alarms},
+                    {"catalogue_false_alarms", catalogue_alarms}};
   }
   if (opt.triple_runs > 0 && opt.effects.size() >= 3)
     out["triples"] = combinations(3, opt.triple_runs, "triple");

@@ -9,9 +9,11 @@
 #include "libwheelchair/model/DriveDynamics.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/sensors/Filtering.h"
+#include "libwheelchair/stats/Descriptive.h"
 #include "libwheelchair/stats/Distributions.h"
 
 #include <Eigen/LU>
+#include <Eigen/QR>
 
 #include <fmt/format.h>
 
@@ -338,6 +340,43 @@ struct Library {
   }
 };
 
+/// The held-out rule applied to each term of a sparse fit (issue 16): backward elimination
+/// on the validation rows. Each round refits (on the fit rows) without each term in turn; the
+/// term whose removal costs the held-out prediction least is dropped unless that cost is both
+/// significant, n_eff log(RSS_val without / RSS_val with) >= chi2_1(1 - alpha), and relevant:
+/// the held-out prediction changes by at least min_contribution_rms (the floor every finding
+/// must pass). Collinear library terms (e.g. the other motor's current, which carries the
+/// same dynamics) then no longer smear one physical term over several.
+std::vector<int> heldOutPrune(const Library& L, const Eigen::VectorXd& y, const Library& Lv,
+                              const Eigen::VectorXd& yv,
+                              const Groups& gv, int lags, const DiagnosisOptions& opt,
+                              double min_contribution_rms, std::vector<int> terms) {
+  auto valPrediction = [&](const std::vector<int>& t) {
+    const Eigen::VectorXd b = L.design(t).colPivHouseholderQr().solve(y);
+    return Eigen::VectorXd(Lv.design(t) * b);
+  };
+  const double crit = stats::chi2Quantile(1 - opt.alpha, 1);
+  const double nv = std::max<double>(1, yv.size());
+  while (terms.size() > 1) {
+    const Eigen::VectorXd p_full = valPrediction(terms);
+    const Eigen::VectorXd r_full = yv - p_full;
+    const double nev = effectiveSampleSize(r_full, gv, lags);
+    double best = std::numeric_limits<double>::infinity(), change_rms = 0;
+    size_t best_k = 0;
+    for (size_t k = 0; k < terms.size(); ++k) {
+      std::vector<int> t = terms;
+      t.erase(t.begin() + static_cast<long>(k));
+      const Eigen::VectorXd p = valPrediction(t);
+      const double rss = (yv - p).squaredNorm();
+      if (rss < best) best = rss, best_k = k, change_rms = (p - p_full).norm() / std::sqrt(nv);
+    }
+    const bool significant = nev * std::log(best / std::max(1e-300, r_full.squaredNorm())) >= crit;
+    if (significant && change_rms >= min_contribution_rms) break;
+    terms.erase(terms.begin() + static_cast<long>(best_k));
+  }
+  return terms;
+}
+
 /// Column `excluded` (-1: none) of the library L (fit; Lv validation) is left out as if it
 /// were zero.
 SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, const Library& Lv,
@@ -361,6 +400,14 @@ SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, 
       if (t < worst) worst = t, worst_k = static_cast<int>(k);
     }
     if (worst >= opt.stlsq_threshold_sigma) {
+      if (yv.size() > 10) {
+        const std::vector<int> kept =
+            heldOutPrune(L, y, Lv, yv, gv, lags, opt, min_contribution_rms, act);
+        if (kept.size() < act.size()) {  // refit the kept terms (and their covariance)
+          act = kept;
+          continue;
+        }
+      }
       res.terms = act;
       res.coef = f.beta;
       res.se = f.cov.diagonal().cwiseSqrt();
@@ -639,6 +686,31 @@ void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows&
                                   "turn-rate consistency", "rad/s", "rad"));
 }
 
+/// Why a gyro-vs-encoder time offset `delay_s` (> 0: the gyro stamps late) cannot be told
+/// from the vehicle's own mechanics; empty if it can. The encoders measure the wheels, the
+/// gyro the chassis: between them are the tyre contacts and the chassis' compliance, which
+/// make the chassis' yaw lag its wheels (tyre creep / relaxation). An offset shorter than one
+/// sample period of the later-stamped stream is below the time resolution of the recording,
+/// so it is not named a sensor delay; a mechanical lag would show as an offset that grows at
+/// low speed (a relaxation length over the speed), a time stamp's would not.
+std::string delayBelowSampling(const std::vector<Streams>& recs, double delay_s) {
+  std::vector<double> dt;
+  for (const Streams& s : recs) {
+    const std::vector<double>& t = delay_s > 0 ? s.tg : s.te;
+    for (size_t i = 1; i < t.size(); ++i) dt.push_back(t[i] - t[i - 1]);
+  }
+  if (dt.empty()) return {};
+  const double period_s = stats::median(dt);
+  if (std::abs(delay_s) >= period_s) return {};
+  return fmt::format(
+      "the {} lags the {} by {:.1f} ms, less than one {} sample period ({:.1f} ms): cannot tell a "
+      "sensor time-stamp delay from the chassis' own lag behind its wheels (tyre creep, "
+      "compliance); not reported. To tell them apart: turns at two speeds (a tyre's lag scales "
+      "with 1/speed, a time stamp's does not)",
+      delay_s > 0 ? "gyro" : "encoders", delay_s > 0 ? "encoders" : "gyro", 1e3 * std::abs(delay_s),
+      delay_s > 0 ? "gyro" : "encoder", 1e3 * period_s);
+}
+
 /// Stage 1: the gyro integral over encoder windows against the odometric heading change.
 /// Sets the sensor corrections (gyro, encoder scales, delay) in `corr`.
 void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
@@ -729,6 +801,13 @@ void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
         continue;
       }
     }
+    if (c.effect == "sensor_delay") {
+      if (const std::string why = delayBelowSampling(data.fit, refit.delay); !why.empty()) {
+        rep.info["cannot_tell"].push_back(why);
+        corr.delay_imu = corr.delay_enc = 0;  // not reported, so not applied after
+        continue;
+      }
+    }
     describeFinding(f, c, sel, a, fit);
     rep.addFinding(f);
   }
@@ -782,11 +861,19 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
   const Eigen::VectorXd& rf = sel.fit.residual;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   for (int s2 = 0; s2 < 2; ++s2) {
-    // This motor's rows of the library; i_self (column 12) is the measured quantity itself:
-    // keep it out (it would absorb everything).
+    // This motor's rows of the library. i_self (column 12) is the measured quantity itself:
+    // keep it out (it would absorb everything); the other motor's measured current (column 13)
+    // carries the other equation's error (what both channels share, e.g. a forward drag, and its
+    // noise): as a regressor it borrows that error instead of describing a physical term, so it
+    // is kept out as well (issue 16; its physics - the coupling through the chassis - is spanned
+    // by vdot and omegadot). A column kept out reads as zero (stlsq skips zero columns).
     const int nlib = static_cast<int>(dynLibNames().size());
-    const Library L{nRf, nlib, [&](int j) { return df2.libColumn(j, s2 * nRf, nRf); }};
-    const Library Lv{nRv2, nlib, [&](int j) { return dv2.libColumn(j, s2 * nRv2, nRv2); }};
+    auto column = [](const DynRows& d, int j, int r0, int n) -> Eigen::VectorXd {
+      if (j == 13) return Eigen::VectorXd::Zero(n);
+      return d.libColumn(j, r0, n);
+    };
+    const Library L{nRf, nlib, [&](int j) { return column(df2, j, s2 * nRf, nRf); }};
+    const Library Lv{nRv2, nlib, [&](int j) { return column(dv2, j, s2 * nRv2, nRv2); }};
     SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
                             rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
                             lags, opt, opt.min_relevance * cfg.motors.current_noise_A, 12);

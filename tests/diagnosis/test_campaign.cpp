@@ -1,5 +1,8 @@
 // A small seeded discovery campaign (the full one: bench/discovery_campaign, docs/discovery.md).
 #include "libwheelchair/diagnosis/Campaign.h"
+#include "libwheelchair/diagnosis/KinematicCalibration.h"
+#include "libwheelchair/simulation/MujocoTruth.h"
+#include "libwheelchair/simulation/Simulator.h"
 
 #include <gtest/gtest.h>
 
@@ -24,6 +27,85 @@ TEST(DiagnoseCampaign, SmallSeededCampaign) {
             << res["clean"].dump() << "\n";
   EXPECT_GE(res["single_rate"].get<double>(), 0.75);
   EXPECT_EQ(res["clean"]["false_alarms"].get<int>(), 0);
+}
+
+// The scorer's engine truth is measured on the multibody, not taken from the diagnosis: the
+// nominal MuJoCo chair rolls about 0.12 % short, its centre of mass is ~6 cm ahead of the
+// axle, and only findings that match those numbers (and the right sign per motor) count as
+// the engine's physics; the model engine has none.
+TEST(DiagnoseCampaign, MujocoEngineTruthScoresOnlyTheEnginesOwnPhysics) {
+  const config::WheelchairConfig cfg;
+  const simulation::MujocoTruth t = simulation::measureMujocoTruth(cfg, {});
+  EXPECT_LT(t.radius_rel_max, -0.0005);
+  EXPECT_GT(t.radius_rel_min, -0.002);
+  EXPECT_GT(t.track_rel_max, 0.0);
+  EXPECT_NEAR(t.mass_moment_kg_m / t.mass_kg, 0.063, 0.01);
+  const double k = t.vOmegaCurrentCoefficient(cfg);
+  EXPECT_NEAR(k, 2.06, 0.2);  // A per (m/s rad/s): the yaw moment m d v omega per motor
+  const nlohmann::json truth = {{"radius_rel", {t.radius_rel_min, t.radius_rel_max}},
+                                {"track_rel", {t.track_rel_min, t.track_rel_max}},
+                                {"v_omega_A", k},
+                                {"omega2_A", t.omegaSquaredCurrentCoefficient(cfg)},
+                                {"omegadot_A", t.omegadot_A},
+                                {"slope_cos_A", 0.0},
+                                {"slope_sin_A", 0.0}};
+  diagnosis::Finding g;
+  g.effect = diagnosis::kWheelGeometryEffect;
+  g.parameters = {{"model", "scale+track"},
+                  {"wheel_radius_right_rel", t.radius_rel_min},
+                  {"wheel_radius_left_rel", t.radius_rel_min},
+                  {"track_rel", t.track_rel_max}};
+  EXPECT_TRUE(diagnosis::engineTruthFinding(g, truth));
+  g.parameters["wheel_radius_left_rel"] = 0.004;  // a real 0.4 % wheel: not the engine's
+  EXPECT_FALSE(diagnosis::engineTruthFinding(g, truth));
+  EXPECT_FALSE(diagnosis::engineTruthFinding(g, nlohmann::json()));  // model engine
+  diagnosis::Finding u;
+  u.effect = "unmodeled";
+  u.parameters = {{"channel", "current_right"}, {"v*omega", 1.1 * k}};
+  EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["channel"] = "current_left";  // the left motor's term has the other sign
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["v*omega"] = -k;
+  EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["omegadot"] = -t.omegadot_A;  // the yaw-inertia term, left motor: opposite sign
+  EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["omegadot"] = t.omegadot_A;
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["omegadot"] = -t.omegadot_A;
+  u.parameters["i_other"] = 0.5;  // a term the engine truth does not contain
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters = {{"channel", "gyro_vs_encoders"}, {"v*omega", -k}};
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
+}
+
+// On a clean MuJoCo drive the chassis' yaw trails its wheels by ~2.5 ms (tyre creep): shorter
+// than one gyro sample, it is stated as undecidable, not named a sensor delay; a concealed
+// 50 ms gyro delay on the same engine is still named.
+TEST(DiagnoseCampaign, MujocoSubSampleGyroLagIsNotNamedARealDelayIs) {
+  const config::WheelchairConfig cfg;
+  simulation::SimulationOptions so;
+  so.loadFromConfig(cfg.ini());
+  so.engine = "mujoco";
+  so.record_ground_truth = true;
+  const diagnosis::DiagnosisOptions opt;
+  auto delays = [](const diagnosis::DiagnosisReport& rep) {
+    int n = 0;
+    for (const auto& f : rep.findings) n += f.effect == "sensor_delay";
+    return n;
+  };
+  const auto clean = simulation::simulate(cfg, "excite", 580752, 90, {}, so);
+  const auto rc = diagnosis::diagnose({clean.recording}, {}, cfg, opt);
+  EXPECT_EQ(delays(rc), 0);
+  ASSERT_TRUE(rc.info.contains("cannot_tell")) << rc.info.dump();
+  EXPECT_NE(rc.info["cannot_tell"][0].get<std::string>().find("sample period"), std::string::npos);
+  const auto late =
+      simulation::simulate(cfg, "excite", 580752, 90,
+                           {effects::parseValidEffect("sensor_delay:sensor=imu,delay_s=0.05")}, so);
+  const auto rl = diagnosis::diagnose({late.recording}, {}, cfg, opt);
+  ASSERT_EQ(delays(rl), 1);
+  for (const auto& f : rl.findings)
+    if (f.effect == "sensor_delay")
+      EXPECT_NEAR(f.parameters["delay_s"].get<double>(), 0.05, 0.0125);
 }
 
 // Exploration: DIAG_RUNS=n DIAG_EFFECTS=a,b ./test_diagnosis --gtest_also_run_disabled_tests
