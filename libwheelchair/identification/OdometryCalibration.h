@@ -44,16 +44,24 @@ namespace wheelchair::identification {
 
 /// Odometric geometry: metres of rim travel per tick (right, left) and the track (m); the
 /// lever arm is where the ground-truth point sits in the body frame relative to the axle
-/// midpoint (m; x forward, y left): dead reckoning predicts that point.
+/// midpoint (m; x forward, y left): dead reckoning predicts that point. `travel_angle_rad` is
+/// the direction in which the body travels relative to the heading the ground truth measures
+/// (rad, + = to the left): each interval's chord is laid along heading + travel_angle. It is
+/// what a motion-capture rigid body whose yaw is rotated off the axle's normal looks like, and
+/// also what an axle that is not square to the body (toe, crab) looks like: from encoders and
+/// ground-truth poses the two are the same model (both rotate the dead-reckoned path about its
+/// start by the angle).
 struct OdometryGeometry {
   double m_per_tick_right = 0, m_per_tick_left = 0, track_m = 0;
   double lever_x_m = 0, lever_y_m = 0;
+  double travel_angle_rad = 0;
 };
 
-/// From the configuration: k = odometryRadius(side) * wheel angle per tick; b = track_width_m.
+/// From the configuration: k = odometryRadius(side) * wheel angle per tick; b = track_width_m;
+/// travel angle = [vehicle] odometry_travel_angle_rad.
 OdometryGeometry odometryGeometry(const config::WheelchairConfig& cfg);
 /// Writes k_R, k_L, b back as [vehicle] wheel_radius_right_m / wheel_radius_left_m (and
-/// wheel_radius_m = their mean) and track_width_m.
+/// wheel_radius_m = their mean), track_width_m and odometry_travel_angle_rad.
 void applyOdometryGeometry(const OdometryGeometry& g, config::WheelchairConfig& cfg);
 
 /// One run: cumulative ticks and the ground-truth pose interpolated at each encoder time
@@ -117,7 +125,8 @@ struct TrajectoryFit {
   /// Scale k_R, k_L and b by one factor (keeps the heading rates c = k / b); use with
   /// free = {false, false, false}.
   bool uniform_scale = false;
-  bool lever_arm = false;  ///< also fit the ground-truth point's lever arm (absolute, m)
+  bool lever_arm = false;     ///< also fit the ground-truth point's lever arm (absolute, m)
+  bool travel_angle = false;  ///< also fit OdometryGeometry::travel_angle_rad (absolute, rad)
   int max_iterations = 30;
   /// The heading error enters the cost as heading_weight_m x error (rad -> m); 0 = position only.
   double heading_weight_m = 0;
