@@ -24,7 +24,8 @@
 //   trajectory         Levenberg-Marquardt (stats::levenbergMarquardt) on the dead-reckoned
 //                      position error itself over whole runs (the quantity the held-out metric
 //                      measures), for any subset of the relative corrections (k_R, k_L, b) =
-//                      nominal * (1 + delta).
+//                      nominal * (1 + delta), optionally the lever arm and the travel angle
+//                      (OdometryGeometry::travel_angle_rad, absolute).
 //
 // Example:
 //   auto run = odometryRun(io::importOptiodom("square/230620202042", 1));
@@ -109,8 +110,10 @@ OdometryGeometry leastSquaresCalibration(const std::vector<OdometryRun>& runs, d
 
 /// Time offset d (s) of the encoder stamps relative to the ground truth (d > 0: the encoders
 /// trail), from the heading increments: argmin over d in [-max_s, max_s] (steps of step_s) of
-/// sum_i (phi_gt(t_i - d) - phi_gt(t_{i-1} - d) - s (k_R dN_R - k_L dN_L) / b)^2 with the scale s
-/// fitted for each d. Timing is a nuisance of the fit: the geometry fitted on runs whose truth
+/// sum_i (phi_gt(t_i) - phi_gt(t_{i-1}) - s (th_odo(t_i + d) - th_odo(t_{i-1} + d)))^2 with
+/// th_odo the cumulative odometric heading (k_R N_R - k_L N_L) / b, linearly interpolated, and
+/// the scale s fitted for each d. The odometry is the one re-sampled: interpolating the noisy
+/// truth between samples would average its noise and favour half-sample shifts. Timing is a nuisance of the fit: the geometry fitted on runs whose truth
 /// is re-sampled at t - d (shiftTruth) is not biased by the lag during fast turns.
 double estimateTimeOffset(const OdometryRun& run, const OdometryGeometry& g, double max_s = 0.25,
                           double step_s = 0.005);
