@@ -111,7 +111,9 @@ void checkSpecification(const std::vector<CandidateModel>& models, const std::ve
   const double sd = jackknifeSd(d, &mean);
   kc.gain_difference_rel = mean, kc.gain_difference_sd = sd;
   kc.whole_run_model = models[bw].name, kc.increment_model = models[bi].name;
-  kc.whole_run_misspecified = std::abs(mean) > kMaxGainDisagreementZ * sd;
+  // significant (z) and larger than the resolution of a reported correction
+  kc.whole_run_misspecified =
+      std::abs(mean) > kMaxGainDisagreementZ * sd && std::abs(mean) >= kMinRelativeChange;
 }
 
 /// 1-sigma of the chosen candidate's relative corrections and travel angle from its fold fits.

@@ -27,7 +27,8 @@
 //               whole-run fit and the increment-domain fit ("heading-ls") estimate the same
 //               turn gain G = (k_R + k_L) / (2 b) (heading per tick of wheel difference). The
 //               fold-wise relative difference of G between the best whole-run candidate and
-//               "heading-ls" (same folds) is jackknifed; beyond kMaxGainDisagreementZ sigma the
+//               "heading-ls" (same folds) is jackknifed; beyond kMaxGainDisagreementZ sigma
+//               (and >= kMinRelativeChange, the resolution of a reported correction) the
 //               kinematics are misspecified: some heading change is not proportional to the
 //               wheel-tick difference (slip or a transient in turns on the spot, ...). The
 //               whole-run fit then folds it into the track, where it repeats in left-out runs
@@ -82,7 +83,8 @@ struct KinematicCalibration {
   /// difference of their turn gains (whole-run / increments - 1) and its jackknife 1-sigma.
   std::string whole_run_model, increment_model;
   double gain_difference_rel = 0, gain_difference_sd = 0;
-  bool whole_run_misspecified = false;  ///< |difference| > kMaxGainDisagreementZ sigma
+  /// |difference| > kMaxGainDisagreementZ sigma and >= kMinRelativeChange
+  bool whole_run_misspecified = false;
 };
 
 /// A candidate must lower the cross-validated error by this fraction of the nominal
