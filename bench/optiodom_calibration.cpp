@@ -7,13 +7,17 @@
 // circular/<ID>/ experiment folders (io/OptiodomImport.h). For each direction (fit squares ->
 // validate circles, fit circles -> validate squares) it prints the held-out dead-reckoning
 // error (start aligned; mean over runs of the time-mean position error, of the end position
-// error and of the end heading error) of:
+// error and of the end heading error; the same metric for every row: each held-out run is dead
+// reckoned from its first OptiTrack pose with the row's geometry and compared with OptiTrack at
+// every encoder sample, no re-alignment) of:
 //   nominal    each run's own metadata geometry (what the robot drove with)
 //   UMBmark    Borenstein & Feng from the fit squares' return errors, per experiment, the
 //              corrected geometries averaged (squares only: n/a when fitting on circles)
 //   LS         two-step linear least squares (segments of S s, default 1 s)
 //   diagnose   the `wheelchair diagnose` kinematic-calibration stage
-//              (diagnosis/KinematicCalibration.h), configuration = the first fit experiment's
+//              (diagnosis/KinematicCalibration.h), configuration = the first fit experiment's;
+//              its geometry includes the travel angle it fitted (OdometryGeometry)
+//   (LS + beta) the least-squares geometry with diagnose's travel angle: where the gain is from
 // Exit 1 when the data directory is missing or unreadable.
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
@@ -136,6 +140,12 @@ void direction(const std::string& title, const std::vector<Run>& fit, const std:
   rows.push_back(evaluate(fmt::format("diagnose ({}{})", kc.accepted ? kc.model : "no finding",
                                       kc.accepted ? "" : ": configured geometry"),
                           val, &dg));
+  // where the gain comes from: the least-squares geometry with diagnose's travel angle
+  idf::OdometryGeometry lsBeta = ls;
+  lsBeta.travel_angle_rad = dg.travel_angle_rad;
+  rows.push_back(evaluate(fmt::format("(least squares + diagnose's travel angle {:+.2f} deg)",
+                                      dg.travel_angle_rad * 180 / M_PI),
+                          val, &lsBeta));
 
   fmt::print("\n### {} ({} fit runs, {} held-out runs)\n\n", title, fit.size(), val.size());
   fmt::print(
@@ -156,6 +166,14 @@ void direction(const std::string& title, const std::vector<Run>& fit, const std:
     fmt::print(" {} {:.4f} m;", c["model"].get<std::string>(),
                c["cv_mean_position_error_m"].get<double>());
   fmt::print("\n");
+  fmt::print(
+      "specification check: whole-run {} vs increments {}: turn gain {:+.3f} % (+- {:.3f} %), "
+      "z {:+.1f} (limit {}): {}\n",
+      kc.whole_run_model, kc.increment_model, 100 * kc.gain_difference_rel,
+      100 * kc.gain_difference_sd,
+      kc.gain_difference_sd > 0 ? kc.gain_difference_rel / kc.gain_difference_sd : 0.0,
+      diagnosis::kMaxGainDisagreementZ,
+      kc.whole_run_misspecified ? "misspecified, increment-domain candidates only" : "consistent");
 }
 
 }  // namespace

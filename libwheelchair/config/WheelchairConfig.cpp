@@ -37,6 +37,9 @@ std::vector<Options> tables(WheelchairConfig& c) {
                 nonneg)
           .real("wheel_radius_left_m", g.wheel_radius_left_m,
                 "left wheel's effective rolling radius for odometry (m; 0: wheel_radius_m)", nonneg)
+          .real("odometry_travel_angle_rad", g.odometry_travel_angle_rad,
+                "direction of travel relative to the ground truth's heading (rad, + left; "
+                "odometry calibration only)")
           .real("track_width_m", g.track_width_m, "distance between the drive wheels l_w (m)", pos)
           .real("gear_ratio", g.gear_ratio, "motor turns per wheel turn r_G (-)", pos)
           .real("wheel_mass_kg", g.wheel_mass_kg, "mass of one drive wheel m_w (kg)", nonneg)

@@ -18,6 +18,9 @@ struct CandidateModel {
   const char* name;
   TrajectoryFit fit;
   bool heading_first = false;  ///< heading rates from heading increments, then the fit
+  /// every kinematic parameter from increments (the two-step least squares; the whole-run fit
+  /// adds only the travel angle, a rotation of the path about its start)
+  bool increment_domain = false;
 };
 
 OdometryGeometry fitModel(const CandidateModel& m, const std::vector<OdometryRun>& runs,
@@ -27,7 +30,9 @@ OdometryGeometry fitModel(const CandidateModel& m, const std::vector<OdometryRun
     start = identification::leastSquaresCalibration(runs, 1.0);
     start.lever_x_m = nominal.lever_x_m, start.lever_y_m = nominal.lever_y_m;
   }
-  return identification::trajectoryCalibration(runs, start, m.fit);
+  TrajectoryFit f = m.fit;
+  f.travel_angle = true;
+  return identification::trajectoryCalibration(runs, start, f);
 }
 
 std::vector<CandidateModel> candidateModels() {
@@ -45,7 +50,7 @@ std::vector<CandidateModel> candidateModels() {
     CandidateModel h{"heading+scale", {}, true};
     h.fit.free = {false, false, false}, h.fit.uniform_scale = true;
     c.push_back(h);
-    CandidateModel h2{"heading-ls", {}, true};
+    CandidateModel h2{"heading-ls", {}, true, true};
     h2.fit.free = {false, false, false};
     c.push_back(h2);
   }
@@ -67,6 +72,63 @@ std::vector<OdometryRun> fitUnits(const std::vector<OdometryRun>& runs) {
       out.push_back(identification::cropRun(r, t0 + k * T / 4, t0 + (k + 1) * T / 4));
   }
   return out;
+}
+
+/// Delete-a-group jackknife 1-sigma of the leave-one-fold-out estimates x_k (K folds):
+/// sqrt((K - 1) / K sum (x_k - mean)^2); `mean` (optional) receives their mean.
+double jackknifeSd(const std::vector<double>& x, double* mean = nullptr) {
+  const double K = static_cast<double>(x.size());
+  double m = 0, ss = 0;
+  for (double v : x) m += v / K;
+  for (double v : x) ss += (v - m) * (v - m);
+  if (mean) *mean = m;
+  return K > 1 ? std::sqrt((K - 1) / K * ss) : 0.0;
+}
+
+/// Turn gain: heading per tick of wheel-tick difference, (k_R + k_L) / (2 b) (rad/tick).
+double turnGain(const OdometryGeometry& g) {
+  return 0.5 * (g.m_per_tick_right + g.m_per_tick_left) / g.track_m;
+}
+
+/// Specification check (header: "misspecification"): the best whole-run candidate (by CV; not
+/// "heading+scale", whose turn gain is the increments') against the increment-domain candidate,
+/// the fold-wise relative difference of their turn gains, delete-a-group jackknife over the folds.
+void checkSpecification(const std::vector<CandidateModel>& models, const std::vector<double>& cv,
+                        const std::vector<std::vector<OdometryGeometry>>& foldFits,
+                        KinematicCalibration& kc) {
+  int bw = -1, bi = -1;
+  for (std::size_t m = 0; m < models.size(); ++m) {
+    if (models[m].heading_first && !models[m].increment_domain) continue;  // keeps the gain
+    int& b = models[m].increment_domain ? bi : bw;
+    if (b < 0 || cv[m] < cv[b]) b = static_cast<int>(m);
+  }
+  if (bw < 0 || bi < 0) return;
+  const auto& A = foldFits[bw];
+  const auto& B = foldFits[bi];
+  const int K = static_cast<int>(A.size());
+  std::vector<double> d(K);
+  for (int k = 0; k < K; ++k) d[k] = turnGain(A[k]) / turnGain(B[k]) - 1;
+  double mean = 0;
+  const double sd = jackknifeSd(d, &mean);
+  kc.gain_difference_rel = mean, kc.gain_difference_sd = sd;
+  kc.whole_run_model = models[bw].name, kc.increment_model = models[bi].name;
+  // significant (z) and larger than the resolution of a reported correction
+  kc.whole_run_misspecified =
+      std::abs(mean) > kMaxGainDisagreementZ * sd && std::abs(mean) >= kMinRelativeChange;
+}
+
+/// 1-sigma of the chosen candidate's relative corrections and travel angle from its fold fits.
+void jackknifeUncertainty(const std::vector<OdometryGeometry>& F, KinematicCalibration& kc) {
+  const auto& n = kc.nominal;
+  std::vector<double> x[4];
+  for (const auto& g : F) {
+    x[0].push_back(rel(g.m_per_tick_right, n.m_per_tick_right));
+    x[1].push_back(rel(g.m_per_tick_left, n.m_per_tick_left));
+    x[2].push_back(rel(g.track_m, n.track_m));
+    x[3].push_back(g.travel_angle_rad);
+  }
+  for (int p = 0; p < 3; ++p) kc.sd_rel[p] = jackknifeSd(x[p]);
+  kc.sd_travel_angle_rad = jackknifeSd(x[3]);
 }
 
 std::string percentText(double d, double sd, const char* more, const char* less) {
@@ -107,19 +169,24 @@ int crossValidate(const std::vector<CandidateModel>& models,
   double cv_nominal = 0;
   for (int k = 0; k < K; ++k)
     cv_nominal += identification::meanOdometryError(test[k], kc.nominal).mean_position_m / K;
-  int best = -1;
-  double best_cv = (1 - kMinCvGain) * cv_nominal;
+  std::vector<double> cv(models.size(), 0.0);
   for (std::size_t m = 0; m < models.size(); ++m) {
-    double cv = 0;
     for (int k = 0; k < K; ++k) {
       const auto g = fitModel(models[m], train[k], kc.nominal);
       foldFits[m].push_back(g);
-      cv += identification::meanOdometryError(test[k], g).mean_position_m / K;
+      cv[m] += identification::meanOdometryError(test[k], g).mean_position_m / K;
     }
-    kc.candidates.push_back({{"model", models[m].name}, {"cv_mean_position_error_m", cv}});
-    if (cv < best_cv) best_cv = cv, best = static_cast<int>(m);
+    kc.candidates.push_back({{"model", models[m].name}, {"cv_mean_position_error_m", cv[m]}});
   }
   kc.candidates.push_back({{"model", "nominal"}, {"cv_mean_position_error_m", cv_nominal}});
+  // a whole-run fit that disagrees with the increments is misspecified: only increment-domain
+  // candidates may then be chosen (checkSpecification)
+  checkSpecification(models, cv, foldFits, kc);
+  int best = -1;
+  double best_cv = (1 - kMinCvGain) * cv_nominal;
+  for (std::size_t m = 0; m < models.size(); ++m)
+    if (cv[m] < best_cv && (models[m].increment_domain || !kc.whole_run_misspecified))
+      best_cv = cv[m], best = static_cast<int>(m);
   return best;
 }
 
@@ -127,10 +194,12 @@ int crossValidate(const std::vector<CandidateModel>& models,
 /// lowers the held-out mean position error by kMinHeldOutGain and makes neither the end
 /// position nor the end heading worse; otherwise kc.rejected says why.
 void judgeRefit(KinematicCalibration& kc) {
+  // relative changes; the travel angle in rad (1e-3 rad: 1 mm sideways per metre driven)
   const double change =
       std::max({std::abs(rel(kc.fitted.m_per_tick_right, kc.nominal.m_per_tick_right)),
                 std::abs(rel(kc.fitted.m_per_tick_left, kc.nominal.m_per_tick_left)),
-                std::abs(rel(kc.fitted.track_m, kc.nominal.track_m))});
+                std::abs(rel(kc.fitted.track_m, kc.nominal.track_m)),
+                std::abs(kc.fitted.travel_angle_rad - kc.nominal.travel_angle_rad)});
   const bool better =
       kc.heldout_after.mean_position_m < (1 - kMinHeldOutGain) * kc.heldout_before.mean_position_m;
   // held-out rule (issue 16): neither the end position nor the end heading (the quantity the
@@ -160,21 +229,6 @@ void judgeRefit(KinematicCalibration& kc) {
         kc.model, 100 * kMinRelativeChange, 100 * change);
 }
 
-/// Jackknife standard deviations of the relative changes (right, left m/tick, track) over the
-/// K fold fits F of the chosen model (kc.sd_rel).
-void jackknife(const std::vector<OdometryGeometry>& F, int K, KinematicCalibration& kc) {
-  for (int p = 0; p < 3; ++p) {
-    auto val_of = [&](const OdometryGeometry& g) {
-      return p == 0   ? rel(g.m_per_tick_right, kc.nominal.m_per_tick_right)
-             : p == 1 ? rel(g.m_per_tick_left, kc.nominal.m_per_tick_left)
-                      : rel(g.track_m, kc.nominal.track_m);
-    };
-    double mean = 0, ss = 0;
-    for (const auto& g : F) mean += val_of(g) / K;
-    for (const auto& g : F) ss += std::pow(val_of(g) - mean, 2);
-    kc.sd_rel[p] = std::sqrt((K - 1.0) / K * ss);
-  }
-}
 
 }  // namespace
 
@@ -235,7 +289,7 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   kc.fitted = fitModel(models[best], fitRuns, kc.nominal);
   kc.heldout_after = identification::meanOdometryError(valRuns, kc.fitted);
   judgeRefit(kc);
-  if (K > 1) jackknife(foldFits[best], K, kc);
+  jackknifeUncertainty(foldFits[best], kc);
   return kc;
 }
 
@@ -266,6 +320,13 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   info["chosen"] = kc.model.empty() ? "nominal" : kc.model;
   info["heldout_before"] = errJson(kc.heldout_before);
   info["heldout_after"] = errJson(kc.heldout_after);
+  if (!kc.whole_run_model.empty())
+    info["specification"] = {{"whole_run", kc.whole_run_model},
+                             {"increments", kc.increment_model},
+                             {"turn_gain_difference_rel", kc.gain_difference_rel},
+                             {"turn_gain_difference_sd", kc.gain_difference_sd},
+                             {"max_z", kMaxGainDisagreementZ},
+                             {"whole_run_misspecified", kc.whole_run_misspecified}};
   info["accepted"] = kc.accepted;
   if (!kc.rejected.empty()) info["rejected"] = kc.rejected;
   rep.info["kinematic_calibration"] = info;
@@ -292,23 +353,41 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   if (kc.model.find("track") != std::string::npos || kc.model.rfind("heading", 0) == 0)
     what += fmt::format("{}the effective track is {}", what.empty() ? "" : "; ",
                         percentText(db, kc.sd_rel[2], "wider", "narrower"));
+  const double beta = g.travel_angle_rad - n.travel_angle_rad;
+  if (std::abs(beta) >= kMinRelativeChange)
+    what += fmt::format(
+        "; the body travels {:.2f} deg (+- {:.2f} deg) to the {} of the heading the ground truth "
+        "measures (a motion-capture body frame rotated off the axle, or an axle not square to "
+        "the body: the same in these data)",
+        std::abs(beta) * 180 / M_PI, kc.sd_travel_angle_rad * 180 / M_PI,
+        beta > 0 ? "left" : "right");
+  std::string why;
+  if (kc.whole_run_misspecified)
+    why = fmt::format(
+        " Whole-run dead reckoning ({}) wants a turn gain {:+.2f} % (+- {:.2f} %) off the heading "
+        "increments' ({}): heading that the wheel kinematics do not explain accumulates over the "
+        "runs (e.g. in or after turns on the spot), so the geometry is taken from the increments.",
+        kc.whole_run_model, 100 * kc.gain_difference_rel, 100 * kc.gain_difference_sd,
+        kc.increment_model);
   f.description = fmt::format(
       "the odometric geometry does not match the ground truth: {} (track {:.4f} m). Dead reckoning "
       "with it predicts the held-out runs better: mean position error {:.4f} m -> {:.4f} m, end "
-      "error {:.4f} m -> {:.4f} m ({}, {} run(s))",
+      "error {:.4f} m -> {:.4f} m ({}, {} run(s)).{}",
       what, g.track_m, kc.heldout_before.mean_position_m, kc.heldout_after.mean_position_m,
       kc.heldout_before.end_position_m, kc.heldout_after.end_position_m, kc.validation,
-      kc.heldout_after.runs);
+      kc.heldout_after.runs, why);
   f.parameters = {{"model", kc.model},
                   {"wheel_radius_right_rel", dR},
                   {"wheel_radius_left_rel", dL},
                   {"track_rel", db},
                   {"m_per_tick_right", g.m_per_tick_right},
                   {"m_per_tick_left", g.m_per_tick_left},
-                  {"track_width_m", g.track_m}};
+                  {"track_width_m", g.track_m},
+                  {"travel_angle_rad", g.travel_angle_rad}};
   f.uncertainty = {{"wheel_radius_right_rel", kc.sd_rel[0]},
                    {"wheel_radius_left_rel", kc.sd_rel[1]},
-                   {"track_rel", kc.sd_rel[2]}};
+                   {"track_rel", kc.sd_rel[2]},
+                   {"travel_angle_rad", kc.sd_travel_angle_rad}};
   f.evidence = {{"criterion", "k-fold cross-validated dead-reckoning position error"},
                 {"candidates", kc.candidates}};
   f.fit_before = errJson(kc.heldout_before);
@@ -322,6 +401,7 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   v["wheel_radius_left_m"] = fmt::format("{:.8g}", rL);
   v["wheel_radius_m"] = fmt::format("{:.8g}", 0.5 * (rR + rL));
   v["track_width_m"] = fmt::format("{:.8g}", g.track_m);
+  v["odometry_travel_angle_rad"] = fmt::format("{:.8g}", g.travel_angle_rad);
 }
 
 }  // namespace wheelchair::diagnosis

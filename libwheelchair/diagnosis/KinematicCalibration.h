@@ -1,31 +1,49 @@
 // Diagnosis stage "kinematic calibration" (docs/discovery.md, "Real robot without a gyro"):
 // whenever the recordings have wheel encoders and ground-truth poses (OptiTrack, Vicon, ...),
-// with or without a gyro, the odometric geometry - effective rolling radius of each wheel and
-// the track - is fitted to the ground truth and kept ONLY if it predicts held-out data better.
+// with or without a gyro, the odometric geometry - effective rolling radius of each wheel, the
+// track and the travel angle - is fitted to the ground truth and kept ONLY if it predicts
+// held-out data better.
 //
 //   candidates  nested corrections of the configured geometry (identification/
 //               OdometryCalibration.h, relative deltas of k_R, k_L, b): track; common scale;
 //               scale + track; both wheels; both wheels + track. Each is fitted by
 //               Levenberg-Marquardt on the dead-reckoned position error (start aligned);
 //               and "heading-ls" / "heading+scale": the two-step least squares (heading
-//               rates from heading increments, then the track), optionally with one common
-//               scale refitted on the positions.
+//               rates from heading increments, then the track from displacement increments),
+//               optionally with one common scale refitted on the positions. Every candidate
+//               also fits the travel angle beta (OdometryGeometry::travel_angle_rad: the body
+//               travels at heading + beta; a motion-capture frame rotated off the axle or an
+//               axle not square to the body), a rotation of each dead-reckoned run about its
+//               start that no wheel geometry can produce.
 //   timing      each fit run's truth is re-sampled at the encoder-lag-corrected times
 //               (identification::estimateTimeOffset, +-0.25 s) before fitting: a lag biases
 //               fits during fast turns; the held-out check uses the runs as recorded.
 //   choose      k-fold cross-validation over the fit recordings (at most 10 folds of
 //               contiguous recordings in the order given, so that runs of one experiment stay
 //               together; a single recording is cut into 4 time blocks): the candidate with the
-//               lowest mean position error on the left-out folds, if below the nominal
+//               lowest mean position error on the left-out folds, if 5 % below the nominal
 //               geometry's.
+//   misspecification  a Hausman-type check before choosing: if the model is right, the
+//               whole-run fit and the increment-domain fit ("heading-ls") estimate the same
+//               turn gain G = (k_R + k_L) / (2 b) (heading per tick of wheel difference). The
+//               fold-wise relative difference of G between the best whole-run candidate and
+//               "heading-ls" (same folds) is jackknifed; beyond kMaxGainDisagreementZ sigma
+//               (and >= kMinRelativeChange, the resolution of a reported correction) the
+//               kinematics are misspecified: some heading change is not proportional to the
+//               wheel-tick difference (slip or a transient in turns on the spot, ...). The
+//               whole-run fit then folds it into the track, where it repeats in left-out runs
+//               of the same path kind (so cross-validation on them cannot see it) but not on
+//               other paths; the increment fit leaves it in the per-interval residual. So only
+//               the increment-domain candidate may be chosen, and the finding says why.
 //   keep        the chosen candidate refitted on all fit data must lower the mean dead-reckoned
 //               position error on the validation data (the --validate recordings, else the
 //               held-out last part of each recording); otherwise nothing is reported.
 //   uncertainty jackknife over the folds (1 sigma).
 // The finding (effect "wheel_geometry") says it in words ("the right wheel's effective radius
-// is 0.40 % larger than configured (+- 0.05 %) ...") and sets [vehicle] wheel_radius_right_m,
-// wheel_radius_left_m, wheel_radius_m (their mean) and track_width_m in the corrected
-// configuration.
+// is 0.40 % larger than configured (+- 0.05 %) ...; the body travels 0.55 deg (+- 0.03 deg) to
+// the left of the heading the ground truth measures ...") and sets [vehicle]
+// wheel_radius_right_m, wheel_radius_left_m, wheel_radius_m (their mean), track_width_m and
+// odometry_travel_angle_rad in the corrected configuration.
 //
 // Example:
 //   KinematicCalibration kc = calibrateKinematics(fit, val, cfg, opt);
@@ -59,7 +77,14 @@ struct KinematicCalibration {
   nlohmann::json candidates = nlohmann::json::array();  ///< per candidate: CV error
   std::string validation;                               ///< what the held-out data were
   std::string rejected;                                 ///< why a chosen correction is not reported
-  std::vector<double> lags_s;  ///< per fit run: encoder stamps trail the truth by (s)
+  std::vector<double> lags_s;      ///< per fit run: encoder stamps trail the truth by (s)
+  double sd_travel_angle_rad = 0;  ///< 1-sigma of fitted.travel_angle_rad
+  /// Specification check: the best whole-run and increment-domain candidates, the relative
+  /// difference of their turn gains (whole-run / increments - 1) and its jackknife 1-sigma.
+  std::string whole_run_model, increment_model;
+  double gain_difference_rel = 0, gain_difference_sd = 0;
+  /// |difference| > kMaxGainDisagreementZ sigma and >= kMinRelativeChange
+  bool whole_run_misspecified = false;
 };
 
 /// A candidate must lower the cross-validated error by this fraction of the nominal
@@ -70,6 +95,9 @@ inline constexpr double kMinHeldOutGain = 0.01;
 /// ... and change some parameter by at least this fraction (0.1 %: 1 cm over 10 m driven):
 /// smaller corrections are within the numerical and ground-truth resolution.
 inline constexpr double kMinRelativeChange = 1e-3;
+/// Whole-run and increment-domain fits disagree on the turn gain by more than this many
+/// jackknife sigmas: the wheel kinematics are misspecified for whole-run fitting (see above).
+inline constexpr double kMaxGainDisagreementZ = 3.0;
 
 /// Runs the stage. `val` empty: fit on the first opt.fit_fraction of each recording.
 /// `stage1`: encoder scales already found against the gyro (stage 1); the stage then tests

@@ -35,11 +35,15 @@ Eigen::VectorXd poseResiduals(const std::vector<OdometryRun>& runs, const Odomet
   return e;
 }
 
-using Vec5 = Eigen::Matrix<double, 5, 1>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
 
-OdometryGeometry applyDelta(const OdometryGeometry& g0, const Vec5& d) {
-  return {g0.m_per_tick_right * (1 + d(0)), g0.m_per_tick_left * (1 + d(1)),
-          g0.track_m * (1 + d(2)), g0.lever_x_m + d(3), g0.lever_y_m + d(4)};
+OdometryGeometry applyDelta(const OdometryGeometry& g0, const Vec6& d) {
+  return {g0.m_per_tick_right * (1 + d(0)),
+          g0.m_per_tick_left * (1 + d(1)),
+          g0.track_m * (1 + d(2)),
+          g0.lever_x_m + d(3),
+          g0.lever_y_m + d(4),
+          g0.travel_angle_rad + d(5)};
 }
 
 }  // namespace
@@ -47,7 +51,9 @@ OdometryGeometry applyDelta(const OdometryGeometry& g0, const Vec5& d) {
 OdometryGeometry odometryGeometry(const config::WheelchairConfig& cfg) {
   const auto& g = cfg.vehicle.geom;
   const double rpt = cfg.encoders.params.wheelRadPerTick();
-  return {g.odometryRadius(0) * rpt, g.odometryRadius(1) * rpt, g.track_width_m};
+  OdometryGeometry o{g.odometryRadius(0) * rpt, g.odometryRadius(1) * rpt, g.track_width_m};
+  o.travel_angle_rad = g.odometry_travel_angle_rad;
+  return o;
 }
 
 void applyOdometryGeometry(const OdometryGeometry& o, config::WheelchairConfig& cfg) {
@@ -57,6 +63,7 @@ void applyOdometryGeometry(const OdometryGeometry& o, config::WheelchairConfig& 
   g.wheel_radius_left_m = o.m_per_tick_left / rpt;
   g.wheel_radius_m = 0.5 * (g.wheel_radius_right_m + g.wheel_radius_left_m);
   g.track_width_m = o.track_m;
+  g.odometry_travel_angle_rad = o.travel_angle_rad;
   cfg.syncToIni();
 }
 
@@ -121,8 +128,9 @@ std::vector<Pose2> deadReckon(const OdometryRun& r, const OdometryGeometry& g) {
     const double ds = 0.5 * (dR + dL), dphi = (dR - dL) / g.track_m;
     // The arc of one interval (model::integratePoseArc with dt = 1: ds and dphi per interval);
     // the heading is kept continuous (the ground truth's is unwrapped).
-    const Eigen::Vector3d next =
-        model::integratePoseArc(Eigen::Vector3d(q.x_m, q.y_m, q.phi_rad), ds, dphi, 1.0);
+    // the chord is laid along heading + travel angle (0: along the heading)
+    const Eigen::Vector3d next = model::integratePoseArc(
+        Eigen::Vector3d(q.x_m, q.y_m, q.phi_rad + g.travel_angle_rad), ds, dphi, 1.0);
     q = Pose2{next(0), next(1), q.phi_rad + dphi};
     p.push_back(tracked(q));
   }
@@ -253,20 +261,26 @@ OdometryRun shiftTruth(const OdometryRun& r, double d) {
 double estimateTimeOffset(const OdometryRun& r, const OdometryGeometry& g, double max_s,
                           double step_s) {
   if (r.size() < 10 || !(step_s > 0)) return 0;
-  std::vector<double> w(r.size() - 1);  // odometric heading increments
-  for (std::size_t i = 1; i < r.size(); ++i)
-    w[i - 1] = (g.m_per_tick_right * (r.ticks_right[i] - r.ticks_right[i - 1]) -
-                g.m_per_tick_left * (r.ticks_left[i] - r.ticks_left[i - 1])) /
-               g.track_m;
+  // cumulative odometric heading; it is the one re-sampled (ticks carry no measurement noise),
+  // the truth's increments stay as measured: re-sampling the noisy truth between its samples
+  // would average its noise and favour half-sample shifts whatever the true lag.
+  std::vector<double> th(r.size(), 0.0), y(r.size() - 1);
+  for (std::size_t i = 1; i < r.size(); ++i) {
+    th[i] = th[i - 1] + (g.m_per_tick_right * (r.ticks_right[i] - r.ticks_right[i - 1]) -
+                         g.m_per_tick_left * (r.ticks_left[i] - r.ticks_left[i - 1])) /
+                            g.track_m;
+    y[i - 1] = r.phi_rad[i] - r.phi_rad[i - 1];
+  }
   double best = 0, best_cost = 1e300;
   std::vector<double> t_shifted(r.size());
   for (double d = -max_s; d <= max_s + 1e-12; d += step_s) {
-    for (std::size_t i = 0; i < r.size(); ++i) t_shifted[i] = r.t_s[i] - d;
-    const std::vector<double> phi = sensors::resampleLinear(r.t_s, r.phi_rad, t_shifted);
+    // the encoders trail by d: the truth at t pairs with the odometry at t + d
+    for (std::size_t i = 0; i < r.size(); ++i) t_shifted[i] = r.t_s[i] + d;
+    const std::vector<double> w = sensors::resampleLinear(r.t_s, th, t_shifted);
     double sww = 0, swy = 0, syy = 0;
     for (std::size_t i = 1; i < r.size(); ++i) {
-      const double y = phi[i] - phi[i - 1];
-      sww += w[i - 1] * w[i - 1], swy += w[i - 1] * y, syy += y * y;
+      const double wi = w[i] - w[i - 1];
+      sww += wi * wi, swy += wi * y[i - 1], syy += y[i - 1] * y[i - 1];
     }
     const double cost = sww > 0 ? syy - swy * swy / sww : syy;
     if (cost < best_cost) best_cost = cost, best = d;
@@ -278,9 +292,9 @@ OdometryGeometry trajectoryCalibration(const std::vector<OdometryRun>& runs,
                                        const OdometryGeometry& g0, const TrajectoryFit& fit,
                                        double* rms_m) {
   // free directions of the relative correction delta (k_R, k_L, b)
-  std::vector<Vec5> dirs;
+  std::vector<Vec6> dirs;
   auto unitv = [](std::initializer_list<int> idx) {
-    Vec5 v = Vec5::Zero();
+    Vec6 v = Vec6::Zero();
     for (int i : idx) v(i) = 1;
     return v;
   };
@@ -292,9 +306,10 @@ OdometryGeometry trajectoryCalibration(const std::vector<OdometryRun>& runs,
   if (fit.free[2]) dirs.push_back(unitv({2}));
   if (fit.uniform_scale) dirs.push_back(unitv({0, 1, 2}));
   if (fit.lever_arm) dirs.push_back(unitv({3})), dirs.push_back(unitv({4}));
+  if (fit.travel_angle) dirs.push_back(unitv({5}));
   const int p = static_cast<int>(dirs.size());
   auto deltaOf = [&](const Eigen::VectorXd& x) {  // delta = sum_j x_j dirs_j
-    Vec5 d = Vec5::Zero();
+    Vec6 d = Vec6::Zero();
     for (int j = 0; j < p; ++j) d += x(j) * dirs[j];
     return d;
   };
@@ -303,8 +318,9 @@ OdometryGeometry trajectoryCalibration(const std::vector<OdometryRun>& runs,
   };
   // Stay physical: at most halve a parameter; a lever arm within the robot.
   auto physical = [&](const Eigen::VectorXd& x) {
-    const Vec5 d = deltaOf(x);
-    return !(d.head<3>().array() <= -0.5).any() && d.tail<2>().norm() <= 0.5 * g0.track_m;
+    const Vec6 d = deltaOf(x);
+    return !(d.head<3>().array() <= -0.5).any() && d.segment<2>(3).norm() <= 0.5 * g0.track_m &&
+           std::abs(d(5)) < 0.5;
   };
   Eigen::VectorXd x = Eigen::VectorXd::Zero(p), e;
   residuals(x, e, nullptr);

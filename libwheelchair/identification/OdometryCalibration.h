@@ -24,7 +24,8 @@
 //   trajectory         Levenberg-Marquardt (stats::levenbergMarquardt) on the dead-reckoned
 //                      position error itself over whole runs (the quantity the held-out metric
 //                      measures), for any subset of the relative corrections (k_R, k_L, b) =
-//                      nominal * (1 + delta).
+//                      nominal * (1 + delta), optionally the lever arm and the travel angle
+//                      (OdometryGeometry::travel_angle_rad, absolute).
 //
 // Example:
 //   auto run = odometryRun(io::importOptiodom("square/230620202042", 1));
@@ -44,16 +45,24 @@ namespace wheelchair::identification {
 
 /// Odometric geometry: metres of rim travel per tick (right, left) and the track (m); the
 /// lever arm is where the ground-truth point sits in the body frame relative to the axle
-/// midpoint (m; x forward, y left): dead reckoning predicts that point.
+/// midpoint (m; x forward, y left): dead reckoning predicts that point. `travel_angle_rad` is
+/// the direction in which the body travels relative to the heading the ground truth measures
+/// (rad, + = to the left): each interval's chord is laid along heading + travel_angle. It is
+/// what a motion-capture rigid body whose yaw is rotated off the axle's normal looks like, and
+/// also what an axle that is not square to the body (toe, crab) looks like: from encoders and
+/// ground-truth poses the two are the same model (both rotate the dead-reckoned path about its
+/// start by the angle).
 struct OdometryGeometry {
   double m_per_tick_right = 0, m_per_tick_left = 0, track_m = 0;
   double lever_x_m = 0, lever_y_m = 0;
+  double travel_angle_rad = 0;
 };
 
-/// From the configuration: k = odometryRadius(side) * wheel angle per tick; b = track_width_m.
+/// From the configuration: k = odometryRadius(side) * wheel angle per tick; b = track_width_m;
+/// travel angle = [vehicle] odometry_travel_angle_rad.
 OdometryGeometry odometryGeometry(const config::WheelchairConfig& cfg);
 /// Writes k_R, k_L, b back as [vehicle] wheel_radius_right_m / wheel_radius_left_m (and
-/// wheel_radius_m = their mean) and track_width_m.
+/// wheel_radius_m = their mean), track_width_m and odometry_travel_angle_rad.
 void applyOdometryGeometry(const OdometryGeometry& g, config::WheelchairConfig& cfg);
 
 /// One run: cumulative ticks and the ground-truth pose interpolated at each encoder time
@@ -101,8 +110,10 @@ OdometryGeometry leastSquaresCalibration(const std::vector<OdometryRun>& runs, d
 
 /// Time offset d (s) of the encoder stamps relative to the ground truth (d > 0: the encoders
 /// trail), from the heading increments: argmin over d in [-max_s, max_s] (steps of step_s) of
-/// sum_i (phi_gt(t_i - d) - phi_gt(t_{i-1} - d) - s (k_R dN_R - k_L dN_L) / b)^2 with the scale s
-/// fitted for each d. Timing is a nuisance of the fit: the geometry fitted on runs whose truth
+/// sum_i (phi_gt(t_i) - phi_gt(t_{i-1}) - s (th_odo(t_i + d) - th_odo(t_{i-1} + d)))^2 with
+/// th_odo the cumulative odometric heading (k_R N_R - k_L N_L) / b, linearly interpolated, and
+/// the scale s fitted for each d. The odometry is the one re-sampled: interpolating the noisy
+/// truth between samples would average its noise and favour half-sample shifts. Timing is a nuisance of the fit: the geometry fitted on runs whose truth
 /// is re-sampled at t - d (shiftTruth) is not biased by the lag during fast turns.
 double estimateTimeOffset(const OdometryRun& run, const OdometryGeometry& g, double max_s = 0.25,
                           double step_s = 0.005);
@@ -117,7 +128,8 @@ struct TrajectoryFit {
   /// Scale k_R, k_L and b by one factor (keeps the heading rates c = k / b); use with
   /// free = {false, false, false}.
   bool uniform_scale = false;
-  bool lever_arm = false;  ///< also fit the ground-truth point's lever arm (absolute, m)
+  bool lever_arm = false;     ///< also fit the ground-truth point's lever arm (absolute, m)
+  bool travel_angle = false;  ///< also fit OdometryGeometry::travel_angle_rad (absolute, rad)
   int max_iterations = 30;
   /// The heading error enters the cost as heading_weight_m x error (rad -> m); 0 = position only.
   double heading_weight_m = 0;

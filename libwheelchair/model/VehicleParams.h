@@ -29,6 +29,11 @@ struct Geometry {
   double gear_ratio = 18.0;      ///< r_G, motor turns per wheel turn
   double wheel_mass_kg = 8.0;    ///< m_w, one drive wheel with its rotating parts
   double body_mass_kg = 130.0;   ///< m_b, chair body with its user
+  /// Direction of travel relative to the heading the ground truth measures, rad (+ = left):
+  /// a motion-capture body frame rotated off the axle, or an axle not square to the body. Used
+  /// by odometric dead reckoning against ground truth (identification/OdometryCalibration.h);
+  /// the estimators do not use it.
+  double odometry_travel_angle_rad = 0;
 
   /// Odometric radius of side 0 (right) / 1 (left): the per-side value if set, else r.
   double odometryRadius(int side) const {
