@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <map>
@@ -255,6 +256,68 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
   return c;
 }
 
+namespace {
+/// What every campaign drive shares: the random source, the drive picker, the log and the
+/// list of cases (one JSON per drive).
+struct CampaignContext {
+  const config::WheelchairConfig& cfg;
+  const CampaignOptions& opt;
+  const DiagnosisOptions& dopt;
+  std::mt19937_64& rng;
+  std::function<std::string()> pickScenario;
+  std::function<void(const std::string&, const CaseResult&)> log;
+  nlohmann::json& cases;
+};
+
+/// Drives without any concealed effect: every finding is false (or, on MuJoCo, the engine's
+/// own physics: engine_false_alarms / catalogue_false_alarms).
+nlohmann::json cleanRuns(CampaignContext& x) {
+  const auto& [cfg, opt, dopt, rng, pickScenario, log, cases] = x;
+  int n = 0, alarms = 0, named_alarms = 0, engine_alarms = 0, catalogue_alarms = 0;
+  for (int k = 0; k < opt.clean_runs; ++k) {
+    std::string sc = pickScenario();
+    uint64_t seed = rng() % 1000000;
+    CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {}, dopt, opt.engine);
+    log(sc, c);
+    ++n, alarms += !c.correct, named_alarms += !c.named_correct;
+    engine_alarms += !c.engine_correct;
+    bool named = false;  // a catalogue name (not `unmodeled`, not `wheel_geometry`)
+    for (const auto& f : c.findings) named |= !f.contains("engine_truth");
+    catalogue_alarms += named;
+    auto j = c.toJson();
+    j["scenario"] = sc, j["seed"] = seed, j["kind"] = "clean";
+    cases.push_back(j);
+  }
+  return {{"runs", n},
+          {"false_alarms", alarms},
+          {"rate", n ? double(alarms) / n : 0},
+          {"named_false_alarms", named_alarms},
+          {"engine_false_alarms", engine_alarms},
+          {"catalogue_false_alarms", catalogue_alarms}};
+}
+
+/// Drives with effects outside the catalogue: how many were flagged and under which names.
+nlohmann::json unknownRuns(CampaignContext& x) {
+  const auto& [cfg, opt, dopt, rng, pickScenario, log, cases] = x;
+  int n = 0, flagged = 0;
+  std::map<std::string, int> named;
+  for (int k = 0; k < opt.unknown_runs; ++k) {
+    const auto es = opt.unknown_effects(rng);
+    std::string sc = pickScenario();
+    uint64_t seed = rng() % 1000000;
+    CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
+    log(sc, c);
+    ++n, flagged += c.mismatch || !c.reported.empty();
+    for (const auto& r : c.reported) ++named[r.substr(0, r.find(' '))];
+    auto j = c.toJson();
+    j["scenario"] = sc, j["seed"] = seed, j["kind"] = "unknown";
+    cases.push_back(j);
+  }
+  return {
+      {"runs", n}, {"flagged", flagged}, {"rate", n ? double(flagged) / n : 0}, {"named", named}};
+}
+}  // namespace
+
 nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOptions& opt,
                            const DiagnosisOptions& dopt) {
   std::mt19937_64 rng(opt.seed);
@@ -333,49 +396,11 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
                           {"params", errs.size()}};
   };
   out["pairs"] = combinations(2, opt.pair_runs, "pair");
-  {
-    int n = 0, alarms = 0, named_alarms = 0, engine_alarms = 0, catalogue_alarms = 0;
-    for (int k = 0; k < opt.clean_runs; ++k) {
-      std::string sc = pickScenario();
-      uint64_t seed = rng() % 1000000;
-      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {}, dopt, opt.engine);
-      log(sc, c);
-      ++n, alarms += !c.correct, named_alarms += !c.named_correct;
-      engine_alarms += !c.engine_correct;
-      bool named = false;  // a catalogue name (not `unmodeled`, not `wheel_geometry`)
-      for (const auto& f : c.findings) named |= !f.contains("engine_truth");
-      catalogue_alarms += named;
-      auto j = c.toJson();
-      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "clean";
-      cases.push_back(j);
-    }
-    out["clean"] = {{"runs", n},
-                    {"false_alarms", alarms},
-                    {"rate", n ? double(alarms) / n : 0},
-                    {"named_false_alarms", named_alarms},
-                    {"engine_false_alarms", engine_alarms},
-                    {"catalogue_false_alarms", catalogue_alarms}};
-  }
+  CampaignContext ctx{cfg, opt, dopt, rng, pickScenario, log, cases};
+  out["clean"] = cleanRuns(ctx);
   if (opt.triple_runs > 0 && opt.effects.size() >= 3)
     out["triples"] = combinations(3, opt.triple_runs, "triple");
-  if (opt.unknown_runs > 0 && opt.unknown_effects) {
-    int n = 0, flagged = 0;
-    std::map<std::string, int> named;
-    for (int k = 0; k < opt.unknown_runs; ++k) {
-      const auto es = opt.unknown_effects(rng);
-      std::string sc = pickScenario();
-      uint64_t seed = rng() % 1000000;
-      CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
-      log(sc, c);
-      ++n, flagged += c.mismatch || !c.reported.empty();
-      for (const auto& r : c.reported) ++named[r.substr(0, r.find(' '))];
-      auto j = c.toJson();
-      j["scenario"] = sc, j["seed"] = seed, j["kind"] = "unknown";
-      cases.push_back(j);
-    }
-    out["unknown"] = {
-        {"runs", n}, {"flagged", flagged}, {"rate", n ? double(flagged) / n : 0}, {"named", named}};
-  }
+  if (opt.unknown_runs > 0 && opt.unknown_effects) out["unknown"] = unknownRuns(ctx);
   out["engine"] = opt.engine;
   out["cases"] = cases;
   return out;

@@ -458,6 +458,38 @@ void CdEkf::propagate(double t1_s, const CdInput& u, bool continuous) {
   integrate(t1_s, u, continuous);
 }
 
+void CdEkf::initCvode(double tau0) {
+  // The first integration: CVODE's memory, tolerances, solver and limits (once per filter).
+  const int N = n_ + packedSize(n_);
+  void* mem = cv_->mem;
+  check(CVodeInit(mem, &CdEkfAccess::rhs, tau0, cv_->y), "CVodeInit");
+  if (opt_.rel_tol >= 0 && std::all_of(NV_DATA_S(cv_->abstol), NV_DATA_S(cv_->abstol) + N,
+                                       [](double a) { return a > 0; }))
+    check(CVodeWFtolerances(mem, &CdEkfAccess::ewt), "CVodeWFtolerances");
+  else  // CVODE's own weights, with its check for a zero weight denominator
+    check(CVodeSVtolerances(mem, opt_.rel_tol, cv_->abstol), "CVodeSVtolerances");
+  check(CVodeSetUserData(mem, this), "CVodeSetUserData");
+  // Failures are reported by the exception of integrate() (one line naming the interval),
+  // not by CVODE's own print to stderr.
+  check(CVodeSetErrHandlerFn(
+            mem, [](int, const char*, const char*, char*, void*) {}, nullptr),
+        "CVodeSetErrHandlerFn");
+  if (opt_.method == CvodeOptions::Method::Adams) {
+    cv_->nls = SUNNonlinSol_FixedPoint(cv_->y, 0, cv_->ctx);
+    if (!cv_->nls) throw std::runtime_error("CdEkf: SUNNonlinSol_FixedPoint failed");
+    check(CVodeSetNonlinearSolver(mem, cv_->nls), "CVodeSetNonlinearSolver");
+  } else {
+    cv_->A = SUNDenseMatrix(N, N, cv_->ctx);
+    cv_->ls = SUNLinSol_Dense(cv_->y, cv_->A, cv_->ctx);
+    if (!cv_->A || !cv_->ls) throw std::runtime_error("CdEkf: dense linear solver failed");
+    check(CVodeSetLinearSolver(mem, cv_->ls, cv_->A), "CVodeSetLinearSolver");
+  }
+  check(CVodeSetMaxNumSteps(mem, opt_.max_num_steps), "CVodeSetMaxNumSteps");
+  check(CVodeSetNonlinConvCoef(mem, opt_.nonlin_conv_coef), "CVodeSetNonlinConvCoef");
+  if (opt_.max_step_s > 0) check(CVodeSetMaxStep(mem, opt_.max_step_s), "CVodeSetMaxStep");
+  if (opt_.max_order > 0) check(CVodeSetMaxOrd(mem, opt_.max_order), "CVodeSetMaxOrd");
+}
+
 void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   if (!(t1_s >= t_)) throw std::invalid_argument("CdEkf::propagate: time goes backwards");
   const double dt = t1_s - t_;
@@ -500,32 +532,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   if (!resume) {
     pack(y);
     if (!cv_->initialised) {
-      check(CVodeInit(mem, &CdEkfAccess::rhs, tau0, cv_->y), "CVodeInit");
-      if (opt_.rel_tol >= 0 && std::all_of(NV_DATA_S(cv_->abstol), NV_DATA_S(cv_->abstol) + N,
-                                           [](double a) { return a > 0; }))
-        check(CVodeWFtolerances(mem, &CdEkfAccess::ewt), "CVodeWFtolerances");
-      else  // CVODE's own weights, with its check for a zero weight denominator
-        check(CVodeSVtolerances(mem, opt_.rel_tol, cv_->abstol), "CVodeSVtolerances");
-      check(CVodeSetUserData(mem, this), "CVodeSetUserData");
-      // Failures are reported by the exception of integrate() (one line naming the interval),
-      // not by CVODE's own print to stderr.
-      check(CVodeSetErrHandlerFn(
-                mem, [](int, const char*, const char*, char*, void*) {}, nullptr),
-            "CVodeSetErrHandlerFn");
-      if (opt_.method == CvodeOptions::Method::Adams) {
-        cv_->nls = SUNNonlinSol_FixedPoint(cv_->y, 0, cv_->ctx);
-        if (!cv_->nls) throw std::runtime_error("CdEkf: SUNNonlinSol_FixedPoint failed");
-        check(CVodeSetNonlinearSolver(mem, cv_->nls), "CVodeSetNonlinearSolver");
-      } else {
-        cv_->A = SUNDenseMatrix(N, N, cv_->ctx);
-        cv_->ls = SUNLinSol_Dense(cv_->y, cv_->A, cv_->ctx);
-        if (!cv_->A || !cv_->ls) throw std::runtime_error("CdEkf: dense linear solver failed");
-        check(CVodeSetLinearSolver(mem, cv_->ls, cv_->A), "CVodeSetLinearSolver");
-      }
-      check(CVodeSetMaxNumSteps(mem, opt_.max_num_steps), "CVodeSetMaxNumSteps");
-      check(CVodeSetNonlinConvCoef(mem, opt_.nonlin_conv_coef), "CVodeSetNonlinConvCoef");
-      if (opt_.max_step_s > 0) check(CVodeSetMaxStep(mem, opt_.max_step_s), "CVodeSetMaxStep");
-      if (opt_.max_order > 0) check(CVodeSetMaxOrd(mem, opt_.max_order), "CVodeSetMaxOrd");
+      initCvode(tau0);
       cv_->initialised = true;
     } else {
       check(CVodeReInit(mem, tau0, cv_->y), "CVodeReInit");

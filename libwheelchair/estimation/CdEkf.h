@@ -179,6 +179,8 @@ class CdEkf {
   void pack(double* y) const;
   void unpack(const double* y);
   void integrate(double t1_s, const CdInput& u, bool continuous);
+  /// CVodeInit and the solver set-up of the first integration, at CVODE time tau0 (s).
+  void initCvode(double tau0);
 
   const CdModel& model_;
   CvodeOptions opt_;
