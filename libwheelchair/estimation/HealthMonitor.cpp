@@ -8,8 +8,7 @@
 namespace wheelchair::estimation {
 
 namespace {
-constexpr double kDrift = 0.5;       // CUSUM k (in sigmas)
-constexpr double kThreshold = 12.0;  // CUSUM h
+constexpr double kThreshold = Cusum::kThreshold;
 constexpr double kReportSd = 0.005;  // a scale is reported once its sd is below this (-)
 constexpr double kMinFault = 0.01;   // and it is off by more than this and 3 sd (-)
 const char* const kSide[2] = {"right", "left"};
@@ -35,57 +34,58 @@ std::string encoderScaleText(const std::string& side, double k, double sd, doubl
                      std::abs(1 - k) * 100, k < 1 ? "short" : "long", sd * 100, since);
 }
 
+bool Cusum::update(double t, double nu) {
+  gp = std::max(0.0, gp + nu - kDrift);
+  gm = std::max(0.0, gm - nu - kDrift);
+  if (gp == 0) zp_s = t;
+  if (gm == 0) zm_s = t;
+  if (gp <= kThreshold && gm <= kThreshold) return false;
+  onset_s = gp > kThreshold ? zp_s : zm_s;
+  return true;
+}
+
+void Cusum::restart(double t) {
+  gp = gm = 0;
+  zp_s = zm_s = t;
+}
+
 bool HealthMonitor::encoderInnovation(double t, double nu) {
-  if (!std::isfinite(nu)) return false;
-  gp_ = std::max(0.0, gp_ + nu - kDrift);
-  gm_ = std::max(0.0, gm_ - nu - kDrift);
-  if (gp_ == 0) zp_ = t;
-  if (gm_ == 0) zm_ = t;
-  if (gp_ <= kThreshold && gm_ <= kThreshold) return false;
-  onset_s_ = gp_ > kThreshold ? zp_ : zm_;
+  if (!std::isfinite(nu) || !enc_.update(t, nu)) return false;
   HealthEvent e;
   e.t_s = t;
   e.sensor = "encoders";
   e.kind = "inconsistent";
   e.parameter = "cusum";
-  e.value = std::max(gp_, gm_);
-  e.since_s = onset_s_;
+  e.value = enc_.value();
+  e.since_s = enc_.onset_s;
   e.text = fmt::format(
       "encoders inconsistent with the gyro since t = {:.1f} s (CUSUM {:.1f} > {:.0f}): "
       "re-estimating the encoder scales",
-      onset_s_ - t0_, e.value, kThreshold);
+      enc_.onset_s - t0_, e.value, kThreshold);
   events_.push_back(e);
-  gp_ = gm_ = 0;
-  zp_ = zm_ = t;
+  enc_.restart(t);
   return true;
 }
 
 bool HealthMonitor::gyroInnovation(double t, double nu, bool bias_estimated) {
   // Without a bias state nothing changes after an alarm: it is reported once.
-  if (!std::isfinite(nu) || gyro_latched_) return false;
-  ggp_ = std::max(0.0, ggp_ + nu - kDrift);
-  ggm_ = std::max(0.0, ggm_ - nu - kDrift);
-  if (ggp_ == 0) gzp_ = t;
-  if (ggm_ == 0) gzm_ = t;
-  if (ggp_ <= kThreshold && ggm_ <= kThreshold) return false;
-  gyro_onset_s_ = ggp_ > kThreshold ? gzp_ : gzm_;
+  if (!std::isfinite(nu) || gyro_latched_ || !gyro_.update(t, nu)) return false;
   HealthEvent e;
   e.t_s = t;
   e.sensor = "gyro";
   e.kind = "inconsistent";
   e.parameter = "cusum";
-  e.value = std::max(ggp_, ggm_);
-  e.since_s = gyro_onset_s_;
+  e.value = gyro_.value();
+  e.since_s = gyro_.onset_s;
   e.text = fmt::format(
       "gyro reads {} than the standing chair's 0 since t = {:.1f} s (CUSUM {:.1f} > {:.0f}): {}",
-      ggp_ > kThreshold ? "higher" : "lower", gyro_onset_s_ - t0_, e.value, kThreshold,
+      gyro_.high() ? "higher" : "lower", gyro_.onset_s - t0_, e.value, kThreshold,
       bias_estimated ? "re-estimating its bias"
                      : "its bias is not estimated (set estimate_gyro_bias = 1); the "
                        "encoder scales will take the blame while moving");
   events_.push_back(e);
   gyro_latched_ = !bias_estimated;
-  ggp_ = ggm_ = 0;
-  gzp_ = gzm_ = t;
+  gyro_.restart(t);
   return true;
 }
 
@@ -105,9 +105,9 @@ void HealthMonitor::gyroBias(double t, double b, double sd) {
   e.parameter = "bias_rad_s";
   e.value = b;
   e.sd = sd;
-  e.since_s = gyro_onset_s_;
+  e.since_s = gyro_.onset_s;
   e.text = fmt::format("gyro reads {:+.3f} rad/s (+-{:.3f}) too {} (bias) since t = {:.1f} s", b,
-                       sd, b > 0 ? "high" : "low", gyro_onset_s_ - t0_);
+                       sd, b > 0 ? "high" : "low", gyro_.onset_s - t0_);
   events_.push_back(e);
 }
 
@@ -138,12 +138,12 @@ void HealthMonitor::report(double t, int side, double k, double sd) {
   e.parameter = side < 2 ? "scale" : "scale_ratio";
   e.value = k;
   e.sd = sd;
-  e.since_s = onset_s_;
-  e.text = side < 2 ? encoderScaleText(kSide[side], k, sd, onset_s_ - t0_)
+  e.since_s = enc_.onset_s;
+  e.text = side < 2 ? encoderScaleText(kSide[side], k, sd, enc_.onset_s - t0_)
                     : fmt::format(
                           "encoders disagree: right / left reads {:.4f} (+-{:.4f}) since t = "
                           "{:.1f} s (which side: the next turn tells)",
-                          k, sd, onset_s_ - t0_);
+                          k, sd, enc_.onset_s - t0_);
   events_.push_back(e);
 }
 

@@ -30,11 +30,31 @@
 
 namespace wheelchair::estimation {
 
+/// Two-sided CUSUM (Page 1954) of a standardised innovation nu ~ N(0, 1):
+///   g+ = max(0, g+ + nu - k),  g- = max(0, g- - nu - k),  alarm when g+ > h or g- > h;
+/// the onset is the last time the alarming side was 0 (the change-point estimate).
+/// k = 0.5 sigma, h = 12: a 1-sigma shift alarms after ~25 samples on average, a consistent
+/// sensor about once in 5e5 samples (Siegmund's approximations of the run lengths).
+struct Cusum {
+  static constexpr double kDrift = 0.5;       ///< k (sigmas)
+  static constexpr double kThreshold = 12.0;  ///< h
+  explicit Cusum(double t0_s) : zp_s(t0_s), zm_s(t0_s), onset_s(t0_s) {}
+  /// Adds one innovation at t_s; true on an alarm (then value(), high() and onset_s describe
+  /// it until restart()).
+  bool update(double t_s, double nu);
+  /// Restarts both sums at t_s (after an alarm).
+  void restart(double t_s);
+  double value() const { return gp > gm ? gp : gm; }
+  bool high() const { return gp > kThreshold; }  ///< the alarm is the positive side
+  double gp = 0, gm = 0;                         ///< the sums
+  double zp_s, zm_s;                             ///< last times they were 0 (s)
+  double onset_s = 0;                            ///< onset of the last alarm (s)
+};
+
 class HealthMonitor {
  public:
   /// t0_s: start of the recording (texts give times relative to it).
-  explicit HealthMonitor(double t0_s = 0)
-      : t0_(t0_s), onset_s_(t0_s), gzp_(t0_s), gzm_(t0_s), gyro_onset_s_(t0_s) {}
+  explicit HealthMonitor(double t0_s = 0) : t0_(t0_s), enc_(t0_s), gyro_(t0_s) {}
 
   /// One encoder z_omega normalised innovation (accepted or gated). Returns true on an alarm
   /// (then an "inconsistent" event has been added and the CUSUM restarted).
@@ -57,13 +77,10 @@ class HealthMonitor {
   void report(double t_s, int side, double k, double sd);
 
   double t0_;
-  double gp_ = 0, gm_ = 0;          // CUSUM sums
-  double zp_ = 0, zm_ = 0;          // last times they were 0
-  double onset_s_;                  // onset of the current fault hypothesis
+  Cusum enc_;                       // encoders' z_omega (its onset: the fault hypothesis')
   double reported_[3] = {1, 1, 1};  // last reported scale per side, ratio (1: none)
   double reported_sd_[3] = {0, 0, 0};
-  double ggp_ = 0, ggm_ = 0, gzp_ = 0, gzm_ = 0;  // gyro CUSUM sums, last times they were 0
-  double gyro_onset_s_;
+  Cusum gyro_;                                       // the gyro at standstill
   double gyro_reported_ = 0, gyro_reported_sd_ = 0;  // last reported bias (0: none)
   bool gyro_latched_ = false;  // alarm reported and no bias state: no further gyro alarms
   std::vector<HealthEvent> events_;

@@ -382,7 +382,7 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
         scaledEncoderSpeeds(a, x(kIdxEncScaleS), x(kIdxEncScaleD), track_width_m_, &dz_da, &dz_dk);
     m.H = dz_da * da;
     m.H.block<2, 2>(0, kIdxEncScaleS) = dz_dk;  // the true Jacobian: the covariance's
-    Eigen::MatrixXd Hg = m.H;  // the gain's model
+    Eigen::MatrixXd Hg = m.H;                   // the gain's model
     Eigen::Matrix2d Rg = R;
     const Eigen::Matrix2d learn = learnableScaleColumns(da, a, Hg, Rg);
     r = scaleConsiderUpdate(m.z - m.h, m.H, R, Hg, Rg, learn, g);
@@ -435,6 +435,23 @@ Eigen::Matrix2d WheelchairEkf::learnableScaleColumns(
 }
 
 namespace {
+/// The covariance after x += K y for ANY gain K (first order, exact for a linear h):
+/// the Joseph form (I - K H) P (I - K H)' + K R K', without n x n x n products:
+/// A = P - K (P H')', then A - (A H') K' + K R K'.
+template <int N, int M>
+Eigen::Matrix<double, N, N> josephAnyGain(const Eigen::Matrix<double, N, N>& P,
+                                          const Eigen::Matrix<double, N, M>& K,
+                                          const Eigen::Matrix<double, N, M>& PHt,
+                                          const Eigen::Matrix<double, M, N>& Ht,
+                                          const Eigen::Matrix<double, M, M>& R) {
+  Eigen::Matrix<double, N, N> Pn = P;
+  Pn.noalias() -= K * PHt.transpose();
+  const Eigen::Matrix<double, N, M> AHt = Pn * Ht.transpose();
+  Pn.noalias() -= AHt * K.transpose();
+  Pn.noalias() += (K * R) * K.transpose();
+  return Pn;
+}
+
 Eigen::Matrix2d inverse2(const Eigen::Matrix2d& S, double det) {
   Eigen::Matrix2d inv;
   inv << S(1, 1), -S(0, 1), -S(1, 0), S(0, 0);
@@ -506,18 +523,8 @@ UpdateResult WheelchairEkf::scaleConsiderUpdate(const Eigen::Vector2d& y, const 
       if (j != kIdxEncScaleS) K(j, 1) += D(j) * kks;
     K(kIdxEncScaleS, 1) = kks;
   }
-  xs_ = ekf_.x();
-  xs_ += K * y;
-  // Joseph form (I - K H) P (I - K H)' + K R K' without n x n x n products (any K):
-  // A = P - K (P H')', then A - (A H') K' + K R K'.
-  MatN Pn = P;
-  Pn.noalias() -= K * PHt.transpose();
-  const MatN2 AHt = Pn * Ht.transpose();
-  Pn.noalias() -= AHt * K.transpose();
-  Pn.noalias() += (K * R) * K.transpose();
-  Pw_ = Pn;
-  ekf_.setState(xs_);
-  ekf_.setCovariance(Pw_);
+  const Eigen::Matrix<double, N, 1> dx = K * y;  // (Ref binds it without a copy)
+  applyGain(dx, josephAnyGain<N, 2>(P, K, PHt, Ht, R));
   r.accepted = true;
   return r;
 }
@@ -563,8 +570,8 @@ UpdateResult WheelchairEkf::correct(Measurement& m, double g) {
   const bool error_states = pm_.stateDim() > kPhysicsStateDim;
   // With the sensor-error states, the gyro and the sonar do not teach the common encoder
   // scale k_s (scaleKnownUpdate; docs/estimation.md "Sensor-error states"); Pozyx does.
-  const bool scale_known = error_states && m.dim() == 1 &&
-                           (m.sensor == Sensor::Gyro || m.sensor == Sensor::Sonar);
+  const bool scale_known =
+      error_states && m.dim() == 1 && (m.sensor == Sensor::Gyro || m.sensor == Sensor::Sonar);
   const UpdateResult r =
       scale_known ? scaleKnownUpdate(m.z(0) - m.h(0), m.H, m.R(0, 0), g) : ekf_.correct(m, g);
   if (error_states && m.sensor == Sensor::Gyro) gyroHealth(m.z(0), m.R(0, 0));
@@ -589,6 +596,15 @@ void WheelchairEkf::gyroHealth(double z_rad_s, double R) {
   if (opt_.estimate_gyro_bias)
     health_.gyroBias(t, ekf_.x()(kIdxGyroBias),
                      std::sqrt(std::max(0.0, ekf_.P()(kIdxGyroBias, kIdxGyroBias))));
+}
+
+void WheelchairEkf::applyGain(const Eigen::Ref<const Eigen::VectorXd>& dx,
+                              const Eigen::Ref<const Eigen::MatrixXd>& P_new) {
+  xs_ = ekf_.x();
+  xs_ += dx;
+  Pw_ = P_new;
+  ekf_.setState(xs_);
+  ekf_.setCovariance(Pw_);
 }
 
 UpdateResult WheelchairEkf::scaleKnownUpdate(double y, const Eigen::MatrixXd& H, double R,
@@ -618,16 +634,8 @@ UpdateResult WheelchairEkf::scaleKnownUpdate(double y, const Eigen::MatrixXd& H,
   const double Sc = Ht.dot(PcHt) + R;
   VecN K = PcHt / Sc;
   K(kIdxEncScaleS) = 0.0;
-  xs_ = ekf_.x();
-  xs_ += K * y;
-  MatN Pn = P;  // Joseph form as in scaleConsiderUpdate
-  Pn.noalias() -= K * PHt.transpose();
-  const VecN AHt = Pn * Ht.transpose();
-  Pn.noalias() -= AHt * K.transpose();
-  Pn.noalias() += (K * R) * K.transpose();
-  Pw_ = Pn;
-  ekf_.setState(xs_);
-  ekf_.setCovariance(Pw_);
+  const VecN dx = K * y;
+  applyGain(dx, josephAnyGain<N, 1>(P, K, PHt, Ht, Eigen::Matrix<double, 1, 1>::Constant(R)));
   r.accepted = true;
   return r;
 }

@@ -150,6 +150,9 @@ class WheelchairEkf : public Estimator {
   /// A scalar update (gyro, sonar) that does not learn the common encoder scale k_s (gain from the
   /// covariance conditional on k_s; Joseph covariance with the true H).
   UpdateResult scaleKnownUpdate(double y, const Eigen::MatrixXd& H, double R, double gate);
+  /// x += dx and P = P_new (the consider updates' last step).
+  void applyGain(const Eigen::Ref<const Eigen::VectorXd>& dx,
+                 const Eigen::Ref<const Eigen::MatrixXd>& P_new);
   /// The gyro's health monitor after its update: CUSUM of the reading against omega = 0 while
   /// the encoders show standstill; an alarm re-opens the bias state (HealthMonitor.h).
   void gyroHealth(double z_rad_s, double R);
