@@ -387,11 +387,15 @@ class EventMerger {
   /// A sample as read (file order; index within its stream). Streams not used are dropped.
   void push(const io::AnySample& s, std::size_t stored) {
     if (auto* e = std::get_if<io::EncoderSample>(&s)) {
-      if (opt_.use_encoders) enc_.push(*e, stored);
+      if (opt_.use_encoders) {
+        enc_.push(*e, stored);
+        ++enc_pushed_;
+      }
     } else if (auto* g = std::get_if<io::ImuSample>(&s)) {
       if (opt_.use_gyro) imu_.push(*g, stored);
     } else if (auto* m = std::get_if<io::MotorSample>(&s)) {
       mot_.push(*m, stored);
+      ++mot_pushed_;
     } else if (auto* r = std::get_if<io::SonarSample>(&s)) {
       if (opt_.use_sonar) son_.push(*r, stored);
     } else if (auto* p = std::get_if<io::PozyxSample>(&s)) {
@@ -404,6 +408,17 @@ class EventMerger {
     eof_ = eof;
   }
   bool eof() const { return eof_; }
+  /// Live input (LiveEstimator): the totals are unknown until the end; endOfInput() then
+  /// sets them to what was pushed and releases everything.
+  void setOpenEnded(bool motors_expected) {
+    enc_total_ = std::numeric_limits<std::size_t>::max();
+    mot_total_ = motors_expected ? enc_total_ : 0;
+  }
+  void endOfInput() {
+    enc_total_ = enc_pushed_;
+    mot_total_ = mot_pushed_;
+    setWatermark(std::numeric_limits<double>::infinity(), true);
+  }
 
   /// The next event if it can be decided from what was pushed so far: false with `more` set
   /// when more samples are needed, false with `more` clear at the end.
@@ -501,6 +516,7 @@ class EventMerger {
   std::size_t start_stored_ = 0;
   bool first_interval_ = false;
   std::size_t enc_total_, mot_total_, enc_used_ = 0, mot_used_ = 0;
+  std::size_t enc_pushed_ = 0, mot_pushed_ = 0;
   double motor_t_max_ = -std::numeric_limits<double>::infinity();
   double watermark_ = std::numeric_limits<double>::infinity();
   bool eof_ = true;
@@ -551,6 +567,24 @@ void applyEvent(Estimator& est, const Event& e) {
     case kPozyx:
       est.pozyx(e.t, Eigen::Vector2d(e.a, e.b));
       break;
+  }
+}
+
+/// The filter step of one event: predict to its time, then its measurement update.
+void stepEvent(Estimator& est, const Event& e) {
+  est.predictTo(e.t);
+  applyEvent(est, e);
+}
+
+/// Runs f(); a failure of the filter (e.g. CVODE after a clock jump) is rethrown naming the
+/// measurement being processed: stream, sample index as stored (0-based) and time.
+template <typename F>
+void namedEvent(const Event& e, const F& f) {
+  try {
+    f();
+  } catch (const std::exception& ex) {
+    throw std::runtime_error(fmt::format("{} sample {} (t = {:.6f} s): {}", eventStream(e.kind),
+                                         e.stored, e.t, ex.what()));
   }
 }
 
@@ -646,19 +680,9 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
         ++k_out;
       }
     }
-    est->predictTo(e.t);
-    applyEvent(*est, e);
+    stepEvent(*est, e);
   };
-  // Names the measurement being processed when a filter fails (e.g. CVODE after a clock jump):
-  // stream, sample index as stored in the recording (0-based) and time.
-  const auto named = [&](const Event& e, const auto& f) {
-    try {
-      f();
-    } catch (const std::exception& ex) {
-      throw std::runtime_error(fmt::format("{} sample {} (t = {:.6f} s): {}", eventStream(e.kind),
-                                           e.stored, e.t, ex.what()));
-    }
-  };
+  const auto named = [](const Event& e, const auto& f) { namedEvent(e, f); };
   const std::size_t progress_every = std::max<std::size_t>(1, n_expected / 100);
   std::size_t done = 0;
   while (have) {
@@ -678,6 +702,109 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
 }
 
 }  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Live run (capture --health)
+
+struct LiveEstimator::Impl {
+  Impl(const config::WheelchairConfig& cfg, const EkfOptions& options, bool motors_expected)
+      : opt(resolved(options, cfg)),
+        input(opt.input_interpolation),
+        est(makeEstimator(cfg, opt, &input)),
+        merger(cfg, opt, io::RecordingSummary{}, input) {
+    est->keepNisRecords(false);
+    merger.setOpenEnded(motors_expected);
+    merger.setWatermark(-std::numeric_limits<double>::infinity(), false);
+  }
+  static EkfOptions resolved(EkfOptions o, const config::WheelchairConfig& cfg) {
+    o.resolveSensorDefaults(cfg);
+    o.validate();
+    return o;
+  }
+  /// Every event the merger can release now through the filter step (runEstimator's step,
+  /// without the estimate outputs: the live run keeps only the last estimate).
+  void drain() {
+    Event e;
+    bool more = false;
+    while (merger.next(e, more)) {
+      if (!started) {
+        t0 = e.t;
+        est->start(t0);
+        started = true;
+      }
+      namedEvent(e, [&] { stepEvent(*est, e); });
+      input.discardBefore(e.t - 1.0);
+    }
+  }
+  const std::vector<HealthEvent>& health() const {
+    static const std::vector<HealthEvent> none;
+    if (finished) return est->result().health;
+    const auto* w = dynamic_cast<const WheelchairEkf*>(est.get());
+    return w ? w->healthEvents() : none;
+  }
+
+  EkfOptions opt;
+  InputSignal input;
+  std::unique_ptr<Estimator> est;
+  EventMerger merger;
+  std::array<std::size_t, io::kNumStreams> stored{};
+  double watermark = -std::numeric_limits<double>::infinity();
+  double start_s = std::numeric_limits<double>::infinity(), t0 = 0;
+  std::size_t late = 0;
+  bool started = false, finished = false;
+};
+
+LiveEstimator::LiveEstimator(const config::WheelchairConfig& cfg, const EkfOptions& opt,
+                             bool motors_expected)
+    : impl_(std::make_unique<Impl>(cfg, opt, motors_expected)) {}
+
+LiveEstimator::~LiveEstimator() = default;
+
+void LiveEstimator::push(const io::AnySample& s) {
+  auto& m = *impl_;
+  if (m.finished) throw std::logic_error("LiveEstimator::push after finish");
+  const double t = io::timeOf(s);
+  m.start_s = std::min(m.start_s, t);
+  if (t < m.watermark) {  // older than samples already released: cannot be merged any more
+    ++m.late;
+    return;
+  }
+  m.merger.push(s, m.stored[s.index()]++);
+  if (t > m.watermark) {
+    m.watermark = t;
+    m.merger.setWatermark(t, false);
+    m.drain();
+  }
+}
+
+void LiveEstimator::finish() {
+  auto& m = *impl_;
+  if (m.finished) return;
+  m.merger.endOfInput();
+  m.drain();
+  auto& res = m.est->result();
+  if (!m.started) {
+    res.warnings.push_back("no measurements: nothing estimated");
+  } else {
+    res.last = m.est->estimate();
+    res.n_estimates = 1;
+    finishResult(*m.est, m.t0, res);
+  }
+  m.finished = true;
+}
+
+const std::vector<HealthEvent>& LiveEstimator::health() const {
+  return impl_->health();
+}
+double LiveEstimator::startTime() const {
+  return impl_->start_s;
+}
+std::size_t LiveEstimator::late() const {
+  return impl_->late;
+}
+const EstimationResult& LiveEstimator::result() const {
+  return impl_->est->result();
+}
 
 EstimationResult runEstimator(const io::Recording& rec, const config::WheelchairConfig& cfg,
                               const EkfOptions& options,

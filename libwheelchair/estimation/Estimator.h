@@ -204,6 +204,46 @@ EstimationResult runEstimator(const std::string& rawlog, const io::RecordingSumm
                               const config::WheelchairConfig& cfg, const EkfOptions& opt,
                               EstimateSink& sink, const std::function<void(double)>& progress = {});
 
+/// The selected filter run on samples as they arrive (`wheelchair capture --health`): the
+/// same merge (EventMerger) and the same per-event step as runEstimator, fed by push() in
+/// arrival order instead of from a file. A sample is released to the filter once a later one
+/// has been pushed (all samples before the latest pushed time are taken as complete), and
+/// the first measurement only once the motor currents are known past it when
+/// `motors_expected`. A sample older than the latest one pushed (it arrived beyond the
+/// capture's reorder window) cannot be merged any more: it is skipped and counted (late()).
+/// So the live result equals runEstimator on the captured file when nothing arrived late.
+/// A filter failure throws std::runtime_error naming the sample as runEstimator does (the
+/// object is then unusable). Times: the recording clock (s). Example:
+///   LiveEstimator live(cfg, opt, /*motors_expected=*/true);
+///   for (const auto& s : arriving) {
+///     live.push(s);
+///     for (; printed < live.health().size(); ++printed) print(live.health()[printed]);
+///   }
+///   live.finish();                          // processes the rest; result() complete
+class LiveEstimator {
+ public:
+  LiveEstimator(const config::WheelchairConfig& cfg, const EkfOptions& opt, bool motors_expected);
+  ~LiveEstimator();
+  LiveEstimator(const LiveEstimator&) = delete;
+  LiveEstimator& operator=(const LiveEstimator&) = delete;
+  /// One sample (any stream; streams the options leave out are dropped).
+  void push(const io::AnySample& s);
+  /// No more samples: processes what is left and completes result() (health, CVODE stats).
+  void finish();
+  /// The health events so far (physics filter; in time order). After finish() the same list
+  /// as result().health.
+  const std::vector<HealthEvent>& health() const;
+  /// Earliest sample time pushed (s; +infinity before the first): the recording's start.
+  double startTime() const;
+  /// Samples skipped because they arrived after a later one had been released.
+  std::size_t late() const;
+  const EstimationResult& result() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
 /// The two families of estimators: the wheelchair filters (physics CD-EKF or baseline, on
 /// encoders / gyro / sonar / Pozyx) and the command-driven EKF (commands + landmark
 /// range-bearing, map known; CommandDrivenEkf.h).
