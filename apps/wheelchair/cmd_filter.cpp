@@ -13,6 +13,7 @@
 // Progress on stderr only when stderr is a terminal (and not --no-progress): a bar over the
 // measurements processed (wheelchair filters) or the recording time (command-driven EKF).
 #include "Command.h"
+#include "HealthJson.h"
 #include "Progress.h"
 
 #include "libwheelchair/config/WheelchairConfig.h"
@@ -31,8 +32,6 @@
 #include "libwheelchair/util/AtomicFile.h"
 
 #include <mrpt/config/CConfigFile.h>
-
-#include <nlohmann/json.hpp>
 
 #include <fmt/core.h>
 
@@ -295,14 +294,7 @@ void printRun(const estimation::EstimationResult& res, const estimation::EkfOpti
 // The health events as JSON lines (one object per event), committed complete or not at all.
 void writeHealth(util::AtomicFile& file, const std::string& path,
                  const estimation::EstimationResult& res) {
-  for (const auto& e : res.health)
-    file.stream() << nlohmann::json{{"t_s", e.t_s},         {"sensor", e.sensor},
-                                    {"kind", e.kind},       {"effect", e.effect},
-                                    {"side", e.side},       {"parameter", e.parameter},
-                                    {"value", e.value},     {"sd", e.sd},
-                                    {"since_s", e.since_s}, {"text", e.text}}
-                         .dump()
-                  << "\n";
+  for (const auto& e : res.health) file.stream() << healthJsonLine(e) << "\n";
   file.commit();
   fmt::print("health events (JSON lines): {} ({} events)\n", path, res.health.size());
 }

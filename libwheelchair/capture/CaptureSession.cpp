@@ -143,6 +143,11 @@ std::vector<CaptureEvent> CaptureSession::events() const {
   return events_;
 }
 
+bool CaptureSession::captures(io::StreamKind k) const {
+  return std::any_of(sources_.begin(), sources_.end(),
+                     [k](const auto& s) { return s->kind() == k; });
+}
+
 std::size_t CaptureSession::lateRecords() const {
   std::size_t n = 0;
   for (std::size_t i = 0; i < sources_.size(); ++i) n += merge_->late(i);
@@ -242,6 +247,7 @@ void CaptureSession::writeObservation(const mrpt::obs::CObservation& obs) {
   if (!header_written_) writeHeader(obs.timestamp);
   out_->write(obs);
   ++records_written_;
+  if (opt_.on_record) opt_.on_record(obs, [this](const std::string& s) { logLine(s, true); });
 }
 
 int CaptureSession::run(const std::atomic<bool>* stop) {
@@ -317,6 +323,7 @@ int CaptureSession::run(const std::atomic<bool>* stop) {
     logLine("error: " + error_, false);
     rc = 1;
   }
+  if (opt_.on_finish) opt_.on_finish([this](const std::string& s) { logLine(s, true); });
   printStatus(HostClock::monotonic(), true);
   return rc;
 }

@@ -24,6 +24,7 @@
 #include <atomic>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -40,6 +41,16 @@ struct CaptureOptions {
   bool verbose = false;        ///< live status even when stderr is not a terminal
   std::string vehicle_config;  ///< overrides [capture] vehicle_config
   std::FILE* status_out = stderr;
+  /// Prints one line on the console (between live status updates) and in the event log.
+  using Say = std::function<void(const std::string&)>;
+  /// Called on the capture loop's thread with every observation as it is written (merged
+  /// timestamp order; a late one out of order), e.g. the live health monitor of
+  /// `wheelchair capture --health`. It must not throw and must be quick (the loop runs every
+  /// 10 ms).
+  std::function<void(const mrpt::obs::CObservation&, const Say&)> on_record;
+  /// Called once after the last observation was written and the file closed (also after a
+  /// write error), before the final summary.
+  std::function<void(const Say&)> on_finish;
 };
 
 class CaptureSession {
@@ -60,6 +71,10 @@ class CaptureSession {
   std::vector<CaptureEvent> events() const;
   const std::string& error() const { return error_; }
   std::size_t recordsWritten() const { return records_written_; }
+  /// The vehicle configuration the samples are converted with (recorded in the header).
+  const config::WheelchairConfig& vehicleConfig() const { return vehicle_; }
+  /// Whether an enabled source captures stream `k`.
+  bool captures(io::StreamKind k) const;
   /// Observations written after one with a later timestamp (arrived beyond the window).
   std::size_t lateRecords() const;
   const std::string& logPath() const { return log_path_; }
