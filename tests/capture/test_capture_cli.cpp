@@ -445,3 +445,46 @@ TEST(CaptureCli, LiveHealthMonitorReportsAStepEncoderFaultWhileCapturing) {
   ASSERT_EQ(f.exit_code, 0) << f.out;
   EXPECT_EQ(test::readFile(tmp / "filter.jsonl"), test::readFile(health));
 }
+
+TEST(CaptureCli, AFilterFailureStopsOnlyTheHealthMonitor) {
+  // The device clock jumps 1e6 s forward 2 s into the drive: the live filter cannot
+  // integrate that (CVODE), the monitor says once that it stopped and why, and every sample
+  // is still recorded; the events file is complete (the events found until the stop).
+  WHEELCHAIR_REQUIRE_PTYS();
+  TempDir tmp;
+  const std::string dir = tmp / "recording";
+  io::Recording rec = test::captureRecording(4.0);
+  const double jump_at = rec.startTime() + 2.0;
+  const auto shift = [&](auto& v) {
+    for (auto& s : v)
+      if (s.t_s >= jump_at) s.t_s += 1e6;
+  };
+  shift(rec.encoders), shift(rec.imu), shift(rec.motors), shift(rec.sonar), shift(rec.pozyx);
+  shift(rec.joystick);
+  io::writeTextRecording(rec, dir);
+  const auto expected = test::importedOriginal(dir, tmp);
+  const std::string cfg = test::writeTestCaptureConfig(tmp);
+  test::Child replay, cap;
+  test::spawn(
+      replay,
+      {kCli, "replay-serial", dir, "--config", cfg, "--link-dir", tmp / "dev", "--write-config",
+       tmp / "replay.ini", "--speed", "0", "--start-delay", "3", "--hold", "0.5"},
+      tmp / "replay.log");
+  ASSERT_TRUE(waitForFile(tmp / "replay.ini", 10)) << test::readFile(tmp / "replay.log");
+  const std::string out = tmp / "out.rawlog", health = tmp / "health.jsonl";
+  test::spawn(cap, {kCli, "capture", "--config", tmp / "replay.ini", "-o", out, "--health", health},
+              tmp / "capture.log");
+  ASSERT_EQ(replay.waitFor(30), 0) << test::readFile(tmp / "replay.log");
+  test::sleepFor(0.8);  // past the reorder window
+  kill(cap.pid, SIGINT);
+  ASSERT_EQ(cap.waitFor(10), 0) << test::readFile(tmp / "capture.log");
+  const std::string console = test::readFile(tmp / "capture.log");
+  const std::string stopped = "health monitor stopped (the recording goes on): filter failed at ";
+  ASSERT_NE(console.find(stopped), std::string::npos) << console;
+  EXPECT_EQ(console.find(stopped), console.rfind(stopped)) << "said once:\n" << console;
+  EXPECT_NE(console.find("CVODE failed"), std::string::npos) << console;
+  EXPECT_NE(console.find("records written to"), std::string::npos) << console;
+  EXPECT_NE(console.find("until the monitor stopped"), std::string::npos) << console;
+  EXPECT_TRUE(std::filesystem::exists(health));
+  test::expectSameRecording(expected, io::readRawlog(out));
+}
