@@ -28,6 +28,24 @@ bool waitForFile(const std::string& path, double timeout_s) {
   return false;
 }
 
+/// Plays `source` (a rawlog or a recording directory) through `replay-serial` at `speed` into
+/// virtual devices, then starts `capture` on them writing `out` with the `extra` arguments
+/// (logs: tmp/replay.log, tmp/capture.log). Wrap in ASSERT_NO_FATAL_FAILURE.
+void replayIntoCapture(const TempDir& tmp, const std::string& source, const std::string& speed,
+                       const std::string& out, const std::vector<std::string>& extra,
+                       test::Child& replay, test::Child& cap) {
+  const std::string cfg = test::writeTestCaptureConfig(tmp);
+  test::spawn(
+      replay,
+      {kCli, "replay-serial", source, "--config", cfg, "--link-dir", tmp / "dev", "--write-config",
+       tmp / "replay.ini", "--speed", speed, "--start-delay", "3", "--hold", "0.5"},
+      tmp / "replay.log");
+  ASSERT_TRUE(waitForFile(tmp / "replay.ini", 10)) << test::readFile(tmp / "replay.log");
+  std::vector<std::string> args = {kCli, "capture", "--config", tmp / "replay.ini", "-o", out};
+  args.insert(args.end(), extra.begin(), extra.end());
+  test::spawn(cap, args, tmp / "capture.log");
+}
+
 // A replay running in this process (ptys, links, derived capture configuration).
 struct InProcessReplay {
   std::unique_ptr<capture::SerialReplayer> r;
@@ -389,19 +407,10 @@ TEST(CaptureCli, LiveHealthMonitorReportsAStepEncoderFaultWhileCapturing) {
       "encoder_scale:scale=0.95,side=left,from_s=8 --config " +
       vehicle + " -o " + sim);
   ASSERT_EQ(s.exit_code, 0) << s.out;
-  const std::string cfg = test::writeTestCaptureConfig(tmp);
   test::Child replay, cap;
-  test::spawn(
-      replay,
-      {kCli, "replay-serial", sim, "--config", cfg, "--link-dir", tmp / "dev", "--write-config",
-       tmp / "replay.ini", "--speed", "4", "--start-delay", "3", "--hold", "0.5"},
-      tmp / "replay.log");
-  ASSERT_TRUE(waitForFile(tmp / "replay.ini", 10)) << test::readFile(tmp / "replay.log");
   const std::string out = tmp / "out.rawlog", health = tmp / "health.jsonl";
-  test::spawn(cap,
-              {kCli, "capture", "--config", tmp / "replay.ini", "-o", out, "--vehicle-config",
-               vehicle, "--health", health},
-              tmp / "capture.log");
+  ASSERT_NO_FATAL_FAILURE(replayIntoCapture(
+      tmp, sim, "4", out, {"--vehicle-config", vehicle, "--health", health}, replay, cap));
   ASSERT_EQ(replay.waitFor(30), 0) << test::readFile(tmp / "replay.log");
   // Live: the event is on the console before the capture stops (the last samples wait at
   // most the reorder window), and the events file does not exist yet.
@@ -463,17 +472,9 @@ TEST(CaptureCli, AFilterFailureStopsOnlyTheHealthMonitor) {
   shift(rec.joystick);
   io::writeTextRecording(rec, dir);
   const auto expected = test::importedOriginal(dir, tmp);
-  const std::string cfg = test::writeTestCaptureConfig(tmp);
   test::Child replay, cap;
-  test::spawn(
-      replay,
-      {kCli, "replay-serial", dir, "--config", cfg, "--link-dir", tmp / "dev", "--write-config",
-       tmp / "replay.ini", "--speed", "0", "--start-delay", "3", "--hold", "0.5"},
-      tmp / "replay.log");
-  ASSERT_TRUE(waitForFile(tmp / "replay.ini", 10)) << test::readFile(tmp / "replay.log");
   const std::string out = tmp / "out.rawlog", health = tmp / "health.jsonl";
-  test::spawn(cap, {kCli, "capture", "--config", tmp / "replay.ini", "-o", out, "--health", health},
-              tmp / "capture.log");
+  ASSERT_NO_FATAL_FAILURE(replayIntoCapture(tmp, dir, "0", out, {"--health", health}, replay, cap));
   ASSERT_EQ(replay.waitFor(30), 0) << test::readFile(tmp / "replay.log");
   test::sleepFor(0.8);  // past the reorder window
   kill(cap.pid, SIGINT);
