@@ -370,6 +370,39 @@ void predictStep(const model::CommandDrivenModel& mdl, const model::CommandSigna
   P = 0.5 * (P + P.transpose());
 }
 
+/// The sightings of mapped landmarks in time order (stable: equal stamps keep the file's
+/// order); `unmapped` counts the others.
+std::vector<io::LandmarkSample> mappedSightings(const io::Recording& rec,
+                                                const std::map<int, Eigen::Vector2d>& L,
+                                                std::size_t& unmapped) {
+  std::vector<io::LandmarkSample> sightings = rec.landmarks;
+  std::stable_sort(
+      sightings.begin(), sightings.end(),
+      [](const io::LandmarkSample& a, const io::LandmarkSample& b) { return a.t_s < b.t_s; });
+  std::vector<io::LandmarkSample> z;
+  for (const auto& s : sightings) {
+    if (L.count(s.landmark_id))
+      z.push_back(s);
+    else
+      ++unmapped;
+  }
+  return z;
+}
+
+/// The start covariance: the pose's from the two initial sightings (P_pose) plus the
+/// configured floors, the velocity states 0.05 m/s and 0.2 rad/s (1 sigma).
+Eigen::Matrix<double, 5, 5> initialCovariance(const Eigen::Matrix3d& P_pose,
+                                              const CommandDrivenEkfOptions& o) {
+  Eigen::Matrix<double, 5, 5> P = Eigen::Matrix<double, 5, 5>::Zero();
+  P.topLeftCorner<3, 3>() = P_pose;
+  P(0, 0) += o.init_sigma_xy_m * o.init_sigma_xy_m;
+  P(1, 1) += o.init_sigma_xy_m * o.init_sigma_xy_m;
+  P(2, 2) += o.init_sigma_phi_rad * o.init_sigma_phi_rad;
+  P(3, 3) = 0.05 * 0.05;
+  P(4, 4) = 0.2 * 0.2;
+  return P;
+}
+
 }  // namespace
 
 CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
@@ -381,17 +414,7 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   std::map<int, Eigen::Vector2d> L;
   for (const auto& m : map) L[m.id] = {m.x_m, m.y_m};
   if (L.empty()) throw std::invalid_argument("runCommandDrivenEkf: empty landmark map");
-  std::vector<io::LandmarkSample> z;
-  std::vector<io::LandmarkSample> sightings = rec.landmarks;
-  std::stable_sort(
-      sightings.begin(), sightings.end(),
-      [](const io::LandmarkSample& a, const io::LandmarkSample& b) { return a.t_s < b.t_s; });
-  for (const auto& s : sightings) {
-    if (L.count(s.landmark_id))
-      z.push_back(s);
-    else
-      ++res.unmapped;
-  }
+  const std::vector<io::LandmarkSample> z = mappedSightings(rec, L, res.unmapped);
   // Initialisation from two sightings of well separated landmarks.
   const SightingStart s0 = startFromSightings(z, L, o);
   if (!s0.found) return res;
@@ -399,18 +422,11 @@ CommandDrivenEkfResult runCommandDrivenEkf(const io::Recording& rec,
   x << s0.pose(0), s0.pose(1), s0.pose(2), 0, 0;
   const std::size_t start = s0.next;
   res.t_start_s = s0.t_s;
-  const Eigen::Matrix3d& P_init = s0.P;
   res.initialised = true;
   res.before_start = start;
   res.start_pose_xy = x.head<2>();
   res.start_phi_rad = x(2);
-  Eigen::Matrix<double, 5, 5> P = Eigen::Matrix<double, 5, 5>::Zero();
-  P.topLeftCorner<3, 3>() = P_init;
-  P(0, 0) += o.init_sigma_xy_m * o.init_sigma_xy_m;
-  P(1, 1) += o.init_sigma_xy_m * o.init_sigma_xy_m;
-  P(2, 2) += o.init_sigma_phi_rad * o.init_sigma_phi_rad;
-  P(3, 3) = 0.05 * 0.05;
-  P(4, 4) = 0.2 * 0.2;
+  Eigen::Matrix<double, 5, 5> P = initialCovariance(s0.P, o);
 
   const model::CommandSignal sig = commandSignal(rec, o);
   res.commands = sig.samples().size();
