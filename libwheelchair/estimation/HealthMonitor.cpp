@@ -49,15 +49,23 @@ void Cusum::restart(double t) {
   zp_s = zm_s = t;
 }
 
-bool HealthMonitor::encoderInnovation(double t, double nu) {
-  if (!std::isfinite(nu) || !enc_.update(t, nu)) return false;
+namespace {
+/// The "inconsistent" event of a CUSUM alarm of `sensor` at t_s (its text is the caller's).
+HealthEvent alarmEvent(double t_s, const char* sensor, const Cusum& c) {
   HealthEvent e;
-  e.t_s = t;
-  e.sensor = "encoders";
+  e.t_s = t_s;
+  e.sensor = sensor;
   e.kind = "inconsistent";
   e.parameter = "cusum";
-  e.value = enc_.value();
-  e.since_s = enc_.onset_s;
+  e.value = c.value();
+  e.since_s = c.onset_s;
+  return e;
+}
+}  // namespace
+
+bool HealthMonitor::encoderInnovation(double t, double nu) {
+  if (!std::isfinite(nu) || !enc_.update(t, nu)) return false;
+  HealthEvent e = alarmEvent(t, "encoders", enc_);
   e.text = fmt::format(
       "encoders inconsistent with the gyro since t = {:.1f} s (CUSUM {:.1f} > {:.0f}): "
       "re-estimating the encoder scales",
@@ -70,13 +78,7 @@ bool HealthMonitor::encoderInnovation(double t, double nu) {
 bool HealthMonitor::gyroInnovation(double t, double nu, bool bias_estimated) {
   // Without a bias state nothing changes after an alarm: it is reported once.
   if (!std::isfinite(nu) || gyro_latched_ || !gyro_.update(t, nu)) return false;
-  HealthEvent e;
-  e.t_s = t;
-  e.sensor = "gyro";
-  e.kind = "inconsistent";
-  e.parameter = "cusum";
-  e.value = gyro_.value();
-  e.since_s = gyro_.onset_s;
+  HealthEvent e = alarmEvent(t, "gyro", gyro_);
   e.text = fmt::format(
       "gyro reads {} than the standing chair's 0 since t = {:.1f} s (CUSUM {:.1f} > {:.0f}): {}",
       gyro_.high() ? "higher" : "lower", gyro_.onset_s - t0_, e.value, kThreshold,

@@ -175,6 +175,7 @@ WheelchairEkf::WheelchairEkf(const config::WheelchairConfig& cfg, const EkfOptio
   sonar_m_ = Measurement(Sensor::Sonar, 1, n);
   pozyx_m_ = Measurement(Sensor::Pozyx, 2, n);
   Pw_.resize(n, n);
+  Hg_.resize(2, n);
 }
 
 FilterState WheelchairEkf::head() const {
@@ -382,7 +383,8 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
         scaledEncoderSpeeds(a, x(kIdxEncScaleS), x(kIdxEncScaleD), track_width_m_, &dz_da, &dz_dk);
     m.H = dz_da * da;
     m.H.block<2, 2>(0, kIdxEncScaleS) = dz_dk;  // the true Jacobian: the covariance's
-    Eigen::MatrixXd Hg = m.H;                   // the gain's model
+    Eigen::MatrixXd& Hg = Hg_;  // the gain's model (preallocated: no allocation per update)
+    Hg = m.H;
     Eigen::Matrix2d Rg = R;
     const Eigen::Matrix2d learn = learnableScaleColumns(da, a, Hg, Rg);
     r = scaleConsiderUpdate(m.z - m.h, m.H, R, Hg, Rg, learn, g);

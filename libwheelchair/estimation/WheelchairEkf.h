@@ -181,6 +181,7 @@ class WheelchairEkf : public Estimator {
   // Preallocated measurement storage (sized once: no allocation per update).
   Eigen::Matrix<double, 2, Eigen::Dynamic> da_;  // d (mean encoder speeds) / dx
   Measurement enc_m_, gyro_m_, sonar_m_, pozyx_m_;
+  Eigen::MatrixXd Hg_;  // the encoder update's gain model (2 x n, sized once)
   Eigen::MatrixXd Pw_;  // scratch covariance (sized once)
   WheelchairProcessModel pm_;
   CdEkf ekf_;
