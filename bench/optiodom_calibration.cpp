@@ -47,22 +47,15 @@ struct Run {
 
 std::vector<Run> loadKind(const fs::path& dir) {
   std::vector<Run> out;
-  std::vector<fs::path> exps;
-  for (const auto& e : fs::directory_iterator(dir))
-    if (e.is_directory()) exps.push_back(e.path());
-  std::sort(exps.begin(), exps.end());
-  for (const auto& e : exps) {
-    io::OptiodomImportReport r0;
-    io::importOptiodom(e.string(), 1, &r0);
-    for (int k = 1; k <= r0.runs_in_metadata; ++k) {
-      Run r;
-      r.rec = io::importOptiodom(e.string(), k, &r.rep);
-      r.odo = idf::odometryRun(r.rec, fmt::format("{} run {}", r.rep.experiment, k));
-      config::WheelchairConfig cfg;
-      io::applyOptiodomGeometry(r.rep.geometry, cfg);
-      r.nominal = idf::odometryGeometry(cfg);
-      out.push_back(std::move(r));
-    }
+  for (auto& [rec, rep] : io::importOptiodomFolder(dir.string())) {
+    Run r;
+    r.rec = std::move(rec);
+    r.rep = rep;
+    r.odo = idf::odometryRun(r.rec, fmt::format("{} run {}", rep.experiment, rep.run));
+    config::WheelchairConfig cfg;
+    io::applyOptiodomGeometry(rep.geometry, cfg);
+    r.nominal = idf::odometryGeometry(cfg);
+    out.push_back(std::move(r));
   }
   return out;
 }

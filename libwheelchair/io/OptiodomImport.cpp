@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -125,6 +126,7 @@ Recording importOptiodom(const std::string& dir, int run, OptiodomImportReport* 
   };
   OptiodomImportReport rep;
   rep.experiment = id;
+  rep.run = run;
 
   // ---- metadata: geometry, number of runs, square side
   const std::string meta_path = file("_metadata.csv");
@@ -229,6 +231,24 @@ Recording importOptiodom(const std::string& dir, int run, OptiodomImportReport* 
   if (!rep.method.empty()) rec.meta["method"] = rep.method;
   if (report) *report = rep;
   return rec;
+}
+
+std::vector<OptiodomRun> importOptiodomFolder(const std::string& root) {
+  std::vector<std::filesystem::path> experiments;
+  for (const auto& e : std::filesystem::directory_iterator(root))
+    if (e.is_directory()) experiments.push_back(e.path());
+  std::sort(experiments.begin(), experiments.end());
+  std::vector<OptiodomRun> runs;
+  for (const auto& e : experiments) {
+    int n = 1;  // N from run 1's metadata
+    for (int k = 1; k <= n; ++k) {
+      OptiodomRun r;
+      r.rec = importOptiodom(e.string(), k, &r.report);
+      n = r.report.runs_in_metadata;
+      runs.push_back(std::move(r));
+    }
+  }
+  return runs;
 }
 
 void applyOptiodomGeometry(const OptiodomGeometry& g, config::WheelchairConfig& cfg) {

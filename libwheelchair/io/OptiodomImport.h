@@ -35,6 +35,7 @@
 #include "libwheelchair/io/Recording.h"
 
 #include <string>
+#include <vector>
 
 namespace wheelchair::io {
 
@@ -50,6 +51,7 @@ struct OptiodomGeometry {
 struct OptiodomImportReport {
   OptiodomGeometry geometry;
   std::string experiment, path_kind, direction, method;
+  int run = 0;  ///< the run read (1..runs_in_metadata)
   int runs_in_metadata = 0;
   std::size_t cycles = 0, commands = 0;
   double duration_s = 0;
@@ -60,6 +62,16 @@ struct OptiodomImportReport {
 /// Reads run `run` (1..N) of the experiment in `dir`. Throws FormatError naming file:line on a
 /// bad row, a missing file or inconsistent metadata.
 Recording importOptiodom(const std::string& dir, int run, OptiodomImportReport* report = nullptr);
+
+/// One run of an experiment and its import report.
+struct OptiodomRun {
+  Recording rec;
+  OptiodomImportReport report;
+};
+
+/// Every run (1..N) of every experiment folder directly under `root` (e.g. the dataset's
+/// `square/` or `circular/`), experiments in name order. Each run is read once.
+std::vector<OptiodomRun> importOptiodomFolder(const std::string& root);
 
 /// Writes the geometry into the configuration's [vehicle] and [encoders] keys (see above).
 void applyOptiodomGeometry(const OptiodomGeometry& g, config::WheelchairConfig& cfg);

@@ -197,23 +197,14 @@ struct FullRuns {
 
 FullRuns loadFull(const fs::path& dir) {
   FullRuns f;
-  std::vector<fs::path> exps;
-  for (const auto& e : fs::directory_iterator(dir))
-    if (e.is_directory()) exps.push_back(e.path());
-  std::sort(exps.begin(), exps.end());
-  for (const auto& e : exps) {
-    io::OptiodomImportReport r0;
-    io::importOptiodom(e.string(), 1, &r0);
-    for (int k = 1; k <= r0.runs_in_metadata; ++k) {
-      io::OptiodomImportReport rep;
-      f.recs.push_back(io::importOptiodom(e.string(), k, &rep));
-      f.odo.push_back(identification::odometryRun(f.recs.back()));
-      f.by_experiment[rep.experiment].push_back(f.odo.size() - 1);
-      config::WheelchairConfig cfg;
-      io::applyOptiodomGeometry(rep.geometry, cfg);
-      if (rep.square_side_m > 0)
-        f.square[rep.experiment] = {rep.square_side_m, identification::odometryGeometry(cfg)};
-    }
+  for (auto& [rec, rep] : io::importOptiodomFolder(dir.string())) {
+    f.recs.push_back(std::move(rec));
+    f.odo.push_back(identification::odometryRun(f.recs.back()));
+    f.by_experiment[rep.experiment].push_back(f.odo.size() - 1);
+    config::WheelchairConfig cfg;
+    io::applyOptiodomGeometry(rep.geometry, cfg);
+    if (rep.square_side_m > 0)
+      f.square[rep.experiment] = {rep.square_side_m, identification::odometryGeometry(cfg)};
   }
   return f;
 }

@@ -110,16 +110,11 @@ TEST(OptiodomImport, FullDatasetEveryRunImports) {
     GTEST_SKIP() << kFull << " not present (the full OptiOdom folders live beside the repository)";
   std::size_t runs = 0, cw = 0, ccw = 0;
   for (const char* kind : {"square", "circular"})
-    for (const auto& e : fs::directory_iterator(kFull + "/" + kind)) {
-      OptiodomImportReport rep;
-      importOptiodom(e.path().string(), 1, &rep);
-      for (int k = 1; k <= rep.runs_in_metadata; ++k) {
-        const Recording rec = importOptiodom(e.path().string(), k, &rep);
-        EXPECT_GT(rec.encoders.size(), 500u) << e.path() << " run " << k;
-        EXPECT_FALSE(rec.joystick.empty()) << e.path() << " run " << k;
-        ++runs;
-        if (std::string(kind) == "square") (rep.direction == "cw" ? cw : ccw)++;
-      }
+    for (const auto& [rec, rep] : importOptiodomFolder(kFull + "/" + kind)) {
+      EXPECT_GT(rec.encoders.size(), 500u) << rep.experiment << " run " << rep.run;
+      EXPECT_FALSE(rec.joystick.empty()) << rep.experiment << " run " << rep.run;
+      ++runs;
+      if (std::string(kind) == "square") (rep.direction == "cw" ? cw : ccw)++;
     }
   EXPECT_EQ(runs, 98u);  // README: 54 circular + 44 square runs
   EXPECT_EQ(cw + ccw, 44u);
