@@ -1,6 +1,7 @@
 // Estimates streamed to a sink (runEstimator(..., sink)) instead of stored, the streaming
 // estimates CSV writer, and `wheelchair filter` writing its outputs that way (issue 13:
 // memory flat in the drive's length, no SIGABRT on a failed write).
+#include "StreamingUtil.h"
 #include "SyntheticDrive.h"
 
 #include "../common/TestUtil.h"
@@ -26,11 +27,6 @@ SynthRun drive() {
   return synthesize(nominal(), so, 11);
 }
 
-struct Collect : EstimateSink {
-  std::vector<EstimateSample> v;
-  void add(const EstimateSample& s) override { v.push_back(s); }
-};
-
 std::vector<std::string> linesOf(const std::string& text) {
   std::vector<std::string> out;
   std::istringstream ss(text);
@@ -48,39 +44,33 @@ std::size_t filesIn(const std::filesystem::path& dir) {
 
 TEST(EstimateStreaming, SinkReceivesBitIdenticalEstimatesAndTheResultKeepsNone) {
   const SynthRun sr = drive();
-  for (auto kind : {FilterKind::Physics, FilterKind::Baseline}) {
-    for (double rate : {0.0, 20.0}) {
-      EkfOptions opt;
-      opt.filter = kind;
-      opt.use_pozyx = true;
-      opt.output_rate_hz = rate;
-      const EstimationResult stored = runEstimator(sr.rec, nominal(), opt);
-      Collect sink;
-      const EstimationResult streamed = runEstimator(sr.rec, nominal(), opt, sink);
-      ASSERT_GT(stored.estimates.size(), 100u);
-      EXPECT_EQ(stored.n_estimates, stored.estimates.size());
-      EXPECT_TRUE(streamed.estimates.empty());
-      EXPECT_TRUE(streamed.nis.empty());
-      EXPECT_FALSE(stored.nis.empty());
-      ASSERT_EQ(sink.v.size(), stored.estimates.size());
-      EXPECT_EQ(streamed.n_estimates, stored.estimates.size());
-      for (std::size_t k = 0; k < sink.v.size(); ++k) {
-        const auto &a = stored.estimates[k], &b = sink.v[k];
-        ASSERT_EQ(a.t_s, b.t_s) << k;
-        ASSERT_EQ(a.x, b.x) << k;
-        ASSERT_EQ(a.sd, b.sd) << k;
-        ASSERT_EQ(a.P, b.P) << k;
-        ASSERT_EQ(a.obstacle_distance_m, b.obstacle_distance_m) << k;
-      }
-      EXPECT_EQ(streamed.final().t_s, stored.final().t_s);
-      EXPECT_EQ(streamed.final().x, stored.final().x);
-      for (int s = 0; s < kNumSensors; ++s) {
-        EXPECT_EQ(streamed.sensors[s].used, stored.sensors[s].used);
-        EXPECT_EQ(streamed.sensors[s].rejected, stored.sensors[s].rejected);
-        EXPECT_EQ(streamed.sensors[s].nis_sum, stored.sensors[s].nis_sum);
-      }
-      EXPECT_EQ(streamed.rejected.size(), stored.rejected.size());
+  for (const EkfOptions& opt : estimation::test::streamingOptionSets()) {
+    const EstimationResult stored = runEstimator(sr.rec, nominal(), opt);
+    Collect sink;
+    const EstimationResult streamed = runEstimator(sr.rec, nominal(), opt, sink);
+    ASSERT_GT(stored.estimates.size(), 100u);
+    EXPECT_EQ(stored.n_estimates, stored.estimates.size());
+    EXPECT_TRUE(streamed.estimates.empty());
+    EXPECT_TRUE(streamed.nis.empty());
+    EXPECT_FALSE(stored.nis.empty());
+    ASSERT_EQ(sink.v.size(), stored.estimates.size());
+    EXPECT_EQ(streamed.n_estimates, stored.estimates.size());
+    for (std::size_t k = 0; k < sink.v.size(); ++k) {
+      const auto &a = stored.estimates[k], &b = sink.v[k];
+      ASSERT_EQ(a.t_s, b.t_s) << k;
+      ASSERT_EQ(a.x, b.x) << k;
+      ASSERT_EQ(a.sd, b.sd) << k;
+      ASSERT_EQ(a.P, b.P) << k;
+      ASSERT_EQ(a.obstacle_distance_m, b.obstacle_distance_m) << k;
     }
+    EXPECT_EQ(streamed.final().t_s, stored.final().t_s);
+    EXPECT_EQ(streamed.final().x, stored.final().x);
+    for (int s = 0; s < kNumSensors; ++s) {
+      EXPECT_EQ(streamed.sensors[s].used, stored.sensors[s].used);
+      EXPECT_EQ(streamed.sensors[s].rejected, stored.sensors[s].rejected);
+      EXPECT_EQ(streamed.sensors[s].nis_sum, stored.sensors[s].nis_sum);
+    }
+    EXPECT_EQ(streamed.rejected.size(), stored.rejected.size());
   }
 }
 

@@ -3,6 +3,7 @@
 // records are out of time order across streams (a little, and one record far beyond any
 // fixed window), on a damaged tail with --salvage, and through `wheelchair filter`. Also the
 // one estimator-selection rule of `filter` and `evaluate` (issue 14).
+#include "StreamingUtil.h"
 #include "SyntheticDrive.h"
 
 #include "../common/TestUtil.h"
@@ -20,14 +21,10 @@
 using namespace wheelchair;
 using namespace wheelchair::estimation;
 
+using wheelchair::estimation::test::Collect;
 using wheelchair::estimation::test::nominal;
 
 namespace {
-
-struct Collect : EstimateSink {
-  std::vector<EstimateSample> v;
-  void add(const EstimateSample& s) override { v.push_back(s); }
-};
 
 /// Every sample of `rec` in time order, then disturbed: every 7th IMU and every 5th motor
 /// sample written 0.3 s late (across streams, within a short window), one sonar reading
@@ -70,25 +67,19 @@ void expectSameEstimates(const std::vector<EstimateSample>& a,
 /// Streamed vs in-memory run of every filter and output mode, and both dead reckonings.
 void expectStreamedEqualsInMemory(const std::string& path, const io::Recording& rec,
                                   const io::RecordingSummary& sum) {
-  for (auto kind : {FilterKind::Physics, FilterKind::Baseline}) {
-    for (double rate : {0.0, 20.0}) {
-      EkfOptions opt;
-      opt.filter = kind;
-      opt.use_pozyx = true;
-      opt.output_rate_hz = rate;
-      Collect mem, str;
-      const auto a = runEstimator(rec, nominal(), opt, mem);
-      const auto b = runEstimator(path, sum, nominal(), opt, str);
-      ASSERT_GT(mem.v.size(), 50u);
-      expectSameEstimates(mem.v, str.v);
-      for (int s = 0; s < kNumSensors; ++s) {
-        EXPECT_EQ(a.sensors[s].used, b.sensors[s].used) << s;
-        EXPECT_EQ(a.sensors[s].rejected, b.sensors[s].rejected) << s;
-        EXPECT_EQ(a.sensors[s].dropouts, b.sensors[s].dropouts) << s;
-        EXPECT_EQ(a.sensors[s].nis_sum, b.sensors[s].nis_sum) << s;
-      }
-      EXPECT_EQ(a.warnings, b.warnings);
+  for (const EkfOptions& opt : estimation::test::streamingOptionSets()) {
+    Collect mem, str;
+    const auto a = runEstimator(rec, nominal(), opt, mem);
+    const auto b = runEstimator(path, sum, nominal(), opt, str);
+    ASSERT_GT(mem.v.size(), 50u);
+    expectSameEstimates(mem.v, str.v);
+    for (int s = 0; s < kNumSensors; ++s) {
+      EXPECT_EQ(a.sensors[s].used, b.sensors[s].used) << s;
+      EXPECT_EQ(a.sensors[s].rejected, b.sensors[s].rejected) << s;
+      EXPECT_EQ(a.sensors[s].dropouts, b.sensors[s].dropouts) << s;
+      EXPECT_EQ(a.sensors[s].nis_sum, b.sensors[s].nis_sum) << s;
     }
+    EXPECT_EQ(a.warnings, b.warnings);
   }
   const auto& g = nominal().vehicle.geom;
   const auto& p = nominal().encoders.params;
