@@ -63,8 +63,8 @@ struct EkfOptions {
   // --- process noise (continuous-time spectral densities) ---------------------------------
   double q_v_m2_s3 = 0.01;                  ///< on vdot (model error of (6))
   double q_omega_rad2_s3 = 0.02;            ///< on omegadot
-  double q_xy_m2_s = 1e-5;                  ///< on xdot, ydot (wheel slip)
-  double q_phi_rad2_s = 1e-6;               ///< on phidot
+  double q_xy_m2_s = 1e-8;                  ///< on xdot, ydot (lateral tyre creep only)
+  double q_phi_rad2_s = 0;                  ///< on phidot (0: phi integrates omega exactly)
   double q_obstacle_m2_s = 1e-5;            ///< on the obstacle (px, py) or d
   double q_obstacle_bearing_rad2_s = 1e-5;  ///< on beta (polar form)
   /// Density of the motor-current measurement noise mapped through G = df/du (A^2 s);

@@ -37,6 +37,7 @@ struct SynthOptions {
   double pozyx_noise_m = 0.1;
   double encoder_extra_noise_m_s = 0.005;  ///< 1 sigma of the interval mean at 50 Hz, per wheel
   double left_encoder_scale = 1.0;         ///< fault: left ticks scaled
+  double right_encoder_scale = 1.0;        ///< right ticks scaled (a rolling-radius error)
   Eigen::Vector2d obstacle_world{3.0, 0.6};
   bool sonar_cone = false;           ///< only see the obstacle inside the 15 deg cone
   std::set<int> forced_sonar_zeros;  ///< indices of sonar samples that read 0
@@ -143,7 +144,8 @@ inline SynthRun synthesize(const config::WheelchairConfig& cfg, const SynthOptio
       const auto ticks = [&](double psi) {
         return sensors::toHardwareCounter(static_cast<int64_t>(std::floor(psi / rad_per_tick)));
       };
-      run.rec.encoders.push_back({t, ticks(psiR), ticks(o.left_encoder_scale * psiL)});
+      run.rec.encoders.push_back(
+          {t, ticks(o.right_encoder_scale * psiR), ticks(o.left_encoder_scale * psiL)});
     }
     if (k % 100 == 7) {
       const double c = std::cos(pose(2)), s = std::sin(pose(2));

@@ -113,17 +113,21 @@ FusionMc fusionMonteCarlo(bool scales) {
 TEST(PozyxFusion, LowersTheErrorOfAFaultyEncoderDriveAndIsNotOverconfident) {
   // The filter that models the fault (scale states) already corrects it from the turns
   // (docs/estimation.md, about 1 cm here): Pozyx must not make it worse and must not make it
-  // over-confident. (Its pose NEES sits BELOW the band: the covariance is conservative, from
-  // the shipped position process noise q_xy_m2_s, with and without Pozyx; a known gap.)
+  // over-confident, nor pessimistic: with the process noise where it acts (docs/estimation.md,
+  // "Process noise from physics") its pose NEES is inside the band (2.36 of 1.55..4.92; 0.6
+  // with the former q_xy_m2_s = 1e-5 on the position).
   const FusionMc with = fusionMonteCarlo(true);
   EXPECT_LT(with.rmse_on, with.rmse_off + 0.001);
   EXPECT_LT(with.nees_mean, with.band.second);
+  EXPECT_GT(with.nees_mean, with.band.first);
   EXPECT_EQ(with.inflated, 0);  // nothing to recover from: the Pozyx is there all the time
   EXPECT_LT(double(with.rejected) / (with.used + with.rejected), 0.01);
-  // The filter that does not (the paper's): Pozyx halves the drift the faulty encoder causes
-  // (its NEES cannot be in band: the encoder's bias is not in its model).
+  // The filter that does not (the paper's): Pozyx lowers the drift the faulty encoder causes
+  // (0.116 -> 0.094 m). Its NEES cannot be in band: the encoder's bias is not in its model, and
+  // no position noise stands in for it any more (the former q_xy_m2_s = 1e-5 let the Pozyx
+  // pull harder: 0.116 -> 0.057 m); the cure is the scale states above.
   const FusionMc without = fusionMonteCarlo(false);
-  EXPECT_LT(without.rmse_on, 0.6 * without.rmse_off);
+  EXPECT_LT(without.rmse_on, 0.9 * without.rmse_off);
   EXPECT_LT(double(without.rejected) / (without.used + without.rejected), 0.01);
 }
 
