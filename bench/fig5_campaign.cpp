@@ -10,7 +10,12 @@
 //   build/bench/fig5_campaign [--runs N] [--seed S] [--config F] [--effects a;b;...]
 //                             [--reference truth|pozyx] [--engine model|mujoco] [--check]
 //                             [--estimate-encoder-scales] [--check-ate M] [--check-nees X]
-//                             [--json OUT]
+//                             [--scenario NAME] [--duration S] [--json OUT]
+//
+// --scenario / --duration: another drive than three_task (e.g. `--scenario excite --duration
+// 3600 --runs 4`: the one-hour drive; duration 0 = the scenario's own). The EKF's position NEES
+// is also reported per quarter of the drive (a drifting covariance shows as a trend), and its
+// mean NIS per sensor over all drives against the band of that mean (Measurement.h bookUpdate).
 //
 // --engine: the truth simulator (default model; mujoco = the chair as a MuJoCo multibody,
 // whose physics is not the EKF's model, docs/simulation.md).
@@ -35,6 +40,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <future>
@@ -56,20 +62,27 @@ struct RunMetrics {
   double ekf_speed_error_rel = 0;
   /// EKF position NEES against the truth at its 10 Hz samples (evaluation/Nees.h; truth only).
   std::vector<double> ekf_nees;
+  /// EKF NIS sums and counts per sensor (EstimationResult::sensors).
+  std::array<double, estimation::kNumSensors> nis_sum{};
+  std::array<long, estimation::kNumSensors> nis_count{};
   std::string error;
 };
 
 RunMetrics runOne(const config::WheelchairConfig& cfg, uint64_t seed,
                   const std::vector<effects::EffectSpec>& effects, bool against_truth,
-                  const std::string& engine) {
+                  const std::string& engine, const std::string& scenario, double duration_s) {
   RunMetrics out;
   out.seed = seed;
   try {
     simulation::SimulationOptions so;
     so.loadFromConfig(cfg.ini());
     so.engine = engine;
-    const auto sim = simulation::simulate(cfg, "three_task", seed, 0, effects, so);
+    const auto sim = simulation::simulate(cfg, scenario, seed, duration_s, effects, so);
     const auto est = evaluation::estimateVariants(sim.recording, cfg, true);
+    for (int s = 0; s < estimation::kNumSensors; ++s) {
+      out.nis_sum[s] = est.ekf.sensors[s].nis_sum;
+      out.nis_count[s] = est.ekf.sensors[s].nis_count;
+    }
     evaluation::MetricOptions mo;
     std::vector<evaluation::Position2DStamped> reference;
     if (against_truth) {
@@ -144,7 +157,8 @@ struct Args {
   double check_ate_m = -1;               ///< > 0: fail when the EKF's mean ATE exceeds it
   double check_nees = -1;                ///< > 0: fail when the EKF's mean position NEES does
   uint64_t seed = 20200612;
-  std::string cfg_path, json_path, engine = "model";
+  double duration_s = 0;  ///< 0: the scenario's own
+  std::string cfg_path, json_path, engine = "model", scenario = "three_task";
   std::string effects_text =
       "encoder_scale:side=left,scale=0.95;motor_asymmetry:side=right,friction_ratio=1.3;"
       "sonar_dropout:probability=0.15,burst_length=3";
@@ -174,6 +188,10 @@ int parseArgs(int argc, char** argv, Args& args) {
       args.check_ate_m = std::stod(next());
     else if (a == "--check-nees")
       args.check_nees = std::stod(next());
+    else if (a == "--scenario")
+      args.scenario = next();
+    else if (a == "--duration")
+      args.duration_s = std::stod(next());
     else if (a == "--reference") {
       const std::string r = next();
       if (r != "truth" && r != "pozyx") throw std::runtime_error("--reference: truth | pozyx");
@@ -189,7 +207,8 @@ int parseArgs(int argc, char** argv, Args& args) {
     else {
       std::cerr << "usage: fig5_campaign [--runs N] [--seed S] [--config F] [--effects a;b] "
                    "[--reference truth|pozyx] [--engine model|mujoco] [--check] "
-                   "[--estimate-encoder-scales] [--check-ate M] [--check-nees X] [--json OUT]\n";
+                   "[--estimate-encoder-scales] [--check-ate M] [--check-nees X] "
+                   "[--scenario NAME] [--duration S] [--json OUT]\n";
       return 2;
     }
   }
@@ -208,7 +227,7 @@ std::vector<RunMetrics> runCampaign(const Args& args, const config::WheelchairCo
     pool.emplace_back([&, w] {
       for (int k = static_cast<int>(w); k < runs; k += static_cast<int>(workers))
         results[k] = runOne(cfg, args.seed + static_cast<uint64_t>(k), effects, args.against_truth,
-                            args.engine);
+                            args.engine, args.scenario, args.duration_s);
     });
   for (auto& t : pool) t.join();
   return results;
@@ -220,6 +239,8 @@ struct Tally {
   std::map<std::string, int> wins_ate, wins_term;
   std::vector<double> speed_error;
   std::vector<double> nees_mean;  ///< per truth time: mean position NEES over the drives
+  std::array<double, estimation::kNumSensors> nis_sum{};
+  std::array<long, estimation::kNumSensors> nis_count{};
   int failed = 0;
 };
 
@@ -232,6 +253,10 @@ Tally tally(const std::vector<RunMetrics>& results) {
       continue;
     }
     t.speed_error.push_back(r.ekf_speed_error_rel);
+    for (int s = 0; s < estimation::kNumSensors; ++s) {
+      t.nis_sum[s] += r.nis_sum[s];
+      t.nis_count[s] += r.nis_count[s];
+    }
     for (const auto& v : evaluation::variantNames()) {
       t.ate[v].push_back(r.ate_m.at(v));
       t.term[v].push_back(r.terminal_m.at(v));
@@ -269,9 +294,9 @@ nlohmann::json report(const Args& args, Tally& t) {
   j["engine"] = args.engine;
   j["estimate_encoder_scales"] = args.estimate_encoder_scales;
   fmt::print(
-      "Fig. 5 campaign: three_task, {} drives (seeds {}..{}), engine {}, effects {}; reference: "
+      "Fig. 5 campaign: {}, {} drives (seeds {}..{}), engine {}, effects {}; reference: "
       "{}\n",
-      ok, args.seed, args.seed + args.runs - 1, args.engine, args.effects_text,
+      args.scenario, ok, args.seed, args.seed + args.runs - 1, args.engine, args.effects_text,
       args.against_truth ? "simulator truth at 10 Hz" : "Pozyx (as `wheelchair evaluate`)");
   fmt::print("{:<14} {:>16} {:>18}\n", "variant", "ATE rmse (m)", "terminal (m)");
   for (const auto& v : names) {
@@ -297,8 +322,30 @@ nlohmann::json report(const Args& args, Tally& t) {
         "EKF position NEES (Monte-Carlo over {} drives, {} times): mean {:.2f} (consistent: 2), "
         "{:.0f} % of the times inside the 95 % band {:.2f}..{:.2f}\n",
         ok, len, all, 100.0 * inside / len, band.first, band.second);
-    j["ekf_nees"] = {{"mean", all}, {"inside95", double(inside) / len}, {"times", len}};
+    // Per quarter of the drive: a covariance that drifts (grows too fast or too slowly against
+    // the error) shows as a trend.
+    std::vector<double> quarters(4, 0.0);
+    for (std::size_t k = 0; k < len; ++k) quarters[4 * k / len] += t.nees_mean[k];
+    for (int q = 0; q < 4; ++q) quarters[q] /= double((q + 1) * len / 4 - q * len / 4);
+    fmt::print("  by quarter of the drive: {:.2f} {:.2f} {:.2f} {:.2f}\n", quarters[0], quarters[1],
+               quarters[2], quarters[3]);
+    j["ekf_nees"] = {
+        {"mean", all}, {"inside95", double(inside) / len}, {"times", len}, {"quarters", quarters}};
   }
+  // Mean NIS per sensor over every accepted update of every drive, against the 95 % band of that
+  // mean for a consistent filter (dof 2: encoders, Pozyx; 1: gyro, sonar).
+  fmt::print("EKF mean NIS:");
+  for (int s = 0; s < estimation::kNumSensors; ++s) {
+    if (t.nis_count[s] == 0) continue;
+    const int dof =
+        (s == int(estimation::Sensor::Encoders) || s == int(estimation::Sensor::Pozyx)) ? 2 : 1;
+    const double m = t.nis_sum[s] / double(t.nis_count[s]);
+    const auto b = stats::chi2MeanBand(0.95, dof, double(t.nis_count[s]));
+    const char* name = estimation::sensorName(estimation::Sensor(s));
+    fmt::print(" {} {:.3f} (dof {}, band {:.3f}..{:.3f})", name, m, dof, b.first, b.second);
+    j["ekf_nis"][name] = {{"mean", m}, {"dof", dof}, {"updates", t.nis_count[s]}};
+  }
+  fmt::print("\n");
   const auto sp = summarise(t.speed_error);
   fmt::print(
       "EKF speed error while moving (|v| > 0.3 m/s): {:+.2f} % +- {:.2f} % of the true "
