@@ -325,6 +325,7 @@ struct SparseResult {
   bool accepted = false;
   double lr_val = 0, lr_val_expected = 0;
   double rms_before_val = 0, rms_after_val = 0;
+  nlohmann::json cv = nlohmann::json::object();  ///< per term: blockedCvTerm numbers
 };
 
 /// A term library over a set of rows, its columns made on demand (a long drive's library is
@@ -340,12 +341,31 @@ struct Library {
   }
 };
 
+/// blockedCvTerm (HeldOut.h) of every term of `terms`, on the fit rows followed by the
+/// validation rows (10 time blocks; bootstrap blocks of `lags` rows).
+std::vector<BlockedCvTerm> blockedCv(const Library& L, const Eigen::VectorXd& y,
+                                     const Library& Lv, const Eigen::VectorXd& yv,
+                                     const std::vector<int>& terms, int lags) {
+  const Eigen::Index nf = y.size(), n = nf + yv.size();
+  Eigen::MatrixXd A(n, terms.size());
+  A.topRows(nf) = L.design(terms);
+  A.bottomRows(yv.size()) = Lv.design(terms);
+  Eigen::VectorXd Y(n);
+  Y.head(nf) = y;
+  Y.tail(yv.size()) = yv;
+  std::vector<BlockedCvTerm> r;
+  for (size_t k = 0; k < terms.size(); ++k)
+    r.push_back(blockedCvTerm(A, Y, static_cast<int>(k), 10, std::max(1, lags)));
+  return r;
+}
+
 /// The held-out rule applied to each term of a sparse fit (issue 16): backward elimination
 /// on the validation rows. Each round refits (on the fit rows) without each term in turn; the
 /// term whose removal costs the held-out prediction least is dropped unless that cost is both
 /// significant, n_eff log(RSS_val without / RSS_val with) >= chi2_1(1 - alpha), and relevant:
 /// the held-out prediction changes by at least min_contribution_rms (the floor every finding
-/// must pass). Collinear library terms (e.g. the other motor's current, which carries the
+/// must pass). Then every surviving term must pass blocked cross-validation (blockedCvTerm:
+/// block-bootstrap gain and jackknife coefficient); the weakest failing one is dropped. Collinear library terms (e.g. the other motor's current, which carries the
 /// same dynamics) then no longer smear one physical term over several.
 std::vector<int> heldOutPrune(const Library& L, const Eigen::VectorXd& y, const Library& Lv,
                               const Eigen::VectorXd& yv,
@@ -374,6 +394,19 @@ std::vector<int> heldOutPrune(const Library& L, const Eigen::VectorXd& y, const 
     if (significant && change_rms >= min_contribution_rms) break;
     terms.erase(terms.begin() + static_cast<long>(best_k));
   }
+  // Blocked cross-validation over all rows (fit and validation, time blocks): a term that does
+  // not predict the blocks it was not fitted on better, or whose coefficient is within its
+  // block-to-block (misspecification) uncertainty, goes; the weakest first, one per call (the
+  // caller refits the rest).
+  const std::vector<BlockedCvTerm> cv = blockedCv(L, y, Lv, yv, terms, lags);
+  int worst = -1;
+  double worst_t = std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < cv.size(); ++k) {
+    if (cv[k].kept(opt.alpha)) continue;
+    const double t = std::abs(cv[k].coef) / std::max(1e-300, cv[k].coef_se);
+    if (t < worst_t) worst_t = t, worst = static_cast<int>(k);
+  }
+  if (worst >= 0) terms.erase(terms.begin() + worst);
   return terms;
 }
 
@@ -423,6 +456,8 @@ SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, 
       min_contribution_rms)
     return res;
   if (yv.size() > 10) {
+    const std::vector<BlockedCvTerm> cv = blockedCv(L, y, Lv, yv, res.terms, lags);
+    for (size_t k = 0; k < cv.size(); ++k) res.cv[std::to_string(res.terms[k])] = cv[k].toJson();
     const Eigen::MatrixXd Av = Lv.design(res.terms);
     Eigen::VectorXd r1 = yv - Av * res.coef;
     double nev = effectiveSampleSize(r1, gv, lags);
@@ -613,16 +648,18 @@ Finding unmodeledFinding(const SparseResult& sr, const std::vector<std::string>&
     const auto& nm = names[sr.terms[k]];
     f.parameters[nm] = sr.coef(k);
     f.uncertainty[nm] = sr.se(k);
+    if (const std::string key = std::to_string(sr.terms[k]); sr.cv.contains(key))
+      f.evidence["blocked_cv"][nm] = sr.cv[key];
     eq += fmt::format(" {:+.4g}*{}", sr.coef(k), nm);
   }
   f.parameters["channel"] = channel;
   f.description =
       "a term outside the catalogue acts on the " + where + ": " + eq + " (" + unit + ")";
-  f.evidence = {{"likelihood_ratio", sr.ev.lr},
-                {"p_value", sr.ev.p_value},
-                {"delta_bic", sr.ev.delta_bic},
-                {"n_eff", sr.ev.n_eff},
-                {"validation_likelihood_ratio", sr.lr_val}};
+  f.evidence["likelihood_ratio"] = sr.ev.lr;
+  f.evidence["p_value"] = sr.ev.p_value;
+  f.evidence["delta_bic"] = sr.ev.delta_bic;
+  f.evidence["n_eff"] = sr.ev.n_eff;
+  f.evidence["validation_likelihood_ratio"] = sr.lr_val;
   f.fit_before = {{"validation_rms_" + rms_unit, sr.rms_before_val}};
   f.fit_after = {{"validation_rms_" + rms_unit, sr.rms_after_val}};
   return f;
