@@ -327,7 +327,7 @@ struct SparseResult {
   bool accepted = false;
   double lr_val = 0, lr_val_expected = 0;
   double rms_before_val = 0, rms_after_val = 0;
-  nlohmann::json cv = nlohmann::json::object();  ///< per term: blockedCvTerm numbers
+  nlohmann::json cv = nlohmann::json::object();          ///< per term: blockedCvTerm numbers
   nlohmann::json cannot_tell = nlohmann::json::array();  ///< terms below the misspecification
 };
 
@@ -346,9 +346,9 @@ struct Library {
 
 /// blockedCvTerm (HeldOut.h) of every term of `terms`, on the fit rows followed by the
 /// validation rows (10 time blocks; bootstrap blocks of `lags` rows).
-std::vector<BlockedCvTerm> blockedCv(const Library& L, const Eigen::VectorXd& y,
-                                     const Library& Lv, const Eigen::VectorXd& yv,
-                                     const std::vector<int>& terms, int lags) {
+std::vector<BlockedCvTerm> blockedCv(const Library& L, const Eigen::VectorXd& y, const Library& Lv,
+                                     const Eigen::VectorXd& yv, const std::vector<int>& terms,
+                                     int lags) {
   const Eigen::Index nf = y.size(), n = nf + yv.size();
   Eigen::MatrixXd A(n, terms.size());
   A.topRows(nf) = L.design(terms);
@@ -367,13 +367,15 @@ std::vector<BlockedCvTerm> blockedCv(const Library& L, const Eigen::VectorXd& y,
 /// term whose removal costs the held-out prediction least is dropped unless that cost is both
 /// significant, n_eff log(RSS_val without / RSS_val with) >= chi2_1(1 - alpha), and relevant:
 /// the held-out prediction changes by at least min_contribution_rms (the floor every finding
-/// must pass). Then every surviving term must pass blocked cross-validation (blockedCvTerm:
-/// block-bootstrap gain and jackknife coefficient); the weakest failing one is dropped. Collinear library terms (e.g. the other motor's current, which carries the
-/// same dynamics) then no longer smear one physical term over several.
+/// must pass). Collinear library terms (e.g. the other motor's current, which carries the same
+/// dynamics) then no longer smear one physical term over several. Then every surviving term
+/// must pass blocked cross-validation over all rows (blockedCvTerm: block-bootstrap held-out
+/// gain and delete-one-block jackknife of its coefficient); the weakest failing one is dropped
+/// (one per call: the caller refits the rest and calls again).
 std::vector<int> heldOutPrune(const Library& L, const Eigen::VectorXd& y, const Library& Lv,
-                              const Eigen::VectorXd& yv,
-                              const Groups& gv, int lags, const DiagnosisOptions& opt,
-                              double min_contribution_rms, std::vector<int> terms) {
+                              const Eigen::VectorXd& yv, const Groups& gv, int lags,
+                              const DiagnosisOptions& opt, double min_contribution_rms,
+                              std::vector<int> terms) {
   auto valPrediction = [&](const std::vector<int>& t) {
     const Eigen::VectorXd b = L.design(t).colPivHouseholderQr().solve(y);
     return Eigen::VectorXd(Lv.design(t) * b);
@@ -951,7 +953,8 @@ SparseResult sparseSubset(const SparseResult& sr, const std::function<bool(int)>
   out.terms.clear();
   std::vector<double> c, e;
   for (size_t k = 0; k < sr.terms.size(); ++k)
-    if (which(sr.terms[k])) out.terms.push_back(sr.terms[k]), c.push_back(sr.coef(k)), e.push_back(sr.se(k));
+    if (which(sr.terms[k]))
+      out.terms.push_back(sr.terms[k]), c.push_back(sr.coef(k)), e.push_back(sr.se(k));
   out.coef = Eigen::Map<Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
   out.se = Eigen::Map<Eigen::VectorXd>(e.data(), static_cast<Eigen::Index>(e.size()));
   return out;
@@ -1003,10 +1006,12 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
     };
     const Library L{nRf, nlib, [&](int j) { return column(df2, j, s2 * nRf, nRf); }};
     const Library Lv{nRv2, nlib, [&](int j) { return column(dv2, j, s2 * nRv2, nRv2); }};
-    SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
-                            rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
-                            lags, opt, opt.min_relevance * cfg.motors.current_noise_A, 12,
-                            df2.noise_var, [](int j) { return j == 10 ? 11 : j == 11 ? 10 : -1; });
+    SparseResult sr =
+        stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
+              rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags, opt,
+              opt.min_relevance * cfg.motors.current_noise_A, 12, df2.noise_var, [](int j) {
+                return j == 10 ? 11 : j == 11 ? 10 : -1;
+              });
     if (!sr.accepted) continue;
     const std::string ch = s2 == 0 ? "current_right" : "current_left";
     std::vector<int> untold;  // in the fit, not reported

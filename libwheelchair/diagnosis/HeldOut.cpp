@@ -67,7 +67,9 @@ BlockedCvTerm blockedCvTerm(const Eigen::MatrixXd& A, const Eigen::VectorXd& y, 
   std::vector<Eigen::VectorXd> hb(K);
   Eigen::MatrixXd G = Eigen::MatrixXd::Zero(k, k);
   Eigen::VectorXd h = Eigen::VectorXd::Zero(k);
-  auto rows = [&](int b) { return std::pair<Eigen::Index, Eigen::Index>{n * b / K, n * (b + 1) / K}; };
+  auto rows = [&](int b) {
+    return std::pair<Eigen::Index, Eigen::Index>{n * b / K, n * (b + 1) / K};
+  };
   for (int b = 0; b < K; ++b) {
     const auto [r0, r1] = rows(b);
     const auto Ab = A.middleRows(r0, r1 - r0);
