@@ -961,7 +961,8 @@ SparseResult sparseSubset(const SparseResult& sr, const std::function<bool(int)>
 }
 
 /// A friction finding (coulomb_friction accepted on motor `ch`) gets the unmodeled terms that
-/// are functions of that wheel's speed alone as the shape of its friction law: the same
+/// are functions of that wheel's speed alone as the shape of its friction law (those below the
+/// channel's unexplained structure too, marked `below_unexplained`: one law): the same
 /// physics as the catalogue term, which only fixes the shape to the model's smooth sign (the
 /// catalogue value plus these terms is the friction current as a function of u), not a new
 /// effect (issue 16).
@@ -973,6 +974,8 @@ void addFrictionShape(Finding& friction, const SparseResult& shape, const std::s
     terms[nm] = {{"coefficient_A", shape.coef(k)}, {"sigma_A", shape.se(k)}};
     if (const std::string key = std::to_string(shape.terms[k]); shape.cv.contains(key))
       terms[nm]["blocked_cv"] = shape.cv[key];
+    for (const auto& c : shape.cannot_tell)  // below the channel's unexplained structure
+      if (c["term"].get<int>() == shape.terms[k]) terms[nm]["below_unexplained"] = c;
     eq += fmt::format(" {:+.3g}*{}", shape.coef(k), nm);
   }
   friction.evidence["friction_shape"][ch] = terms;
@@ -1014,8 +1017,16 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
               });
     if (!sr.accepted) continue;
     const std::string ch = s2 == 0 ? "current_right" : "current_left";
+    if (const int fi = friction_finding[s2]; fi >= 0) {  // the friction law's shape first
+      const SparseResult shape = sparseSubset(sr, frictionShapeTerm);
+      if (!shape.terms.empty()) addFrictionShape(rep.findings[fi], shape, ch);
+      sr = sparseSubset(sr, [](int j) { return !frictionShapeTerm(j); });
+      if (sr.terms.empty()) continue;
+    }
     std::vector<int> untold;  // in the fit, not reported
     for (const auto& c : sr.cannot_tell) {
+      if (std::find(sr.terms.begin(), sr.terms.end(), c["term"].get<int>()) == sr.terms.end())
+        continue;  // went into the friction shape
       untold.push_back(c["term"].get<int>());
       rep.info["cannot_tell"].push_back(fmt::format(
           "{}: a term {:+.3g}*{} predicts held-out data better, but its held-out contribution "
@@ -1029,12 +1040,6 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
     sr = sparseSubset(
         sr, [&](int j) { return std::find(untold.begin(), untold.end(), j) == untold.end(); });
     if (sr.terms.empty()) continue;
-    if (const int fi = friction_finding[s2]; fi >= 0) {
-      const SparseResult shape = sparseSubset(sr, frictionShapeTerm);
-      if (!shape.terms.empty()) addFrictionShape(rep.findings[fi], shape, ch);
-      sr = sparseSubset(sr, [](int j) { return !frictionShapeTerm(j); });
-      if (sr.terms.empty()) continue;
-    }
     rep.addFinding(
         unmodeledFinding(sr, dynLibNames(), ch, ch + " - model", ch + " equation", "A", "A"));
   }
