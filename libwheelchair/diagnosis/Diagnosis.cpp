@@ -18,8 +18,10 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -325,6 +327,8 @@ struct SparseResult {
   bool accepted = false;
   double lr_val = 0, lr_val_expected = 0;
   double rms_before_val = 0, rms_after_val = 0;
+  nlohmann::json cv = nlohmann::json::object();          ///< per term: blockedCvTerm numbers
+  nlohmann::json cannot_tell = nlohmann::json::array();  ///< terms below the misspecification
 };
 
 /// A term library over a set of rows, its columns made on demand (a long drive's library is
@@ -340,17 +344,38 @@ struct Library {
   }
 };
 
+/// blockedCvTerm (HeldOut.h) of every term of `terms`, on the fit rows followed by the
+/// validation rows (10 time blocks; bootstrap blocks of `lags` rows).
+std::vector<BlockedCvTerm> blockedCv(const Library& L, const Eigen::VectorXd& y, const Library& Lv,
+                                     const Eigen::VectorXd& yv, const std::vector<int>& terms,
+                                     int lags) {
+  const Eigen::Index nf = y.size(), n = nf + yv.size();
+  Eigen::MatrixXd A(n, terms.size());
+  A.topRows(nf) = L.design(terms);
+  A.bottomRows(yv.size()) = Lv.design(terms);
+  Eigen::VectorXd Y(n);
+  Y.head(nf) = y;
+  Y.tail(yv.size()) = yv;
+  std::vector<BlockedCvTerm> r;
+  for (size_t k = 0; k < terms.size(); ++k)
+    r.push_back(blockedCvTerm(A, Y, static_cast<int>(k), 10, std::max(1, lags)));
+  return r;
+}
+
 /// The held-out rule applied to each term of a sparse fit (issue 16): backward elimination
 /// on the validation rows. Each round refits (on the fit rows) without each term in turn; the
 /// term whose removal costs the held-out prediction least is dropped unless that cost is both
 /// significant, n_eff log(RSS_val without / RSS_val with) >= chi2_1(1 - alpha), and relevant:
 /// the held-out prediction changes by at least min_contribution_rms (the floor every finding
-/// must pass). Collinear library terms (e.g. the other motor's current, which carries the
-/// same dynamics) then no longer smear one physical term over several.
+/// must pass). Collinear library terms (e.g. the other motor's current, which carries the same
+/// dynamics) then no longer smear one physical term over several. Then every surviving term
+/// must pass blocked cross-validation over all rows (blockedCvTerm: block-bootstrap held-out
+/// gain and delete-one-block jackknife of its coefficient); the weakest failing one is dropped
+/// (one per call: the caller refits the rest and calls again).
 std::vector<int> heldOutPrune(const Library& L, const Eigen::VectorXd& y, const Library& Lv,
-                              const Eigen::VectorXd& yv,
-                              const Groups& gv, int lags, const DiagnosisOptions& opt,
-                              double min_contribution_rms, std::vector<int> terms) {
+                              const Eigen::VectorXd& yv, const Groups& gv, int lags,
+                              const DiagnosisOptions& opt, double min_contribution_rms,
+                              std::vector<int> terms) {
   auto valPrediction = [&](const std::vector<int>& t) {
     const Eigen::VectorXd b = L.design(t).colPivHouseholderQr().solve(y);
     return Eigen::VectorXd(Lv.design(t) * b);
@@ -374,14 +399,64 @@ std::vector<int> heldOutPrune(const Library& L, const Eigen::VectorXd& y, const 
     if (significant && change_rms >= min_contribution_rms) break;
     terms.erase(terms.begin() + static_cast<long>(best_k));
   }
+  // Blocked cross-validation over all rows (fit and validation, time blocks): a term that does
+  // not predict the blocks it was not fitted on better, or whose coefficient is within its
+  // block-to-block (misspecification) uncertainty, goes; the weakest first, one per call (the
+  // caller refits the rest).
+  const std::vector<BlockedCvTerm> cv = blockedCv(L, y, Lv, yv, terms, lags);
+  int worst = -1;
+  double worst_t = std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k < cv.size(); ++k) {
+    if (cv[k].kept(opt.alpha)) continue;
+    const double t = std::abs(cv[k].coef) / std::max(1e-300, cv[k].coef_se);
+    if (t < worst_t) worst_t = t, worst = static_cast<int>(k);
+  }
+  if (worst >= 0) terms.erase(terms.begin() + worst);
   return terms;
 }
 
+/// The terms of `terms` whose held-out contribution is below the structure the model leaves
+/// unexplained on the validation rows (indices into `terms`). A regressor correlated with an
+/// omitted term takes up to |omitted| of it (Cauchy-Schwarz on the omitted-variable bias), so a
+/// term contributing less than sigma_m = sqrt(max(0, mean(r^2) - noise_var)) (r: held-out
+/// residual of the full set; noise_var: the channel's predicted noise variance per row) cannot
+/// be told from a projection of what is still missing: it is not a finding (issue 16: "honest
+/// when it cannot tell"). A term's contribution: the change of the held-out prediction when it
+/// (with its partner(j) >= 0, e.g. cos/sin of one angle) is left out and the rest refitted.
+/// Per dropped term: {index, contribution rms}; sigma_m set.
+std::vector<std::pair<int, double>> belowMisspecification(
+    const Library& L, const Eigen::VectorXd& y, const Library& Lv, const Eigen::VectorXd& yv,
+    const std::vector<int>& terms, double noise_var, const std::function<int(int)>& partner,
+    double& sigma_m) {
+  auto valPrediction = [&](const std::vector<int>& t) {
+    if (t.empty()) return Eigen::VectorXd(Eigen::VectorXd::Zero(yv.size()));
+    const Eigen::VectorXd b = L.design(t).colPivHouseholderQr().solve(y);
+    return Eigen::VectorXd(Lv.design(t) * b);
+  };
+  const double nv = std::max<double>(1, yv.size());
+  const Eigen::VectorXd p_full = valPrediction(terms);
+  sigma_m = std::sqrt(std::max(0.0, (yv - p_full).squaredNorm() / nv - noise_var));
+  std::vector<std::pair<int, double>> out;
+  for (size_t k = 0; k < terms.size(); ++k) {
+    const int mate = partner ? partner(terms[k]) : -1;
+    std::vector<int> t;
+    for (int j : terms)
+      if (j != terms[k] && j != mate) t.push_back(j);
+    const double c = (valPrediction(t) - p_full).norm() / std::sqrt(nv);
+    if (c < sigma_m) out.push_back({static_cast<int>(k), c});
+  }
+  return out;
+}
+
 /// Column `excluded` (-1: none) of the library L (fit; Lv validation) is left out as if it
-/// were zero.
+/// were zero. noise_var > 0: the misspecification bound (belowMisspecification, `partner`
+/// pairs columns that are one physical term) marks terms that stay in the fit (leaving them out
+/// would bias the others) but are not reported: SparseResult::cannot_tell (library index,
+/// numbers); the caller reports the rest.
 SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, const Library& Lv,
                    const Eigen::VectorXd& yv, const Groups& gv, int lags,
-                   const DiagnosisOptions& opt, double min_contribution_rms, int excluded = -1) {
+                   const DiagnosisOptions& opt, double min_contribution_rms, int excluded = -1,
+                   double noise_var = 0, const std::function<int(int)>& partner = {}) {
   SparseResult res;
   std::vector<int> act;
   for (int j = 0; j < L.cols; ++j)
@@ -407,6 +482,14 @@ SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, 
           act = kept;
           continue;
         }
+        double sigma_m = 0;
+        if (noise_var > 0)
+          for (const auto& [w, c_rms] :
+               belowMisspecification(L, y, Lv, yv, act, noise_var, partner, sigma_m))
+            res.cannot_tell.push_back({{"term", act[w]},
+                                       {"coefficient", f.beta(w)},
+                                       {"heldout_contribution_rms", c_rms},
+                                       {"unexplained_rms", sigma_m}});
       }
       res.terms = act;
       res.coef = f.beta;
@@ -423,6 +506,8 @@ SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, 
       min_contribution_rms)
     return res;
   if (yv.size() > 10) {
+    const std::vector<BlockedCvTerm> cv = blockedCv(L, y, Lv, yv, res.terms, lags);
+    for (size_t k = 0; k < cv.size(); ++k) res.cv[std::to_string(res.terms[k])] = cv[k].toJson();
     const Eigen::MatrixXd Av = Lv.design(res.terms);
     Eigen::VectorXd r1 = yv - Av * res.coef;
     double nev = effectiveSampleSize(r1, gv, lags);
@@ -613,16 +698,18 @@ Finding unmodeledFinding(const SparseResult& sr, const std::vector<std::string>&
     const auto& nm = names[sr.terms[k]];
     f.parameters[nm] = sr.coef(k);
     f.uncertainty[nm] = sr.se(k);
+    if (const std::string key = std::to_string(sr.terms[k]); sr.cv.contains(key))
+      f.evidence["blocked_cv"][nm] = sr.cv[key];
     eq += fmt::format(" {:+.4g}*{}", sr.coef(k), nm);
   }
   f.parameters["channel"] = channel;
   f.description =
       "a term outside the catalogue acts on the " + where + ": " + eq + " (" + unit + ")";
-  f.evidence = {{"likelihood_ratio", sr.ev.lr},
-                {"p_value", sr.ev.p_value},
-                {"delta_bic", sr.ev.delta_bic},
-                {"n_eff", sr.ev.n_eff},
-                {"validation_likelihood_ratio", sr.lr_val}};
+  f.evidence["likelihood_ratio"] = sr.ev.lr;
+  f.evidence["p_value"] = sr.ev.p_value;
+  f.evidence["delta_bic"] = sr.ev.delta_bic;
+  f.evidence["n_eff"] = sr.ev.n_eff;
+  f.evidence["validation_likelihood_ratio"] = sr.lr_val;
   f.fit_before = {{"validation_rms_" + rms_unit, sr.rms_before_val}};
   f.fit_after = {{"validation_rms_" + rms_unit, sr.rms_after_val}};
   return f;
@@ -853,11 +940,59 @@ void dynamicChannels(const DynRows& df, const DynRows& dv, const DynRows& dv2, c
   }
 }
 
+/// Library terms that are functions of the motor's own rim speed u alone (1, sgn(u), |u|,
+/// u^2): the shape of a friction law F(u).
+bool frictionShapeTerm(int j) {
+  return j == 0 || j == 5 || j == 6 || j == 7;
+}
+
+/// The terms of `sr` for which `which` is true (coefficients, sigmas and cross-validation
+/// numbers; the evidence and held-out RMS stay those of the whole set).
+SparseResult sparseSubset(const SparseResult& sr, const std::function<bool(int)>& which) {
+  SparseResult out = sr;
+  out.terms.clear();
+  std::vector<double> c, e;
+  for (size_t k = 0; k < sr.terms.size(); ++k)
+    if (which(sr.terms[k]))
+      out.terms.push_back(sr.terms[k]), c.push_back(sr.coef(k)), e.push_back(sr.se(k));
+  out.coef = Eigen::Map<Eigen::VectorXd>(c.data(), static_cast<Eigen::Index>(c.size()));
+  out.se = Eigen::Map<Eigen::VectorXd>(e.data(), static_cast<Eigen::Index>(e.size()));
+  return out;
+}
+
+/// A friction finding (coulomb_friction accepted on motor `ch`) gets the unmodeled terms that
+/// are functions of that wheel's speed alone as the shape of its friction law (those below the
+/// channel's unexplained structure too, marked `below_unexplained`: one law): the same
+/// physics as the catalogue term, which only fixes the shape to the model's smooth sign (the
+/// catalogue value plus these terms is the friction current as a function of u), not a new
+/// effect (issue 16).
+void addFrictionShape(Finding& friction, const SparseResult& shape, const std::string& ch) {
+  nlohmann::json terms = nlohmann::json::object();
+  std::string eq;
+  for (size_t k = 0; k < shape.terms.size(); ++k) {
+    const std::string& nm = dynLibNames()[shape.terms[k]];
+    terms[nm] = {{"coefficient_A", shape.coef(k)}, {"sigma_A", shape.se(k)}};
+    if (const std::string key = std::to_string(shape.terms[k]); shape.cv.contains(key))
+      terms[nm]["blocked_cv"] = shape.cv[key];
+    for (const auto& c : shape.cannot_tell)  // below the channel's unexplained structure
+      if (c["term"].get<int>() == shape.terms[k]) terms[nm]["below_unexplained"] = c;
+    eq += fmt::format(" {:+.3g}*{}", shape.coef(k), nm);
+  }
+  friction.evidence["friction_shape"][ch] = terms;
+  if (!friction.description.empty() && friction.description.back() != '.')
+    friction.description += '.';
+  friction.description += " The friction current of " + ch +
+                          " is not the model's smooth sign of the wheel speed u: beyond it" + eq +
+                          " A (the shape of the friction law, e.g. stiction; not a new effect).";
+}
+
 /// Stage 2 terms outside the catalogue: STLSQ per motor over the term library.
+/// friction_finding[s]: index in rep.findings of the accepted Coulomb friction acting on
+/// motor s (0 right, 1 left), -1 if none.
 void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& dv2,
                       const Eigen::VectorXd& rv_after, int lags,
                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
-                      DiagnosisReport& rep) {
+                      const std::array<int, 2>& friction_finding, DiagnosisReport& rep) {
   const Eigen::VectorXd& rf = sel.fit.residual;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   for (int s2 = 0; s2 < 2; ++s2) {
@@ -874,11 +1009,37 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
     };
     const Library L{nRf, nlib, [&](int j) { return column(df2, j, s2 * nRf, nRf); }};
     const Library Lv{nRv2, nlib, [&](int j) { return column(dv2, j, s2 * nRv2, nRv2); }};
-    SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
-                            rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
-                            lags, opt, opt.min_relevance * cfg.motors.current_noise_A, 12);
+    SparseResult sr =
+        stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
+              rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags, opt,
+              opt.min_relevance * cfg.motors.current_noise_A, 12, df2.noise_var, [](int j) {
+                return j == 10 ? 11 : j == 11 ? 10 : -1;
+              });
     if (!sr.accepted) continue;
-    std::string ch = s2 == 0 ? "current_right" : "current_left";
+    const std::string ch = s2 == 0 ? "current_right" : "current_left";
+    if (const int fi = friction_finding[s2]; fi >= 0) {  // the friction law's shape first
+      const SparseResult shape = sparseSubset(sr, frictionShapeTerm);
+      if (!shape.terms.empty()) addFrictionShape(rep.findings[fi], shape, ch);
+      sr = sparseSubset(sr, [](int j) { return !frictionShapeTerm(j); });
+      if (sr.terms.empty()) continue;
+    }
+    std::vector<int> untold;  // in the fit, not reported
+    for (const auto& c : sr.cannot_tell) {
+      if (std::find(sr.terms.begin(), sr.terms.end(), c["term"].get<int>()) == sr.terms.end())
+        continue;  // went into the friction shape
+      untold.push_back(c["term"].get<int>());
+      rep.info["cannot_tell"].push_back(fmt::format(
+          "{}: a term {:+.3g}*{} predicts held-out data better, but its held-out contribution "
+          "{:.3g} A is below the {:.3g} A of structure the model still leaves unexplained on "
+          "this channel, which could produce it; not reported. To tell: drive where that term "
+          "is excited and the rest is not (e.g. speed changes on straight runs for vdot, turns "
+          "at constant speed for omega terms)",
+          ch, c["coefficient"].get<double>(), dynLibNames()[untold.back()],
+          c["heldout_contribution_rms"].get<double>(), c["unexplained_rms"].get<double>()));
+    }
+    sr = sparseSubset(
+        sr, [&](int j) { return std::find(untold.begin(), untold.end(), j) == untold.end(); });
+    if (sr.terms.empty()) continue;
     rep.addFinding(
         unmodeledFinding(sr, dynLibNames(), ch, ch + " - model", ch + " equation", "A", "A"));
   }
@@ -930,6 +1091,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   double sigma = std::sqrt(sel.fit.rss / std::max<Eigen::Index>(1, df2.y.size()));
   const effects::TermFit fit = termFit(sel, cands, cfg, refit.delay);
   bool asym_done = false;
+  std::array<int, 2> friction{-1, -1};  // rep.findings index of the friction on each motor
   for (size_t a = 0; a < sel.accepted.size(); ++a) {
     const Candidate& c = cands[sel.accepted[a]];
     if (c.effect == "motor_asymmetry") {  // both sides make one finding
@@ -948,6 +1110,11 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     f.channels = {"current_right", "current_left"};
     describeFinding(f, c, sel, a, fit);
     rep.addFinding(f);
+    if (c.effect == "coulomb_friction") {  // the motors it acts on
+      const int idx = static_cast<int>(rep.findings.size()) - 1;
+      if (c.name != "coulomb_friction/left") friction[0] = idx;
+      if (c.name != "coulomb_friction/right") friction[1] = idx;
+    }
   }
   if (opt.enable_unmodeled) {
     // The unmodeled-term search reads the rows' signals (DynRows::libColumn), not their
@@ -957,7 +1124,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
       rows->t = rows->phi = {};
       rows->side = {};
     }
-    dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, rep);
+    dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, friction, rep);
   }
   return true;
 }

@@ -1,5 +1,9 @@
 #include "libwheelchair/diagnosis/HeldOut.h"
 
+#include "libwheelchair/stats/Distributions.h"
+
+#include <Eigen/QR>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -25,6 +29,85 @@ double blockBootstrapProbNotPositive(const std::vector<double>& d, int block, in
     if (sum <= 0) ++not_positive;
   }
   return static_cast<double>(not_positive) / resamples;
+}
+
+namespace {
+/// Solves the normal equations G b = h restricted to the columns `c` (least-squares sense).
+Eigen::VectorXd solveSub(const Eigen::MatrixXd& G, const Eigen::VectorXd& h,
+                         const std::vector<int>& c) {
+  const int k = static_cast<int>(c.size());
+  Eigen::MatrixXd Gs(k, k);
+  Eigen::VectorXd hs(k);
+  for (int a = 0; a < k; ++a) {
+    hs(a) = h(c[a]);
+    for (int b = 0; b < k; ++b) Gs(a, b) = G(c[a], c[b]);
+  }
+  return Gs.completeOrthogonalDecomposition().solve(hs);
+}
+}  // namespace
+
+bool BlockedCvTerm::kept(double alpha) const {
+  return testable && p_not_positive < alpha &&
+         std::abs(coef) >= stats::normalQuantile(1 - alpha / 2) * coef_se;
+}
+
+nlohmann::json BlockedCvTerm::toJson() const {
+  return {{"blocked_cv_mean_gain", mean_gain},
+          {"blocked_cv_p_not_positive", p_not_positive},
+          {"jackknife_sigma", coef_se}};
+}
+
+BlockedCvTerm blockedCvTerm(const Eigen::MatrixXd& A, const Eigen::VectorXd& y, int j, int blocks,
+                            int boot_block) {
+  BlockedCvTerm r;
+  const Eigen::Index n = A.rows(), k = A.cols();
+  const int K = std::max(2, blocks);
+  if (j < 0 || j >= k || n != y.size() || n < 20 * K * std::max<Eigen::Index>(1, k)) return r;
+  std::vector<Eigen::MatrixXd> Gb(K);
+  std::vector<Eigen::VectorXd> hb(K);
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(k, k);
+  Eigen::VectorXd h = Eigen::VectorXd::Zero(k);
+  auto rows = [&](int b) {
+    return std::pair<Eigen::Index, Eigen::Index>{n * b / K, n * (b + 1) / K};
+  };
+  for (int b = 0; b < K; ++b) {
+    const auto [r0, r1] = rows(b);
+    const auto Ab = A.middleRows(r0, r1 - r0);
+    Gb[b] = Ab.transpose() * Ab;
+    hb[b] = Ab.transpose() * y.segment(r0, r1 - r0);
+    G += Gb[b], h += hb[b];
+  }
+  std::vector<int> all(k), without;
+  for (int c = 0; c < k; ++c) {
+    all[c] = c;
+    if (c != j) without.push_back(c);
+  }
+  r.coef = solveSub(G, h, all)(j);
+  std::vector<double> d(n), bj(K);
+  for (int b = 0; b < K; ++b) {
+    const auto [r0, r1] = rows(b);
+    const Eigen::MatrixXd Go = G - Gb[b];
+    const Eigen::VectorXd ho = h - hb[b];
+    const Eigen::VectorXd b1 = solveSub(Go, ho, all);
+    bj[b] = b1(j);
+    Eigen::VectorXd b0 = Eigen::VectorXd::Zero(k);
+    if (!without.empty()) {
+      const Eigen::VectorXd s = solveSub(Go, ho, without);
+      for (size_t c = 0; c < without.size(); ++c) b0(without[c]) = s(c);
+    }
+    for (Eigen::Index i = r0; i < r1; ++i) {
+      const double e1 = y(i) - A.row(i).dot(b1), e0 = y(i) - A.row(i).dot(b0);
+      d[i] = e0 * e0 - e1 * e1;
+    }
+  }
+  double mean_b = 0, ss = 0;
+  for (double x : bj) mean_b += x / K;
+  for (double x : bj) ss += (x - mean_b) * (x - mean_b);
+  r.coef_se = std::sqrt((K - 1.0) / K * ss);
+  for (double x : d) r.mean_gain += x / n;
+  r.p_not_positive = blockBootstrapProbNotPositive(d, boot_block);
+  r.testable = true;
+  return r;
 }
 
 const std::vector<std::string>& heldOutKeys() {

@@ -22,12 +22,29 @@
 //    residual change that is noise; its validation_rms_* keys are not judged and evidence
 //    "heldout" says "not testable" (trajectory keys still are).
 //
+//  - blockedCvTerm(A, y, j, ...): blocked cross-validation of regressor j of the linear fit
+//    y ~ A b (rows in time order). The rows are cut into `blocks` contiguous time blocks; each
+//    block is predicted from a fit on the others, with and without column j, and the paired
+//    per-row gains d_i = e_without_i^2 - e_with_i^2 (unit of y squared) go to the moving-block
+//    bootstrap above (p_not_positive). The delete-one-block jackknife of b_j,
+//    se = sqrt((K-1)/K sum_k (b_j(-k) - mean)^2), is its uncertainty including what the
+//    model's misspecification does to it from one stretch of the drive to the next (a physical
+//    constant is the same in every block; a regressor borrowing unexplained structure is not).
+//    kept(alpha): the term predicts the blocks it was not fitted on better (p_not_positive <
+//    alpha) AND its coefficient is larger than that block-to-block uncertainty
+//    (|b_j| >= z_{1-alpha/2} se). Too few rows (< 20 per block and column): not testable,
+//    not kept. Normal equations per block (k x k), so memory is A's only.
+//
 // Example:
 //   double p = blockBootstrapProbNotPositive({0.1, -0.02, 0.05, ...}, 20);   // p < 0.05: helps
+//   BlockedCvTerm c = blockedCvTerm(A, y, 2, 10, 50);  // column 2, 10 blocks, 1-s resampling
+//   if (!c.kept(0.01)) /* not a finding */;
 //   enforceHeldOutRule(rep);   // after every analyser has added its findings
 #pragma once
 
 #include "libwheelchair/diagnosis/Finding.h"
+
+#include <Eigen/Core>
 
 #include <string>
 #include <vector>
@@ -36,6 +53,20 @@ namespace wheelchair::diagnosis {
 
 double blockBootstrapProbNotPositive(const std::vector<double>& d, int block, int resamples = 2000,
                                      unsigned seed = 16);
+
+/// Blocked cross-validation of one regressor (see header).
+struct BlockedCvTerm {
+  bool testable = false;
+  double mean_gain = 0;       ///< mean held-out squared-error gain per row (unit of y squared)
+  double p_not_positive = 1;  ///< moving-block bootstrap of mean_gain <= 0
+  double coef = 0;            ///< b_j fitted on all rows
+  double coef_se = 0;         ///< delete-one-block jackknife standard error of b_j
+  bool kept(double alpha) const;
+  nlohmann::json toJson() const;
+};
+
+BlockedCvTerm blockedCvTerm(const Eigen::MatrixXd& A, const Eigen::VectorXd& y, int j,
+                            int blocks = 10, int boot_block = 1);
 
 /// Keys of fit_before / fit_after that are held-out predictions (larger = worse).
 const std::vector<std::string>& heldOutKeys();

@@ -108,6 +108,43 @@ TEST(DiagnoseCampaign, MujocoSubSampleGyroLagIsNotNamedARealDelayIs) {
       EXPECT_NEAR(f.parameters["delay_s"].get<double>(), 0.05, 0.0125);
 }
 
+// The acceptance gates of `unmodeled` terms on a MuJoCo drive with concealed Coulomb friction
+// (issue 16): the multibody's stiction-like friction leaves a sgn(u) term beyond the
+// catalogue's tanh on the left motor, and a vdot term (+0.09 A s^2/m) whose held-out
+// contribution is below the structure the model still leaves unexplained. Neither is a new
+// `unmodeled` finding: the sgn(u) is the friction's shape (in the Coulomb finding), the vdot
+// is stated as undecidable; the centre-of-mass terms are still reported.
+TEST(DiagnoseCampaign, MujocoFrictionShapeAndTermsBelowMisspecificationAreNotFindings) {
+  const config::WheelchairConfig cfg;
+  simulation::SimulationOptions so;
+  so.loadFromConfig(cfg.ini());
+  so.engine = "mujoco";
+  so.record_ground_truth = true;
+  const auto sim =
+      simulation::simulate(cfg, "excite", 939493, 90,
+                           {effects::parseValidEffect("coulomb_friction:current_A=0.311229")}, so);
+  const auto rep = diagnosis::diagnose({sim.recording}, {}, cfg, diagnosis::DiagnosisOptions{});
+  const diagnosis::Finding* friction = rep.find("coulomb_friction");
+  ASSERT_NE(friction, nullptr);
+  ASSERT_TRUE(friction->evidence.contains("friction_shape")) << friction->evidence.dump();
+  EXPECT_TRUE(friction->evidence["friction_shape"]["current_left"].contains("sgn(u)"));
+  EXPECT_NE(friction->description.find("shape of the friction law"), std::string::npos);
+  int com_terms = 0;
+  for (const auto& f : rep.findings) {
+    if (f.effect != "unmodeled") continue;
+    for (const char* t : {"1", "sgn(u)", "|u|", "u^2", "vdot"})
+      EXPECT_FALSE(f.parameters.contains(t)) << t << " in " << f.parameters.dump();
+    com_terms += f.parameters.contains("v*omega");
+  }
+  EXPECT_EQ(com_terms, 2);  // the centre of mass ahead of the axle, on both motors
+  ASSERT_TRUE(rep.info.contains("cannot_tell")) << rep.info.dump();
+  bool vdot_untold = false;
+  for (const auto& c : rep.info["cannot_tell"])
+    vdot_untold = vdot_untold || c.get<std::string>().find("*vdot predicts held-out data better") !=
+                                     std::string::npos;
+  EXPECT_TRUE(vdot_untold) << rep.info["cannot_tell"].dump();
+}
+
 // Exploration: DIAG_RUNS=n DIAG_EFFECTS=a,b ./test_diagnosis --gtest_also_run_disabled_tests
 // --gtest_filter=*Explore*
 TEST(DiagnoseCampaign, DISABLED_Explore) {

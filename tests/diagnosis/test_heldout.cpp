@@ -2,7 +2,9 @@
 //  - the moving-block bootstrap says a clear positive gain is positive and a zero-mean
 //    autocorrelated series is not (no asymptotic n_eff test);
 //  - enforceHeldOutRule removes exactly the findings whose own held-out prediction gets worse
-//    and lists them in info.rejected_heldout with the numbers.
+//    and lists them in info.rejected_heldout with the numbers;
+//  - blocked cross-validation keeps a constant term and drops one whose coefficient is within
+//    its block-to-block scatter (borrowed structure), one without effect, and short data.
 #include "libwheelchair/diagnosis/HeldOut.h"
 
 #include <gtest/gtest.h>
@@ -74,6 +76,44 @@ TEST(HeldOutRule, RemovesOnlyFindingsThatPredictWorse) {
   enforceHeldOutRule(only_bad);
   EXPECT_TRUE(only_bad.findings.empty());
   EXPECT_FALSE(only_bad.mismatch);
+}
+
+}  // namespace
+}  // namespace wheelchair::diagnosis
+
+namespace wheelchair::diagnosis {
+namespace {
+
+// Blocked cross-validation of one regressor (blockedCvTerm): a real, constant term is kept; a
+// regressor that only borrows structure whose sign changes from one stretch of the drive to
+// the next (misspecification) is not, although its in-sample fit on all rows is strong; a
+// regressor without effect is not; too few rows: not testable, not kept.
+TEST(HeldOutRule, BlockedCvKeepsConstantTermsOnly) {
+  const int n = 4000, K = 10;
+  std::mt19937 rng(3);
+  std::normal_distribution<double> N(0, 1);
+  Eigen::MatrixXd A(n, 3);
+  Eigen::VectorXd y(n);
+  for (int i = 0; i < n; ++i) {
+    A(i, 0) = N(rng), A(i, 1) = N(rng), A(i, 2) = N(rng);
+    const int block = i * K / n;
+    const double borrowed = block < 6 ? 1.0 : -1.0;  // same regressor, sign by stretch
+    y(i) = 0.8 * A(i, 0) + borrowed * A(i, 1) + 0.1 * N(rng);
+  }
+  const BlockedCvTerm real = blockedCvTerm(A, y, 0, K, 20);
+  EXPECT_TRUE(real.kept(0.01));
+  EXPECT_NEAR(real.coef, 0.8, 0.05);
+  EXPECT_GT(real.mean_gain, 0.3);
+  const BlockedCvTerm borrowed = blockedCvTerm(A, y, 1, K, 20);
+  EXPECT_NEAR(borrowed.coef, 0.2, 0.05);                         // in-sample: clearly non-zero ...
+  EXPECT_GT(borrowed.coef_se, std::abs(borrowed.coef) / 2.576);  // ... within block scatter
+  EXPECT_FALSE(borrowed.kept(0.01));
+  const BlockedCvTerm none = blockedCvTerm(A, y, 2, K, 20);
+  EXPECT_FALSE(none.kept(0.01));
+  EXPECT_GT(none.p_not_positive, 0.01);
+  const BlockedCvTerm short_data = blockedCvTerm(A.topRows(100), y.head(100), 0, K, 20);
+  EXPECT_FALSE(short_data.testable);
+  EXPECT_FALSE(short_data.kept(0.01));
 }
 
 }  // namespace
