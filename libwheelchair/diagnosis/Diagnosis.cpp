@@ -507,14 +507,18 @@ struct StageData {
   double fit_fraction = 1.0;  ///< part of each fit recording in `fit` (1: --validate given)
 };
 
+/// `made(fit, i)`, if given, is called once the streams of fit (true) or validation recording
+/// i are made (diagnose() on recordings it may release).
 StageData splitStreams(const std::vector<io::Recording>& fit_recs,
                        const std::vector<io::Recording>& val_recs,
-                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
+                       const std::function<void(bool, std::size_t)>& made = {}) {
   StageData d;
   d.fit_recs = &fit_recs;
   d.fit_fraction = val_recs.empty() ? opt.fit_fraction : 1.0;
-  for (auto& r : fit_recs) {
-    Streams s = makeStreams(r, cfg);
+  for (std::size_t i = 0; i < fit_recs.size(); ++i) {
+    Streams s = makeStreams(fit_recs[i], cfg);
+    if (made) made(true, i);
     d.any_enc |= s.hasEncoders(), d.any_gyro |= s.hasGyro(), d.any_mot |= s.hasMotors();
     if (val_recs.empty()) {
       double tc = s.t_begin + opt.fit_fraction * (s.t_end - s.t_begin);
@@ -528,7 +532,10 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs,
     for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
     d.all.push_back(std::move(s));
   }
-  for (auto& r : val_recs) d.val.push_back(makeStreams(r, cfg));
+  for (std::size_t i = 0; i < val_recs.size(); ++i) {
+    d.val.push_back(makeStreams(val_recs[i], cfg));
+    if (made) made(false, i);
+  }
   return d;
 }
 
@@ -1047,9 +1054,9 @@ DiagnosisReport diagnose(std::vector<io::Recording>&& fit_recs,
                          std::vector<io::Recording>&& val_recs, const config::WheelchairConfig& cfg,
                          const DiagnosisOptions& opt) {
   const auto tstart = std::chrono::steady_clock::now();
-  const StageData data = splitStreams(fit_recs, val_recs, cfg, opt);
-  for (auto* recs : {&fit_recs, &val_recs})
-    for (io::Recording& r : *recs) releaseStreamSamples(r);
+  const StageData data = splitStreams(fit_recs, val_recs, cfg, opt, [&](bool fit, std::size_t i) {
+    releaseStreamSamples(fit ? fit_recs[i] : val_recs[i]);
+  });
   return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart);
 }
 
