@@ -64,8 +64,9 @@ Inputs readInputs(const DiagnoseOptions& o, Progress& progress) {
 
 // The wheelchair stages and, for command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor
 // currents: e.g. MRCLAM imports), the command-response analyser; encoders, if any, still go
-// through the wheelchair stages.
-diagnosis::DiagnosisReport analyse(const Inputs& in, const config::WheelchairConfig& cfg,
+// through the wheelchair stages. Without the command-response analyser the recordings are
+// handed to diagnose(), which releases their bulk once it has made its streams (memory).
+diagnosis::DiagnosisReport analyse(Inputs& in, const config::WheelchairConfig& cfg,
                                    const diagnosis::DiagnosisOptions& opt) {
   const auto& fit = in.fit;
   const auto& val = in.val;
@@ -78,7 +79,10 @@ diagnosis::DiagnosisReport analyse(const Inputs& in, const config::WheelchairCon
   for (const auto& r : val) command_driven &= diagnosis::hasCommandResponseData(r);
   command_driven &= !any_motors;
   diagnosis::DiagnosisReport rep;
-  if (!command_driven || any_encoders) rep = diagnosis::diagnose(fit, val, cfg, opt);
+  if (!command_driven)
+    rep = diagnosis::diagnose(std::move(in.fit), std::move(in.val), cfg, opt);
+  else if (any_encoders)
+    rep = diagnosis::diagnose(fit, val, cfg, opt);
   if (command_driven) {
     diagnosis::CommandResponseOptions co;
     co.alpha = opt.alpha;
@@ -210,7 +214,7 @@ std::string validationText(diagnosis::DiagnosisReport& rep,
 
 int runDiagnose(const DiagnoseOptions& o) {
   Progress progress(!o.no_progress && isatty(STDERR_FILENO));
-  const Inputs in = readInputs(o, progress);
+  Inputs in = readInputs(o, progress);
   progress.tick("diagnosing");
   // Without --config: the configuration recorded in the first input (e.g. the geometry an
   // importer took from the dataset's metadata), else the nominal vehicle.

@@ -583,7 +583,8 @@ void DiagnosisOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
 namespace {
 
 /// The recordings as streams: `fit` and `val` (the held-out part or the --validate
-/// recordings) and `all` (the whole fit recordings, for the trajectory check).
+/// recordings) and `all` (the whole fit recordings without motor currents, for the trajectory
+/// and the Pozyx checks).
 struct StageData {
   std::vector<Streams> fit, val, all;
   bool any_enc = false, any_gyro = false, any_mot = false;
@@ -591,14 +592,18 @@ struct StageData {
   double fit_fraction = 1.0;  ///< part of each fit recording in `fit` (1: --validate given)
 };
 
+/// `made(fit, i)`, if given, is called once the streams of fit (true) or validation recording
+/// i are made (diagnose() on recordings it may release).
 StageData splitStreams(const std::vector<io::Recording>& fit_recs,
                        const std::vector<io::Recording>& val_recs,
-                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
+                       const std::function<void(bool, std::size_t)>& made = {}) {
   StageData d;
   d.fit_recs = &fit_recs;
   d.fit_fraction = val_recs.empty() ? opt.fit_fraction : 1.0;
-  for (auto& r : fit_recs) {
-    Streams s = makeStreams(r, cfg);
+  for (std::size_t i = 0; i < fit_recs.size(); ++i) {
+    Streams s = makeStreams(fit_recs[i], cfg);
+    if (made) made(true, i);
     d.any_enc |= s.hasEncoders(), d.any_gyro |= s.hasGyro(), d.any_mot |= s.hasMotors();
     if (val_recs.empty()) {
       double tc = s.t_begin + opt.fit_fraction * (s.t_end - s.t_begin);
@@ -607,16 +612,15 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs,
     } else {
       d.fit.push_back(s);
     }
-    // `all` serves the trajectory check, which needs ground truth: a recording without it
-    // keeps only its time span there (its streams are already in fit / val; memory).
-    if (s.gt.size() < 2) {
-      Streams span;
-      span.t_begin = s.t_begin, span.t_end = s.t_end;
-      s = std::move(span);
-    }
+    // `all` serves the trajectory check and the Pozyx fault check (encoders, gyro, Pozyx,
+    // ground truth): the motor currents are already in fit / val (memory).
+    for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
     d.all.push_back(std::move(s));
   }
-  for (auto& r : val_recs) d.val.push_back(makeStreams(r, cfg));
+  for (std::size_t i = 0; i < val_recs.size(); ++i) {
+    d.val.push_back(makeStreams(val_recs[i], cfg));
+    if (made) made(false, i);
+  }
   return d;
 }
 
@@ -1121,8 +1125,9 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     // designs: those go first, as the search's own fits are the peak of diagnose (memory).
     for (DynRows* rows : {&df, &dv, &refit.fit, &refit.val}) {
       rows->X = Eigen::MatrixXd();
-      rows->t = rows->phi = {};
-      rows->side = {};
+      std::vector<double>().swap(rows->t);  // (`= {}` would keep the capacity)
+      std::vector<double>().swap(rows->phi);
+      std::vector<int>().swap(rows->side);
     }
     dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, friction, rep);
   }
@@ -1148,12 +1153,15 @@ void verifyTrajectories(const StageData& data, const Corrections& corr,
 
 }  // namespace
 
-DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
-                         const std::vector<io::Recording>& val_recs,
-                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
-  auto tstart = std::chrono::steady_clock::now();
+namespace {
+
+/// The diagnosis on the streams `data` of the recordings (diagnose()): the recordings are read
+/// only for their encoders, ground truth and sonar after the streams are made.
+DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
+                                const std::vector<io::Recording>& val_recs, const StageData& data,
+                                const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
+                                std::chrono::steady_clock::time_point tstart) {
   DiagnosisReport rep;
-  const StageData data = splitStreams(fit_recs, val_recs, cfg, opt);
   if (!data.any_enc) throw std::runtime_error("diagnose: no encoder data in the fit recordings");
   rep.info["streams"] = {
       {"encoders", data.any_enc}, {"gyro", data.any_gyro}, {"motors", data.any_mot}};
@@ -1180,7 +1188,7 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   {
     SensorFaultOptions so;
     so.alpha = opt.alpha;
-    SensorFaultReport sf = detectSensorFaults(fit_recs, cfg, corr, so);
+    SensorFaultReport sf = detectSensorFaults(fit_recs, cfg, corr, so, &data.all);
     for (auto& f : sf.findings) rep.addFinding(f);
     rep.info["sensor_faults"] = sf.info;
   }
@@ -1189,6 +1197,34 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
   rep.info["runtime_s"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - tstart).count();
   return rep;
+}
+
+/// Frees the samples the diagnosis reads only through the streams (IMU, motor currents) or not
+/// at all (joystick: the command-response analyser is not part of diagnose()).
+void releaseStreamSamples(io::Recording& r) {
+  std::vector<io::ImuSample>().swap(r.imu);  // (`= {}` would keep the capacity)
+  std::vector<io::MotorSample>().swap(r.motors);
+  std::vector<io::JoystickSample>().swap(r.joystick);
+}
+
+}  // namespace
+
+DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
+                         const std::vector<io::Recording>& val_recs,
+                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+  const auto tstart = std::chrono::steady_clock::now();
+  const StageData data = splitStreams(fit_recs, val_recs, cfg, opt);
+  return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart);
+}
+
+DiagnosisReport diagnose(std::vector<io::Recording>&& fit_recs,
+                         std::vector<io::Recording>&& val_recs, const config::WheelchairConfig& cfg,
+                         const DiagnosisOptions& opt) {
+  const auto tstart = std::chrono::steady_clock::now();
+  const StageData data = splitStreams(fit_recs, val_recs, cfg, opt, [&](bool fit, std::size_t i) {
+    releaseStreamSamples(fit ? fit_recs[i] : val_recs[i]);
+  });
+  return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart);
 }
 
 namespace {

@@ -65,6 +65,14 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit,
                          const std::vector<io::Recording>& validate,
                          const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
 
+/// The same on recordings the caller no longer needs (the CLI): once their streams are made,
+/// the recordings' IMU, motor and joystick samples -- the bulk of a long drive -- are released
+/// (the later checks read only the encoders, ground truth, sonar and the streams); the report
+/// is the same, bit for bit (memory, docs/benchmarks.md). The vectors are left holding the
+/// other samples.
+DiagnosisReport diagnose(std::vector<io::Recording>&& fit, std::vector<io::Recording>&& validate,
+                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
+
 /// The findings as simulator effects (docs/effects.md): one definition for both.
 std::vector<effects::EffectSpec> findingsAsEffects(const DiagnosisReport& rep);
 

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
 
 namespace wheelchair::diagnosis {
 
@@ -205,10 +206,9 @@ Track odometry(const Streams& s, const config::WheelchairConfig& cfg, const Corr
   return tr;
 }
 
-void pozyxRecording(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                    const Corrections& corr, const SensorFaultOptions& o, PozyxStats& st,
+void pozyxRecording(const Streams& s, const config::WheelchairConfig& cfg, const Corrections& corr,
+                    const SensorFaultOptions& o, PozyxStats& st,
                     std::vector<std::vector<double>>& keep) {
-  const Streams s = makeStreams(rec, cfg);
   if (s.pozyx.size() < static_cast<std::size_t>(o.pozyx_min_window_fixes) || !s.hasEncoders())
     return;
   const Track tr = odometry(s, cfg, corr);
@@ -451,16 +451,31 @@ void pozyxFinding(PozyxStats& ps, const std::vector<std::vector<double>>& keep,
 
 SensorFaultReport detectSensorFaults(const std::vector<io::Recording>& recs,
                                      const config::WheelchairConfig& cfg, const Corrections& corr,
-                                     const SensorFaultOptions& o) {
+                                     const SensorFaultOptions& o,
+                                     const std::vector<Streams>* streams) {
+  if (streams && streams->size() != recs.size())
+    throw std::invalid_argument("detectSensorFaults: one Streams per recording needed");
   SensorFaultReport rep;
   SonarStats ss;
   for (const auto& r : recs) sonarRecording(r, cfg, o, ss);
   if (ss.readings > 0) sonarFinding(ss, rep);
   PozyxStats ps;
   std::vector<std::vector<double>> keep;  // t, d2, |e|
-  for (const auto& r : recs) pozyxRecording(r, cfg, corr, o, ps, keep);
+  for (std::size_t i = 0; i < recs.size(); ++i) {
+    if (streams) {
+      pozyxRecording((*streams)[i], cfg, corr, o, ps, keep);
+    } else if (!recs[i].pozyx.empty()) {  // no fixes: the streams are not needed
+      pozyxRecording(makeStreams(recs[i], cfg), cfg, corr, o, ps, keep);
+    }
+  }
   if (ps.tested > 0) pozyxFinding(ps, keep, o, rep);
   return rep;
+}
+
+SensorFaultReport detectSensorFaults(const std::vector<io::Recording>& recs,
+                                     const config::WheelchairConfig& cfg, const Corrections& corr,
+                                     const SensorFaultOptions& o) {
+  return detectSensorFaults(recs, cfg, corr, o, nullptr);
 }
 
 }  // namespace wheelchair::diagnosis

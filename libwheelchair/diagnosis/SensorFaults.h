@@ -72,5 +72,13 @@ struct SensorFaultReport {
 SensorFaultReport detectSensorFaults(const std::vector<io::Recording>& recs,
                                      const config::WheelchairConfig& cfg, const Corrections& corr,
                                      const SensorFaultOptions& opt);
+/// The same with each recording's streams already made (`streams[i]` = makeStreams(recs[i]);
+/// only the encoder, gyro and Pozyx streams are read): the Pozyx check then reads them instead
+/// of the recordings' encoder / IMU samples, which may have been released (diagnose on a long
+/// drive; memory, docs/benchmarks.md). The sonar check reads recs[i].sonar.
+SensorFaultReport detectSensorFaults(const std::vector<io::Recording>& recs,
+                                     const config::WheelchairConfig& cfg, const Corrections& corr,
+                                     const SensorFaultOptions& opt,
+                                     const std::vector<Streams>* streams);
 
 }  // namespace wheelchair::diagnosis

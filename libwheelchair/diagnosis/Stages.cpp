@@ -23,12 +23,25 @@ using stats::LinearFit;
 
 namespace {
 
+/// Positions of the samples of v in time order (stable), the first of equal times only: the
+/// order of a stable sort of v, without copying the samples (a long drive's IMU; memory).
 template <class T, class F>
-std::vector<T> sortedUnique(std::vector<T> v, F time) {
-  std::stable_sort(v.begin(), v.end(), [&](const T& a, const T& b) { return time(a) < time(b); });
+std::vector<std::size_t> sortedUniqueIndex(const std::vector<T>& v, F time) {
+  std::vector<std::size_t> idx(v.size());
+  std::iota(idx.begin(), idx.end(), std::size_t{0});
+  std::stable_sort(idx.begin(), idx.end(),
+                   [&](std::size_t a, std::size_t b) { return time(v[a]) < time(v[b]); });
+  std::size_t m = 0;
+  for (std::size_t k : idx)
+    if (m == 0 || time(v[k]) > time(v[idx[m - 1]])) idx[m++] = k;
+  idx.resize(m);
+  return idx;
+}
+
+template <class T, class F>
+std::vector<T> sortedUnique(const std::vector<T>& v, F time) {
   std::vector<T> out;
-  for (auto& s : v)
-    if (out.empty() || time(s) > time(out.back())) out.push_back(s);
+  for (std::size_t k : sortedUniqueIndex(v, time)) out.push_back(v[k]);
   return out;
 }
 
@@ -97,9 +110,10 @@ Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cf
   signals::DriveStreams d = signals::driveStreams(rec, cfg);
   s.te = std::move(d.te), s.sR = std::move(d.s[0]), s.sL = std::move(d.s[1]);
   s.tm = std::move(d.tm), s.iR = std::move(d.i[0]), s.iL = std::move(d.i[1]);
-  auto imu = sortedUnique(rec.imu, [](const io::ImuSample& a) { return a.t_s; });
-  for (auto& g : imu)
+  for (std::size_t k : sortedUniqueIndex(rec.imu, [](const io::ImuSample& a) { return a.t_s; })) {
+    const io::ImuSample& g = rec.imu[k];
     if (std::isfinite(g.gyro_z_rad_s)) s.tg.push_back(g.t_s), s.gz.push_back(g.gyro_z_rad_s);
+  }
   s.pozyx = sortedUnique(rec.pozyx, [](const io::PozyxSample& a) { return a.t_s; });
   s.gt = sortedUnique(rec.ground_truth, [](const io::GroundTruthPoseSample& a) { return a.t_s; });
   s.t_begin = rec.startTime();

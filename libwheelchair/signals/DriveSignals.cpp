@@ -31,12 +31,16 @@ DriveStreams driveStreams(const io::Recording& rec, const config::WheelchairConf
       for (auto& v : s.s[1]) v -= l0;
     }
   }
-  std::vector<io::MotorSample> mot = rec.motors;
-  std::stable_sort(mot.begin(), mot.end(), [](const io::MotorSample& a, const io::MotorSample& b) {
-    return a.t_s < b.t_s;
+  // The samples in stable time order through an index (a long drive's motor samples are not
+  // copied: memory, docs/benchmarks.md).
+  std::vector<std::size_t> order(rec.motors.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return rec.motors[a].t_s < rec.motors[b].t_s;
   });
   double last = -INFINITY;
-  for (const auto& m : mot) {
+  for (std::size_t k : order) {
+    const io::MotorSample& m = rec.motors[k];
     if (!(m.t_s > last)) continue;  // repeated stamp: the first sample is kept
     last = m.t_s;
     if (std::isfinite(m.current_right_A) && std::isfinite(m.current_left_A))

@@ -1,5 +1,6 @@
 #include "libwheelchair/stats/LeastSquares.h"
 
+#include <Eigen/QR>
 #include <Eigen/SVD>
 
 #include <algorithm>
@@ -192,15 +193,74 @@ Groups singleGroup(int n) {
   return {{0, n}};
 }
 
-LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
-                    int lags) {
-  return fitLinear(Eigen::MatrixXd(X), y, groups, lags);
+namespace {
+
+// Rows per block of the blocked fit (work matrices of a few (block + p) x p doubles).
+constexpr long kFitBlockRows = 2048;
+
+// Householder QR of the equilibrated [X D^-1, y], block of rows by block (TSQR: the R of
+// the rows so far is stacked on the next block and factorised again): returns the
+// (p + 1) x (p + 1) upper triangle [R c; 0 rho] with X D^-1 = Q R and Q'y = c.
+Eigen::MatrixXd blockedQr(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                          const Eigen::VectorXd& inv_scale) {
+  const long n = X.rows(), p = X.cols();
+  Eigen::MatrixXd R(0, p + 1), W;
+  for (long r0 = 0; r0 < n; r0 += kFitBlockRows) {
+    const long nb = std::min(kFitBlockRows, n - r0);
+    W.resize(R.rows() + nb, p + 1);
+    W.topRows(R.rows()) = R;
+    W.bottomRows(nb).leftCols(p) = X.middleRows(r0, nb) * inv_scale.asDiagonal();
+    W.bottomRows(nb).col(p) = y.segment(r0, nb);
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(W);
+    const long k = std::min<long>(W.rows(), p + 1);
+    R = qr.matrixQR().topRows(k).triangularView<Eigen::Upper>();
+  }
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(p + 1, p + 1);
+  out.topRows(R.rows()) = R;
+  return out;
 }
 
-LinearFit fitLinear(Eigen::MatrixXd&& X, const Eigen::VectorXd& y, const Groups& groups, int lags) {
+// Newey-West S of the scores g_i = (X D^-1)_i' e_i of the rows of each group (one series per
+// group, lags never cross a group boundary; a row in no group is its own series), made block
+// of rows by block: the p x (lags + block) window holds the block's scores and the `lags`
+// before it. The same sums as hacScoreCovariance() with one row per time step, in another order.
+Eigen::MatrixXd blockedHac(const Eigen::MatrixXd& X, const Eigen::VectorXd& e,
+                           const Eigen::VectorXd& inv_scale, const Groups& groups, int lags) {
+  const long n = X.rows(), p = X.cols(), L = std::max(0, lags);
+  Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p, p), G(p, L + kFitBlockRows), C;
+  std::vector<char> in_group(static_cast<std::size_t>(n), 0);
+  for (const auto& [a0, b0] : groups) {
+    const long a = std::max<long>(0, a0), b = std::min<long>(n, b0);
+    if (a >= b) continue;
+    G.leftCols(L).setZero();  // no scores before the group's first row
+    for (long c0 = a; c0 < b; c0 += kFitBlockRows) {
+      const long nb = std::min(kFitBlockRows, b - c0);
+      G.middleCols(L, nb) = (X.middleRows(c0, nb) * inv_scale.asDiagonal()).transpose() *
+                            e.segment(c0, nb).asDiagonal();
+      const auto Gc = G.middleCols(L, nb);
+      S.noalias() += Gc * Gc.transpose();
+      for (long l = 1; l <= L; ++l) {  // pairs (t - l, t), t in this block
+        C.noalias() = G.middleCols(L - l, nb) * Gc.transpose();
+        S += (1.0 - double(l) / (L + 1)) * (C + C.transpose());
+      }
+      if (L > 0) G.leftCols(L) = Eigen::MatrixXd(G.middleCols(nb, L));
+    }
+    std::fill(in_group.begin() + a, in_group.begin() + b, 1);
+  }
+  for (long i = 0; i < n; ++i)
+    if (!in_group[static_cast<std::size_t>(i)]) {
+      const Eigen::VectorXd g = X.row(i).transpose().cwiseProduct(inv_scale) * e(i);
+      S.noalias() += g * g.transpose();
+    }
+  return S;
+}
+
+}  // namespace
+
+LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
+                    int lags) {
   LinearFit f;
-  const int n = static_cast<int>(y.size());
-  const int p = static_cast<int>(X.cols());
+  const long n = y.size(), p = X.cols();
   f.residual = y;
   f.rss = y.squaredNorm();
   if (p == 0) {
@@ -212,25 +272,40 @@ LinearFit fitLinear(Eigen::MatrixXd&& X, const Eigen::VectorXd& y, const Groups&
   f.beta = Eigen::VectorXd::Zero(p);
   f.cov = Eigen::MatrixXd::Identity(p, p) * 1e300;
   if (n <= p) return f;
-  std::vector<long> time_index(n, 0);
-  std::vector<int> block(n, -1);
-  for (std::size_t g = 0; g < groups.size(); ++g)
-    for (int i = std::max(0, groups[g].first); i < std::min(n, groups[g].second); ++i)
-      time_index[i] = i - groups[g].first, block[i] = static_cast<int>(g);
-  for (int i = 0; i < n; ++i)  // rows outside every group: each its own block
-    if (block[i] < 0) block[i] = -1 - i;
-  LsOptions opt;
-  opt.hac_lags = std::max(0, lags);
-  opt.rank_tol = 1e-10;
-  LsSolution s = solve(std::move(X), y, time_index, block, opt);
-  f.rank = s.rank;
-  if (s.rank < p) return f;
-  f.beta = s.beta;
-  f.cov = s.cov;
-  f.rss = s.residuals.squaredNorm();
-  f.residual = std::move(s.residuals);
+  if (X.rows() != n) throw std::invalid_argument("fitLinear: inconsistent input sizes");
+  // Column equilibration (unit 2-norm columns; an all-zero column keeps scale 1).
+  Eigen::VectorXd scale = X.colwise().norm().transpose();
+  for (long j = 0; j < p; ++j)
+    if (!(scale(j) > 0)) scale(j) = 1.0;
+  const Eigen::VectorXd inv_scale = scale.cwiseInverse();
+  // X D^-1 = Q R, R = U diag(s) V': the singular values and V of X D^-1 are those of R.
+  const Eigen::MatrixXd Rc = blockedQr(X, y, inv_scale);
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Rc.topLeftCorner(p, p),
+                                              Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::VectorXd& sv = svd.singularValues();
+  long r = 0;
+  for (long k = 0; k < p; ++k)
+    if (sv(k) > 1e-10 * sv(0)) ++r;
+  f.rank = static_cast<int>(r);
+  if (r < p) return f;
+  const Eigen::MatrixXd& V = svd.matrixV();
+  const Eigen::VectorXd beta_s =
+      V * (sv.cwiseInverse().asDiagonal() * (svd.matrixU().transpose() * Rc.col(p).head(p)));
+  f.beta = beta_s.cwiseProduct(inv_scale);
+  f.residual.noalias() -= X * f.beta;
+  f.rss = f.residual.squaredNorm();
+  // HAC sandwich in the equilibrated metric, (X_s'X_s)^-1 S (X_s'X_s)^-1, mapped back.
+  const Eigen::MatrixXd P = V * sv.array().pow(-2).matrix().asDiagonal() * V.transpose();
+  const Eigen::MatrixXd S = blockedHac(X, f.residual, inv_scale, groups, lags);
+  const double small_sample = double(n) / double(n - r);
+  f.cov = inv_scale.asDiagonal() * (small_sample * P * S * P) * inv_scale.asDiagonal();
   f.ok = true;
   return f;
+}
+
+LinearFit fitLinear(Eigen::MatrixXd&& X, const Eigen::VectorXd& y, const Groups& groups, int lags) {
+  const Eigen::MatrixXd design = std::move(X);  // freed on return, as before
+  return fitLinear(design, y, groups, lags);
 }
 
 }  // namespace wheelchair::stats

@@ -146,13 +146,15 @@ TEST(LeastSquares, HacCovarianceEqualsItsDefinition) {
   EXPECT_LT((s2.cov - cov2).norm(), 1e-9 * cov2.norm());
 }
 
-// fitLinear on a temporary design equilibrates it in place instead of copying it (memory of
-// diagnose on long drives): the result must be the same, bit for bit, as on a kept design, and
-// the kept design untouched.
-TEST(LeastSquares, FitLinearOnATemporaryDesignIsBitIdentical) {
+// fitLinear works block of rows by block (blocked QR, HAC scores summed per block; memory of
+// diagnose on long drives): on a temporary or a kept design the same result bit for bit, the
+// kept design untouched, and the result that of the unblocked SVD solver (solveLeastSquares)
+// up to rounding, with groups and lag windows that straddle the 2048-row blocks and rows in
+// no group.
+TEST(LeastSquares, FitLinearBlockedEqualsTheUnblockedSolver) {
   std::mt19937 rng(7);
   std::normal_distribution<double> N(0, 1);
-  const int n = 3001, p = 5;  // odd n: columns start unaligned in the matrix
+  const int n = 7001, p = 5;  // odd n: columns start unaligned in the matrix
   Eigen::MatrixXd X(n, p);
   Eigen::VectorXd y(n);
   double e = 0;
@@ -161,10 +163,12 @@ TEST(LeastSquares, FitLinearOnATemporaryDesignIsBitIdentical) {
     e = 0.9 * e + N(rng);  // autocorrelated noise: the HAC part matters
     y(i) = 0.5 + 2 * X(i, 1) - 0.001 * X(i, 2) + 300 * X(i, 3) + e;
   }
-  const stats::Groups groups{{0, 1000}, {1000, 2500}, {2600, n}};  // rows 2500..2599 alone
+  // group edges inside blocks, a group across two block edges, rows 4500..4599 alone
+  const stats::Groups groups{{0, 1000}, {1000, 4500}, {4600, n}};
+  const int lags = 30;
   const Eigen::MatrixXd kept = X;
-  const stats::LinearFit a = stats::fitLinear(X, y, groups, 8);
-  const stats::LinearFit b = stats::fitLinear(Eigen::MatrixXd(X), y, groups, 8);
+  const stats::LinearFit a = stats::fitLinear(X, y, groups, lags);
+  const stats::LinearFit b = stats::fitLinear(Eigen::MatrixXd(X), y, groups, lags);
   EXPECT_EQ(X, kept);
   ASSERT_TRUE(a.ok);
   ASSERT_TRUE(b.ok);
@@ -173,7 +177,6 @@ TEST(LeastSquares, FitLinearOnATemporaryDesignIsBitIdentical) {
   EXPECT_EQ(a.residual, b.residual);
   EXPECT_EQ(a.rss, b.rss);
   EXPECT_NEAR(a.beta(1), 2.0, 0.2);
-  // solveLeastSquares (LsInput) is the same solver: the same coefficients.
   stats::LsInput in{X, y, std::vector<long>(n), std::vector<int>(n)};
   for (int i = 0; i < n; ++i) {
     int g = 0;
@@ -182,9 +185,21 @@ TEST(LeastSquares, FitLinearOnATemporaryDesignIsBitIdentical) {
     in.block[i] = g < 3 ? g : -1 - i;
   }
   stats::LsOptions lo;
-  lo.hac_lags = 8;
+  lo.hac_lags = lags;
   lo.rank_tol = 1e-10;
   const auto s = stats::solveLeastSquares(in, lo);
-  EXPECT_EQ(s.beta, a.beta);
-  EXPECT_EQ(s.cov, a.cov);
+  for (int k = 0; k < p; ++k) {
+    EXPECT_NEAR(a.beta(k), s.beta(k), 1e-11 * std::abs(s.beta(k))) << k;
+    for (int j = 0; j < p; ++j)
+      EXPECT_NEAR(a.cov(k, j), s.cov(k, j), 1e-10 * std::sqrt(s.cov(k, k) * s.cov(j, j)));
+  }
+  EXPECT_NEAR(a.rss, s.residuals.squaredNorm(), 1e-12 * a.rss);
+  EXPECT_LT((a.residual - s.residuals).norm(), 1e-10 * a.residual.norm());
+  // rank deficient (a duplicated column): not ok, beta 0, residual y
+  Eigen::MatrixXd Xd(n, p + 1);
+  Xd << X, X.col(1);
+  const stats::LinearFit d = stats::fitLinear(Xd, y, groups, lags);
+  EXPECT_FALSE(d.ok);
+  EXPECT_EQ(d.rank, p);
+  EXPECT_EQ(d.residual, y);
 }
