@@ -371,12 +371,12 @@ const char* const kFusedNote =
 struct FilterOutputs {
   FilterOutputs(const FilterCliOptions& o, bool pozyx_fused) {
     if (!o.trajectory.empty())
-      tum.emplace(o.trajectory, pozyx_fused ? std::vector<std::string>{kFusedNote}
-                                            : std::vector<std::string>{});
+      tum.emplace(o.trajectory,
+                  pozyx_fused ? std::vector<std::string>{kFusedNote} : std::vector<std::string>{});
     if (!o.estimates.empty()) csv.emplace(o.estimates);
     if (!o.health.empty()) health.emplace(o.health);
-    sinks.emplace(std::vector<estimation::EstimateSink*>{tum ? &*tum : nullptr,
-                                                         csv ? &*csv : nullptr});
+    sinks.emplace(
+        std::vector<estimation::EstimateSink*>{tum ? &*tum : nullptr, csv ? &*csv : nullptr});
   }
   std::optional<evaluation::TumEstimateSink> tum;
   std::optional<estimation::EstimatesCsvWriter> csv;

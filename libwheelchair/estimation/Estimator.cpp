@@ -410,8 +410,8 @@ class EventMerger {
   bool eof() const { return eof_; }
   /// Samples pushed and not yet released (the merge window's memory).
   std::size_t buffered() const {
-    return enc_.buffered() + imu_.buffered() + mot_.buffered() + son_.buffered() +
-           poz_.buffered() + enc_events_.size();
+    return enc_.buffered() + imu_.buffered() + mot_.buffered() + son_.buffered() + poz_.buffered() +
+           enc_events_.size();
   }
   /// Live input (LiveEstimator): the totals are unknown until the end; endOfInput() then
   /// sets them to what was pushed and releases everything.
@@ -708,8 +708,7 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
   };
   const auto named = [](const Event& e, const auto& f) { namedEvent(e, f); };
   // One pass: the share of the file read (the number of measurements is not known yet).
-  const std::size_t progress_every =
-      one_pass ? 4096 : std::max<std::size_t>(1, n_expected / 100);
+  const std::size_t progress_every = one_pass ? 4096 : std::max<std::size_t>(1, n_expected / 100);
   std::size_t done = 0;
   while (have) {
     if (progress && done % progress_every == 0)
