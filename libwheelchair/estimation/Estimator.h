@@ -5,7 +5,8 @@
 // priority encoders < gyro < sonar < Pozyx, then by value), so the result does not depend on
 // the order in which samples were stored or arrived. Its rawlog overload does the same merge
 // while reading the file as a stream, in a window of the file's measured lateness
-// (io/RawlogStream.h), with bit-identical results. Motor currents are not events: they are
+// (io/RawlogStream.h), with bit-identical results; runEstimatorOnePass reads a time-ordered
+// file once, without the scan that measures the lateness. Motor currents are not events: they are
 // the input signal u(t) of the physics filter (InputSignal), whose sample times become extra
 // integration breakpoints in zero-order-hold mode (u jumps there); piecewise-linear u is
 // continuous and is integrated through (docs/estimation.md, "CVODE settings").

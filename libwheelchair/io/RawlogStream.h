@@ -14,6 +14,10 @@
 // (estimation::runEstimator's streaming overload does this). Memory is then bounded by the
 // samples of `lateness_s` seconds instead of the whole drive.
 //
+// A file known to be in time order needs no pass 1: RawlogWindowReader(path, 0) summarises
+// what it reads (summary(), after the end: scanRawlog's result) and latenessSeen() tells when
+// the assumption failed (estimation::runEstimatorOnePass, what `wheelchair filter` tries first).
+//
 // Example:
 //   std::string warning;
 //   const RecordingSummary sum = scanRawlogSalvaging("drive.rawlog", salvage, &warning);
