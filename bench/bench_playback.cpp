@@ -9,13 +9,17 @@
 //   BM_DecodeAndFilter     both, as `wheelchair filter` does
 // and the stages of `wheelchair filter D.rawlog [--estimates E.csv]` as the command runs them
 // (docs/benchmarks.md, "Third round"):
-//   BM_ScanRawlog          pass 1: io::scanRawlog (counts, lateness, break), decode only
-//   BM_StreamMerge         pass 2 without the filter: decode + the time-ordered window merge
+//   BM_ScanRawlog          io::scanRawlog (counts, lateness, break), decode only: the pass
+//                          `filter` makes first only when the file is not time-ordered
+//   BM_StreamMerge         the streamed read without the filter: decode + window merge
 //   BM_FilterStatesOn      BM_FilterPhysics with the sensor-error states (k_R, k_L, b_g)
 //   BM_WriteEstimatesCsv   the estimates CSV of the run (EstimatesCsvWriter), write only
-//   BM_EndToEnd            scan + streamed filter + CSV written and committed, states off
+//   BM_EndToEnd            the file read once (runEstimatorOnePass: streamed filter, summary
+//                          made while reading) + CSV written and committed, states off
 //   BM_EndToEndStatesOn    the same with the sensor-error states
-//   BM_EndToEndNoOutput    scan + streamed filter, no output file
+//   BM_EndToEndNoOutput    the file read once + streamed filter, no output file
+//   BM_EndToEndTwoPass     scan + streamed filter, no output (before issue 17's last round,
+//                          and still the path for files out of time order)
 // Counters: measurements per second and the multiple of real time, per core.
 //
 // Run:   build/bench/bench_playback                      (600 s recording)
@@ -32,6 +36,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <optional>
 
 using namespace wheelchair;
 
@@ -190,12 +195,28 @@ void BM_WriteEstimatesCsv(benchmark::State& state) {
   setCounters(state, f);
 }
 
-/// `wheelchair filter PATH [--estimates CSV]`: both passes over the file, the streamed
-/// filter, the CSV written and committed (the command's own printing aside).
-void endToEnd(benchmark::State& state, bool states, bool write_csv) {
+/// `wheelchair filter PATH [--estimates CSV]`: the file read once (or `two_pass`: scanned,
+/// then streamed), the streamed filter, the CSV written and committed (the command's own
+/// printing aside).
+void endToEnd(benchmark::State& state, bool states, bool write_csv, bool two_pass = false) {
   auto& f = fixture();
   const auto opt = options(f, estimation::FilterKind::Physics, states);
   for (auto _ : state) {
+    if (!two_pass) {
+      io::RecordingSummary sum;
+      std::optional<estimation::EstimationResult> res;
+      if (write_csv) {
+        estimation::EstimatesCsvWriter csv(csvPath());
+        res = estimation::runEstimatorOnePass(f.path, f.cfg, opt, csv, sum);
+        csv.commit();
+      } else {
+        CountingSink count;
+        res = estimation::runEstimatorOnePass(f.path, f.cfg, opt, count, sum);
+      }
+      if (!res) state.SkipWithError("the bench drive is not time-ordered");
+      benchmark::DoNotOptimize(res);
+      continue;
+    }
     std::string warning;
     const io::RecordingSummary sum = io::scanRawlogSalvaging(f.path, false, &warning);
     if (write_csv) {
@@ -220,6 +241,9 @@ void BM_EndToEndStatesOn(benchmark::State& state) {
 void BM_EndToEndNoOutput(benchmark::State& state) {
   endToEnd(state, false, false);
 }
+void BM_EndToEndTwoPass(benchmark::State& state) {
+  endToEnd(state, false, false, true);
+}
 
 }  // namespace
 
@@ -234,4 +258,5 @@ BENCHMARK(BM_WriteEstimatesCsv)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EndToEnd)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EndToEndStatesOn)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EndToEndNoOutput)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_EndToEndTwoPass)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -408,6 +408,11 @@ class EventMerger {
     eof_ = eof;
   }
   bool eof() const { return eof_; }
+  /// Samples pushed and not yet released (the merge window's memory).
+  std::size_t buffered() const {
+    return enc_.buffered() + imu_.buffered() + mot_.buffered() + son_.buffered() + poz_.buffered() +
+           enc_events_.size();
+  }
   /// Live input (LiveEstimator): the totals are unknown until the end; endOfInput() then
   /// sets them to what was pushed and releases everything.
   void setOpenEnded(bool motors_expected) {
@@ -527,7 +532,16 @@ struct Source {
   const io::Recording* rec = nullptr;
   const std::string* path = nullptr;
   io::RecordingSummary summary;
+  /// One pass (runEstimatorOnePass): `summary` unknown, made while reading into *scanned.
+  io::RecordingSummary* scanned = nullptr;
 };
+
+/// runEstimatorOnePass cannot guarantee the two-pass result (see Estimator.h).
+struct NotOnePass {};
+
+/// A one-pass run gives up (NotOnePass) when the merge holds more samples than this (~6 MB):
+/// a file without motor currents, whose measurements all wait for an input that never comes.
+constexpr std::size_t kOnePassMaxBuffered = std::size_t(1) << 16;
 
 /// Books the samples of the streams the options leave out as skipped and returns the number
 /// of measurements of the others (progress, and the result's size when stored).
@@ -618,8 +632,13 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
 
   EventMerger merger(cfg, opt, counts, input);
   std::optional<io::RawlogWindowReader> reader;
+  const bool one_pass = src.scanned != nullptr;
   if (src.rec) {
     merger.attach(*src.rec);
+  } else if (one_pass) {  // totals unknown: as a live run, with the file assumed in order
+    reader.emplace(*src.path, 0.0);
+    merger.setOpenEnded(true);
+    merger.setWatermark(reader->watermark(), false);
   } else {
     reader.emplace(*src.path, counts.lateness_s);
     merger.setWatermark(reader->watermark(), false);
@@ -627,6 +646,10 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
   // Reads a block of samples and moves the watermark.
   const auto feed = [&] {
     reader->read([&](const io::AnySample& s, std::size_t k) { merger.push(s, k); });
+    if (one_pass) {
+      if (reader->latenessSeen() > 0 || merger.buffered() > kOnePassMaxBuffered) throw NotOnePass{};
+      if (reader->eof()) return merger.endOfInput();
+    }
     merger.setWatermark(reader->watermark(), reader->eof());
   };
   const auto nextEvent = [&](Event& e) {
@@ -641,10 +664,11 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
   Event E, N;
   bool have = nextEvent(E);
   if (!have) {
+    if (one_pass) throw NotOnePass{};
     res.warnings.push_back("no measurements: nothing estimated");
     return std::move(res);
   }
-  if (opt.filter == FilterKind::Physics && counts.count(StreamKind::Motors) == 0)
+  if (opt.filter == FilterKind::Physics && counts.count(StreamKind::Motors) == 0 && !one_pass)
     res.warnings.push_back("no motor currents: the input is held at 0 A");
 
   const double t0 = E.t;
@@ -683,11 +707,14 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
     stepEvent(*est, e);
   };
   const auto named = [](const Event& e, const auto& f) { namedEvent(e, f); };
-  const std::size_t progress_every = std::max<std::size_t>(1, n_expected / 100);
+  // One pass: the share of the file read (the number of measurements is not known yet).
+  const std::size_t progress_every = one_pass ? 4096 : std::max<std::size_t>(1, n_expected / 100);
   std::size_t done = 0;
   while (have) {
     if (progress && done % progress_every == 0)
-      progress(std::min(1.0, static_cast<double>(done) / std::max<std::size_t>(n_expected, 1)));
+      progress(one_pass ? reader->fractionRead()
+                        : std::min(1.0, static_cast<double>(done) /
+                                            std::max<std::size_t>(n_expected, 1)));
     named(E, [&] { processEvent(E); });
     ++done;
     // Samples of the input signal the filter has passed are dropped (streaming only).
@@ -696,6 +723,12 @@ EstimationResult runEstimatorImpl(const Source& src, const config::WheelchairCon
     // One output per measurement time (after all measurements of that time).
     if (!fixed_rate && (!have || N.t != E.t)) named(E, [&] { emit(est->estimate()); });
     E = N;
+  }
+  if (one_pass) {
+    *src.scanned = reader->summary();
+    // Without motor currents the two-pass run warns before its first measurement.
+    if (src.scanned->count(StreamKind::Motors) == 0) throw NotOnePass{};
+    countStreams(opt, *src.scanned, res);  // the skipped streams' counts
   }
   finishResult(*est, t0, res);
   return std::move(res);
@@ -822,6 +855,18 @@ EstimationResult runEstimator(const std::string& rawlog, const io::RecordingSumm
                               const config::WheelchairConfig& cfg, const EkfOptions& options,
                               EstimateSink& sink, const std::function<void(double)>& progress) {
   return runEstimatorImpl({nullptr, &rawlog, summary}, cfg, options, &sink, progress);
+}
+
+std::optional<EstimationResult> runEstimatorOnePass(const std::string& rawlog,
+                                                    const config::WheelchairConfig& cfg,
+                                                    const EkfOptions& options, EstimateSink& sink,
+                                                    io::RecordingSummary& summary,
+                                                    const std::function<void(double)>& progress) {
+  try {
+    return runEstimatorImpl({nullptr, &rawlog, {}, &summary}, cfg, options, &sink, progress);
+  } catch (const NotOnePass&) {
+    return std::nullopt;
+  }
 }
 
 EstimatorFamily selectEstimator(const io::RecordingSummary& rec, const std::string& forced) {

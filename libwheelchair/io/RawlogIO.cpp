@@ -582,6 +582,7 @@ RawlogReader::RawlogReader(const std::string& path) : path_(path), in_(std::make
     throw std::runtime_error(fmt::format("{}: is a directory, not a rawlog", path));
   if (fs::is_regular_file(st) && fs::file_size(path, ec) == 0)
     throw std::runtime_error(fmt::format("{}: empty file (0 bytes), not a rawlog", path));
+  if (fs::is_regular_file(st)) file_bytes_ = static_cast<double>(fs::file_size(path, ec));
   in_->f = gzopen(path.c_str(), "rb");
   if (!in_->f)
     throw std::runtime_error(fmt::format("{}: cannot open: {}", path, std::strerror(errno)));
@@ -589,6 +590,11 @@ RawlogReader::RawlogReader(const std::string& path) : path_(path), in_(std::make
 }
 
 RawlogReader::~RawlogReader() = default;
+
+double RawlogReader::fractionRead() const {
+  if (!(file_bytes_ > 0)) return 0;
+  return std::min(1.0, static_cast<double>(gzoffset(in_->f)) / file_bytes_);
+}
 
 void RawlogReader::setBreak(uint64_t pos, std::string what) {
   // Damage in the gzip layer shows in MRPT only as an early end or garbage: name it.

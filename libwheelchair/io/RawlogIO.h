@@ -91,6 +91,8 @@ class RawlogReader {
   const std::optional<RawlogBreak>& error() const { return error_; }
   std::size_t recordsRead() const { return index_; }
   const std::string& path() const { return path_; }
+  /// Share of the (compressed) file read so far, 0..1 (progress displays).
+  double fractionRead() const;
 
  private:
   void setBreak(uint64_t pos, std::string what);
@@ -98,6 +100,7 @@ class RawlogReader {
   struct GzipIn;
   std::string path_;
   std::unique_ptr<GzipIn> in_;
+  double file_bytes_ = 0;
   std::size_t index_ = 0;
   std::optional<RawlogBreak> error_;
 };

@@ -85,6 +85,7 @@ void RawlogWindowReader::read(const std::function<void(const AnySample&, std::si
       return;
     }
     t_max_ = std::max(t_max_, timeOf(s));
+    acc_.add(s);
     push(s, k);
   }
   watermark_ = t_max_ - lateness_s_;
@@ -144,30 +145,27 @@ void TimeOrderedRawlogWriter::commit() {
   out_.commit();
 }
 
-RecordingSummary scanRawlog(const std::string& path) {
-  RecordingSummary sum;
-  RawlogSampleReader in(path);
-  AnySample s;
-  std::size_t k = 0;
-  double t_min = std::numeric_limits<double>::infinity();
-  double t_max = -std::numeric_limits<double>::infinity();
-  while (in.next(s, k)) {
-    const double t = timeOf(s);
-    if (t_max - t > sum.lateness_s) sum.lateness_s = t_max - t;
-    t_min = std::min(t_min, t);
-    t_max = std::max(t_max, t);
-    ++sum.counts[s.index()];
-  }
+RecordingSummary SummaryAccumulator::finish(const RawlogSampleReader& in) const {
+  RecordingSummary sum = sum_;
   if (sum.size()) {
-    sum.start_s = t_min;
-    sum.end_s = t_max;
+    sum.start_s = t_min_;
+    sum.end_s = t_max_;
   }
   sum.report.records = in.recordsRead();
-  sum.report.ignored = in.ignored_;
+  sum.report.ignored = in.ignored();
   sum.report.broken = in.error();
-  sum.report.header_text = in.header_text_;
-  if (!in.header_text_.empty()) sum.meta = headerMeta(in.header_text_);
+  sum.report.header_text = in.headerText();
+  if (!in.headerText().empty()) sum.meta = headerMeta(in.headerText());
   return sum;
+}
+
+RecordingSummary scanRawlog(const std::string& path) {
+  RawlogSampleReader in(path);
+  SummaryAccumulator acc;
+  AnySample s;
+  std::size_t k = 0;
+  while (in.next(s, k)) acc.add(s);
+  return acc.finish(in);
 }
 
 RecordingSummary scanRawlogSalvaging(const std::string& path, bool salvage, std::string* warning) {

@@ -14,6 +14,10 @@
 // (estimation::runEstimator's streaming overload does this). Memory is then bounded by the
 // samples of `lateness_s` seconds instead of the whole drive.
 //
+// A file known to be in time order needs no pass 1: RawlogWindowReader(path, 0) summarises
+// what it reads (summary(), after the end: scanRawlog's result) and latenessSeen() tells when
+// the assumption failed (estimation::runEstimatorOnePass, what `wheelchair filter` tries first).
+//
 // Example:
 //   std::string warning;
 //   const RecordingSummary sum = scanRawlogSalvaging("drive.rawlog", salvage, &warning);
@@ -65,13 +69,34 @@ class RawlogSampleReader {
   const std::optional<RawlogBreak>& error() const { return in_.error(); }
   std::size_t recordsRead() const { return in_.recordsRead(); }
   const std::string& headerText() const { return header_text_; }
+  std::size_t ignored() const { return ignored_; }  ///< records skipped (not ours)
+  double fractionRead() const { return in_.fractionRead(); }
 
  private:
   RawlogReader in_;
   std::array<std::size_t, kNumStreams> index_{};
   std::size_t ignored_ = 0;
   std::string header_text_;
-  friend RecordingSummary scanRawlog(const std::string& path);
+};
+
+/// The RecordingSummary of samples seen in file order: add() each, then finish() with the
+/// reader once it has stopped (records, break, header). scanRawlog is this over a whole file.
+class SummaryAccumulator {
+ public:
+  void add(const AnySample& s) {
+    const double t = timeOf(s);
+    if (t_max_ - t > sum_.lateness_s) sum_.lateness_s = t_max_ - t;
+    t_min_ = std::min(t_min_, t);
+    t_max_ = std::max(t_max_, t);
+    ++sum_.counts[s.index()];
+  }
+  double lateness() const { return sum_.lateness_s; }  ///< so far
+  RecordingSummary finish(const RawlogSampleReader& in) const;
+
+ private:
+  RecordingSummary sum_;
+  double t_min_ = std::numeric_limits<double>::infinity();
+  double t_max_ = -std::numeric_limits<double>::infinity();
 };
 
 /// Pass 2 with the merge window (see the header comment): read() passes a block of samples to
@@ -84,9 +109,17 @@ class RawlogWindowReader {
   void read(const std::function<void(const AnySample&, std::size_t)>& push, int block = 256);
   double watermark() const { return watermark_; }
   bool eof() const { return eof_; }
+  /// How far out of time order the samples read so far are (RecordingSummary::lateness_s):
+  /// above the window's `lateness_s`, samples were passed after the watermark had moved past
+  /// them (a one-pass reader that assumed an order must then start again from a scan).
+  double latenessSeen() const { return acc_.lateness(); }
+  /// The summary of what was read (after eof(): scanRawlog's result for the file).
+  RecordingSummary summary() const { return acc_.finish(in_); }
+  double fractionRead() const { return in_.fractionRead(); }
 
  private:
   RawlogSampleReader in_;
+  SummaryAccumulator acc_;
   double lateness_s_;
   double t_max_ = -std::numeric_limits<double>::infinity();
   double watermark_ = -std::numeric_limits<double>::infinity();
@@ -151,6 +184,8 @@ class SortedStream {
     std::pop_heap(heap_.begin(), heap_.end(), later_);
     heap_.pop_back();
   }
+  /// Samples pushed and not yet taken.
+  std::size_t buffered() const { return heap_.size(); }
   /// Nothing buffered (with the file read to its end: the stream is done).
   bool drained() const { return view_ ? pos_ >= view_->size() : heap_.empty(); }
 

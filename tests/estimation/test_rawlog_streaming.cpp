@@ -80,6 +80,28 @@ void expectStreamedEqualsInMemory(const std::string& path, const io::Recording& 
       EXPECT_EQ(a.sensors[s].nis_sum, b.sensors[s].nis_sum) << s;
     }
     EXPECT_EQ(a.warnings, b.warnings);
+    // Read once (no scan): the same run on a time-ordered file, nothing on another.
+    Collect one;
+    io::RecordingSummary scanned;
+    const auto c = runEstimatorOnePass(path, nominal(), opt, one, scanned);
+    if (sum.lateness_s > 0) {
+      EXPECT_FALSE(c);
+      continue;
+    }
+    ASSERT_TRUE(c);
+    expectSameEstimates(mem.v, one.v);
+    for (int s = 0; s < kNumSensors; ++s) {
+      EXPECT_EQ(a.sensors[s].used, c->sensors[s].used) << s;
+      EXPECT_EQ(a.sensors[s].skipped, c->sensors[s].skipped) << s;
+      EXPECT_EQ(a.sensors[s].nis_sum, c->sensors[s].nis_sum) << s;
+    }
+    EXPECT_EQ(a.warnings, c->warnings);
+    EXPECT_EQ(scanned.counts, sum.counts);
+    EXPECT_EQ(scanned.start_s, sum.start_s);
+    EXPECT_EQ(scanned.end_s, sum.end_s);
+    EXPECT_EQ(scanned.report.records, sum.report.records);
+    EXPECT_EQ(scanned.report.broken.has_value(), sum.report.broken.has_value());
+    EXPECT_EQ(scanned.meta, sum.meta);
   }
   const auto& g = nominal().vehicle.geom;
   const auto& p = nominal().encoders.params;
@@ -187,6 +209,40 @@ TEST(RawlogStreaming, DamagedTailIsRefusedOrSalvagedLikeTheInMemoryReader) {
   std::size_t rows = 0;
   for (std::string line; std::getline(csv, line);) rows += line.empty() ? 0 : 1;
   EXPECT_EQ(rows, mem.v.size() + 1);  // + header
+}
+
+TEST(RawlogStreaming, OnePassOnATimeOrderedCutFileAndWithoutMotorCurrents) {
+  wheelchair::test::TempDir dir;
+  auto sr = drive();
+  // A time-ordered file cut short: one pass with the scan's summary and result, the salvage
+  // rule applied by `filter` after the run (refused without --salvage, nothing written).
+  const std::string path = dir / "cut.rawlog";
+  io::writeRawlog(sr.rec, path, nominal());
+  std::filesystem::resize_file(path, std::filesystem::file_size(path) * 2 / 3);
+  const io::RecordingSummary sum = io::scanRawlog(path);
+  ASSERT_TRUE(sum.report.broken);
+  EXPECT_EQ(sum.lateness_s, 0.0);
+  expectStreamedEqualsInMemory(path, io::readRawlogSalvaging(path, true, nullptr), sum);
+  const auto refused =
+      wheelchair::test::cli("filter " + path + " --no-progress --estimates " + (dir / "r.csv"));
+  EXPECT_EQ(refused.exit_code, 1) << refused.out;
+  EXPECT_NE(refused.out.find("--salvage"), std::string::npos) << refused.out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "r.csv"));
+  const auto ok = wheelchair::test::cli("filter " + path + " --no-progress --salvage");
+  EXPECT_EQ(ok.exit_code, 0) << ok.out;
+  EXPECT_NE(ok.out.find("salvaged the"), std::string::npos) << ok.out;
+
+  // No motor currents: the merge would hold the drive waiting for them; the two-pass run
+  // warns before its first measurement. One pass declines; `filter` then scans and warns.
+  sr.rec.motors.clear();
+  const std::string no_motors = dir / "no_motors.rawlog";
+  io::writeRawlog(sr.rec, no_motors, nominal());
+  Collect sink;
+  io::RecordingSummary scanned;
+  EXPECT_FALSE(runEstimatorOnePass(no_motors, nominal(), EkfOptions{}, sink, scanned));
+  const auto run = wheelchair::test::cli("filter " + no_motors + " --no-progress");
+  EXPECT_EQ(run.exit_code, 0) << run.out;
+  EXPECT_NE(run.out.find("warning: no motor currents"), std::string::npos) << run.out;
 }
 
 TEST(EstimatorSelection, OneRuleForFilterAndEvaluate) {
