@@ -301,11 +301,14 @@ void WheelchairEkf::reopenEncoderScales() {
   // A step k <- k + j, j ~ N(0, prior) independent of everything: its variance is ADDED and
   // the cross-covariances of k with the pose are kept (the pose error accumulated so far is
   // still correlated with the old scale, hence with the new one).
+  // Topped up to the prior, not beyond: repeated alarms (a gross mismatch, e.g. a wrong
+  // ticks-per-revolution, alarms every few tenths of a second) would otherwise add the prior
+  // again and again and let the scales wander far outside it.
   addErrorNoise();  // the walk up to now, if open
   Pw_ = ekf_.P();
   const double s2 = opt_.encoder_scale_sigma * opt_.encoder_scale_sigma;
-  Pw_(kIdxEncScaleS, kIdxEncScaleS) += 0.5 * s2;
-  Pw_(kIdxEncScaleD, kIdxEncScaleD) += 2.0 * s2;
+  Pw_(kIdxEncScaleS, kIdxEncScaleS) += std::max(0.0, 0.5 * s2 - Pw_(kIdxEncScaleS, kIdxEncScaleS));
+  Pw_(kIdxEncScaleD, kIdxEncScaleD) += std::max(0.0, 2.0 * s2 - Pw_(kIdxEncScaleD, kIdxEncScaleD));
   ekf_.setCovariance(Pw_);
   fault_prior_applied_ = false;
   if (!encoder_scales_open_) encoder_scales_open_ = true, encoder_noise_t_s_ = ekf_.time();
@@ -629,7 +632,7 @@ UpdateResult WheelchairEkf::correct(Measurement& m, double g) {
 
 void WheelchairEkf::gyroHealth(double z_rad_s, double R) {
   // Health monitor: the gyro against the encoders' standstill (HealthMonitor.h); an alarm
-  // re-opens the bias state (a step: prior variance added, cross-covariances kept).
+  // opens the bias state (a step: variance topped up to the prior, cross-covariances kept).
   // At standstill the gyro is compared with the KNOWN omega = 0 (not with the filter's
   // omega, which follows the more precise gyro): nu = (z - b_g) / sqrt(R + var b_g + var_w).
   // "Known" to a tick: no tick on either wheel for T seconds bounds the mean |omega| over them
@@ -644,7 +647,8 @@ void WheelchairEkf::gyroHealth(double z_rad_s, double R) {
   if (encoders_standstill_ && health_.gyroInnovation(t, nu, opt_.estimate_gyro_bias) &&
       opt_.estimate_gyro_bias) {
     Pw_ = ekf_.P();
-    Pw_(kIdxGyroBias, kIdxGyroBias) += opt_.gyro_bias_sigma_rad_s * opt_.gyro_bias_sigma_rad_s;
+    const double s2 = opt_.gyro_bias_sigma_rad_s * opt_.gyro_bias_sigma_rad_s;
+    Pw_(kIdxGyroBias, kIdxGyroBias) += std::max(0.0, s2 - Pw_(kIdxGyroBias, kIdxGyroBias));
     ekf_.setCovariance(Pw_);
     if (!gyro_bias_open_) gyro_bias_open_ = true, gyro_noise_t_s_ = t;
   }
