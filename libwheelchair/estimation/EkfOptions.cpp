@@ -25,6 +25,9 @@ const Names<InputInterpolation> kInterp{{InputInterpolation::Linear, "linear"},
                                         {InputInterpolation::Hold, "hold"}};
 const Names<ObstacleInit> kInit{{ObstacleInit::FirstSonar, "first_sonar"},
                                 {ObstacleInit::Config, "config"}};
+const Names<EncoderFaultPrior> kFaultPrior{{EncoderFaultPrior::Either, "either"},
+                                           {EncoderFaultPrior::Short, "short"},
+                                           {EncoderFaultPrior::None, "none"}};
 const Names<CvodeOptions::Method> kMethod{{CvodeOptions::Method::Adams, "adams"},
                                           {CvodeOptions::Method::Bdf, "bdf"}};
 
@@ -96,8 +99,8 @@ config::Options EkfOptions::options(const std::string& section) {
       .real("encoder_scale_sigma", encoder_scale_sigma, "encoder scale prior 1 sigma (-)", pos)
       .real("q_encoder_scale_1_s", q_encoder_scale_1_s,
             "random-walk density of each encoder scale (1/s)", nonneg)
-      .flag("faulty_encoder_reads_short", faulty_encoder_reads_short,
-            "fault prior: the encoder reading more is the healthy one (until a turn tells)")
+      .choice("encoder_fault_prior", encoder_fault_prior, kFaultPrior,
+              "before a turn: one wheel healthy, either side | the one reading more | none")
       .real("healthy_encoder_scale_sigma", healthy_encoder_scale_sigma,
             "1 sigma of a healthy encoder's scale (-)", pos)
       .flag("estimate_gyro_bias", estimate_gyro_bias, "estimate the gyro z bias (state b_g)")
@@ -105,6 +108,8 @@ config::Options EkfOptions::options(const std::string& section) {
       .real("gyro_bias_sigma_rad_s", gyro_bias_sigma_rad_s, "gyro bias prior 1 sigma (rad/s)", pos)
       .real("q_gyro_bias_rad2_s3", q_gyro_bias_rad2_s3,
             "random-walk density of the gyro bias (rad^2/s^3)", nonneg)
+      .flag("open_sensor_errors_on_alarm", open_sensor_errors_on_alarm,
+            "sensor-error states start closed and open on their sensor's CUSUM alarm")
       .real("initial_sigma_v_m_s", initial_sigma_v_m_s, "initial 1 sigma of v (m/s)", pos)
       .real("initial_sigma_omega_rad_s", initial_sigma_omega_rad_s,
             "initial 1 sigma of omega (rad/s)", pos)

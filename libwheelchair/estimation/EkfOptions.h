@@ -34,6 +34,13 @@ enum class EncoderMeasurementModel {
 enum class InputInterpolation { Linear, Hold };
 enum class ObstacleInit { FirstSonar, Config };
 enum class ObstacleFormOption { Cartesian, Polar };
+/// What the encoder scales assume about a fault before a turn reveals the common scale
+/// (docs/estimation.md, "Sensor-error states").
+enum class EncoderFaultPrior {
+  Either,  ///< one wheel is faulty, either one, reading short or long: k_s = 1 +- |k_d| / 2
+  Short,   ///< a faulty encoder loses counts: the wheel reading more is healthy (scale 1)
+  None     ///< the common scale keeps its prior until a turn
+};
 
 struct EkfOptions {
   // --- what runs --------------------------------------------------------------------------
@@ -87,16 +94,23 @@ struct EkfOptions {
   double encoder_scale_right = 1.0, encoder_scale_left = 1.0;  ///< prior means (-)
   double encoder_scale_sigma = 0.05;                           ///< prior 1 sigma of each scale (-)
   double q_encoder_scale_1_s = 1e-7;  ///< random-walk density of each scale (1/s)
-  /// Fault prior of the encoder scales: a faulty encoder LOSES counts (slip, missed ticks), so
-  /// once the wheels' ratio is known and before a turn, the wheel reading more is taken as
-  /// healthy, scale 1 +- healthy_encoder_scale_sigma (both when they agree).
-  bool faulty_encoder_reads_short = true;
+  /// Fault prior of the encoder scales once the wheels' ratio is known and before a turn:
+  /// Either (default): one wheel is healthy, scale 1 +- healthy_encoder_scale_sigma, and the
+  /// data (the next turn) decide which, so k_s = 1 +- sqrt((k_d / 2)^2 + sigma^2) (the moment-
+  /// matched pair of the two sides); Short: the wheel reading more is the healthy one (an
+  /// assumption: wrong for an encoder reading long); None: no pseudo-measurement.
+  EncoderFaultPrior encoder_fault_prior = EncoderFaultPrior::Either;
   double healthy_encoder_scale_sigma = 0.005;  ///< 1 sigma of a healthy encoder's scale (-)
   /// Estimate an additive gyro z bias b_g (z = omega + b_g) as a random walk.
   bool estimate_gyro_bias = false;
   double gyro_bias_rad_s = 0.0;         ///< prior mean (rad/s)
   double gyro_bias_sigma_rad_s = 0.01;  ///< prior 1 sigma (rad/s)
   double q_gyro_bias_rad2_s3 = 1e-8;    ///< random-walk density (rad^2/s^3)
+  /// Fault detection and isolation: an estimated group (encoder scales, gyro bias) starts
+  /// CLOSED, held at its prior mean with zero variance and no random walk (the estimates are
+  /// those of the filter without it), and OPENS (prior variance added, random walk on) when
+  /// the health monitor's CUSUM alarms for its sensor. false: open from the start.
+  bool open_sensor_errors_on_alarm = true;
   /// Whether the physics filter carries the three sensor-error states: an estimate flag is on
   /// or a prior mean is not nominal (then a fixed, configured calibration).
   bool sensorErrorStates() const {

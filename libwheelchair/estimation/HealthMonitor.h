@@ -7,8 +7,9 @@
 // with drift k = 0.5 and threshold h = 12 (for a consistent filter nu ~ N(0, 1): the mean
 // run length to a false alarm is far beyond any drive; a 5 % scale step while moving at
 // 0.8 m/s gives nu ~ 5 and an alarm within a few samples). The onset is the last time the
-// alarming sum was 0. The caller then re-opens the encoder scale states (prior covariance),
-// so the fault is ESTIMATED and the encoders are kept, corrected, instead of rejected.
+// alarming sum was 0. The caller then opens the encoder scale states (closed until then with
+// open_sensor_errors_on_alarm; prior variance added), so the fault is ESTIMATED and the
+// encoders are kept, corrected, instead of rejected.
 // Estimation: after every encoder update the per-wheel scales k = value +- sd are reported as
 // an "estimate" event once sd < 0.005 and |k - 1| > max(3 sd, 0.01), and again when a later
 // estimate differs from the reported one by more than that (a new fault). Before a turn only
@@ -17,7 +18,7 @@
 // Gyro: the same CUSUM on the gyro's normalised innovation, but only while the encoders show
 // standstill (isolation: there omega = 0 is known without the gyro, so a persistent
 // disagreement is the gyro's; while moving, a gyro bias and an encoder ratio fault both
-// look like a yaw-rate disagreement). An alarm re-opens the bias state when it is estimated;
+// look like a yaw-rate disagreement). An alarm opens the bias state when it is estimated;
 // the bias estimate is reported like the scales ("gyro reads +0.020 rad/s (+-0.001) too high
 // (bias) since t = 3.0 s").
 // Example text: "left encoder reads 5.0 % short (+-0.3 %) since t = 12.4 s".

@@ -140,9 +140,11 @@ Eigen::Matrix<double, 7, 1> processNoiseDiag(const EkfOptions& o) {
 }
 
 /// Random-walk densities of (k_R, k_L, b_g) (empty: no sensor-error states); a group that is
-/// not estimated gets 0 (it stays at its prior mean).
+/// not estimated gets 0 (it stays at its prior mean). With open_sensor_errors_on_alarm all are
+/// 0 here: a group's walk starts when it opens, added by WheelchairEkf::addErrorNoise.
 Eigen::VectorXd errorStateNoise(const EkfOptions& o) {
   if (!o.sensorErrorStates()) return {};
+  if (o.open_sensor_errors_on_alarm) return Eigen::Vector3d::Zero();
   const double qk = o.estimate_encoder_scales ? o.q_encoder_scale_1_s : 0.0;
   // Independent walks of k_R, k_L of density q: k_s gets q / 2, k_d 2 q, uncorrelated.
   return Eigen::Vector3d(0.5 * qk, 2.0 * qk, o.estimate_gyro_bias ? o.q_gyro_bias_rad2_s3 : 0.0);
@@ -192,8 +194,10 @@ void WheelchairEkf::start(double t0) {
     x(kIdxEncScaleS) = 0.5 * (opt_.encoder_scale_right + opt_.encoder_scale_left);
     x(kIdxEncScaleD) = opt_.encoder_scale_right - opt_.encoder_scale_left;
     x(kIdxGyroBias) = opt_.gyro_bias_rad_s;
-    const double sk = opt_.estimate_encoder_scales ? opt_.encoder_scale_sigma : 0.0;
-    const double sb = opt_.estimate_gyro_bias ? opt_.gyro_bias_sigma_rad_s : 0.0;
+    // Closed groups (open_sensor_errors_on_alarm) start with zero variance.
+    const bool open = !opt_.open_sensor_errors_on_alarm;
+    const double sk = opt_.estimate_encoder_scales && open ? opt_.encoder_scale_sigma : 0.0;
+    const double sb = opt_.estimate_gyro_bias && open ? opt_.gyro_bias_sigma_rad_s : 0.0;
     P(kIdxEncScaleS, kIdxEncScaleS) = 0.5 * sk * sk;
     P(kIdxEncScaleD, kIdxEncScaleD) = 2.0 * sk * sk;
     P(kIdxGyroBias, kIdxGyroBias) = sb * sb;
@@ -208,6 +212,8 @@ void WheelchairEkf::start(double t0) {
   health_ = HealthMonitor(t0);
   fault_prior_applied_ = false;
   encoders_standstill_ = false;
+  encoder_scales_open_ = false;
+  gyro_bias_open_ = false;
   // Obstacle at its most likely place: configured position (also the placeholder until the
   // first valid sonar reading in first_sonar mode).
   setObstacle(configObstacle(), configObstacleCov());
@@ -295,22 +301,52 @@ void WheelchairEkf::reopenEncoderScales() {
   // A step k <- k + j, j ~ N(0, prior) independent of everything: its variance is ADDED and
   // the cross-covariances of k with the pose are kept (the pose error accumulated so far is
   // still correlated with the old scale, hence with the new one).
+  // Topped up to the prior, not beyond: repeated alarms (a gross mismatch, e.g. a wrong
+  // ticks-per-revolution, alarms every few tenths of a second) would otherwise add the prior
+  // again and again and let the scales wander far outside it.
+  addErrorNoise();  // the walk up to now, if open
   Pw_ = ekf_.P();
   const double s2 = opt_.encoder_scale_sigma * opt_.encoder_scale_sigma;
-  Pw_(kIdxEncScaleS, kIdxEncScaleS) += 0.5 * s2;
-  Pw_(kIdxEncScaleD, kIdxEncScaleD) += 2.0 * s2;
+  Pw_(kIdxEncScaleS, kIdxEncScaleS) += std::max(0.0, 0.5 * s2 - Pw_(kIdxEncScaleS, kIdxEncScaleS));
+  Pw_(kIdxEncScaleD, kIdxEncScaleD) += std::max(0.0, 2.0 * s2 - Pw_(kIdxEncScaleD, kIdxEncScaleD));
   ekf_.setCovariance(Pw_);
   fault_prior_applied_ = false;
+  if (!encoder_scales_open_) encoder_scales_open_ = true, encoder_noise_t_s_ = ekf_.time();
 }
 
-void WheelchairEkf::fasterWheelIsRight() {
-  // The fault prior of an incremental encoder: it LOSES counts (a slipping pulley or belt,
-  // missed ticks), it does not invent them. So once the two wheels are known to disagree
-  // (the ratio k_R / k_L, observable from straight driving against the gyro) and before the
-  // common scale is (first turn), the wheel that reads MORE is taken as the healthy one:
-  // one pseudo-measurement max(k_R, k_L) = 1 +- sigma, i.e. k_s + |k_d| / 2 = 1. Full update:
-  // the pose driven so far at the old k_s is corrected along its correlation with k_s.
-  if (!opt_.estimate_encoder_scales || !opt_.faulty_encoder_reads_short || fault_prior_applied_)
+void WheelchairEkf::addErrorNoise() {
+  // The random walks of the OPEN groups (open_sensor_errors_on_alarm), added at the update
+  // times instead of in the Riccati equation: the sensor-error rows of F are 0 and f does not
+  // depend on them, so dP_kk/dt = q is all the propagation does to them (exact at updates).
+  if (!opt_.open_sensor_errors_on_alarm || !(encoder_scales_open_ || gyro_bias_open_)) return;
+  const double t = ekf_.time();
+  Pw_ = ekf_.P();
+  if (encoder_scales_open_ && t > encoder_noise_t_s_) {
+    const double qdt = opt_.q_encoder_scale_1_s * (t - encoder_noise_t_s_);
+    Pw_(kIdxEncScaleS, kIdxEncScaleS) += 0.5 * qdt;  // k_s = (k_R + k_L) / 2
+    Pw_(kIdxEncScaleD, kIdxEncScaleD) += 2.0 * qdt;  // k_d = k_R - k_L
+    encoder_noise_t_s_ = t;
+  }
+  if (gyro_bias_open_ && t > gyro_noise_t_s_) {
+    Pw_(kIdxGyroBias, kIdxGyroBias) += opt_.q_gyro_bias_rad2_s3 * (t - gyro_noise_t_s_);
+    gyro_noise_t_s_ = t;
+  }
+  ekf_.setCovariance(Pw_);
+}
+
+void WheelchairEkf::encoderFaultPrior() {
+  // The fault prior: one wheel at a time fails, the other stays healthy (scale 1 +- sigma).
+  // Once the two wheels are known to disagree (the ratio k_R / k_L, observable from straight
+  // driving against the gyro) and before the common scale is (first turn), one
+  // pseudo-measurement of k_s. Either side (default): k_s is 1 - |k_d| / 2 (the wheel reading
+  // more is healthy: the other reads short) or 1 + |k_d| / 2 (the other reads long) with
+  // equal odds; straight driving cannot tell them apart (both give the same ratio), so k_s =
+  // 1 +- sqrt((k_d / 2)^2 + var(k_d) / 4 + sigma^2), the moment-matched pair, and the turn
+  // decides. Short: the wheel that reads MORE is taken as healthy, max(k_R, k_L) = 1 +- sigma,
+  // i.e. k_s + |k_d| / 2 = 1 (right only for an encoder that loses counts). Full update: the
+  // pose driven so far at the old k_s is corrected along its correlation with k_s.
+  if (!opt_.estimate_encoder_scales || opt_.encoder_fault_prior == EncoderFaultPrior::None ||
+      fault_prior_applied_)
     return;
   const Eigen::VectorXd& x = ekf_.x();
   const Eigen::MatrixXd& P = ekf_.P();
@@ -323,12 +359,14 @@ void WheelchairEkf::fasterWheelIsRight() {
   // The wheels disagree (by more than 1 % and 3 sd): the faster is healthy; else both are.
   const bool disagree = std::fabs(kd) > std::max(0.01, 3 * sd_d);
   const double sh = opt_.healthy_encoder_scale_sigma;
+  const bool shorter = disagree && opt_.encoder_fault_prior == EncoderFaultPrior::Short;
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, pm_.stateDim());
   H(0, kIdxEncScaleS) = 1.0;
-  H(0, kIdxEncScaleD) = disagree ? (kd > 0 ? 0.5 : -0.5) : 0.0;
+  H(0, kIdxEncScaleD) = shorter ? (kd > 0 ? 0.5 : -0.5) : 0.0;
   Eigen::VectorXd y(1);
-  y(0) = 1.0 - (x(kIdxEncScaleS) + (disagree ? 0.5 * std::fabs(kd) : 0.0));
-  ekf_.update(y, H, Eigen::MatrixXd::Constant(1, 1, sh * sh), 0.0);
+  y(0) = 1.0 - (x(kIdxEncScaleS) + (shorter ? 0.5 * std::fabs(kd) : 0.0));
+  const double r = shorter || !disagree ? sh * sh : 0.25 * (kd * kd + sd_d * sd_d) + sh * sh;
+  ekf_.update(y, H, Eigen::MatrixXd::Constant(1, 1, r), 0.0);
   fault_prior_applied_ = true;
 }
 
@@ -355,8 +393,11 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     resetAccumulators(iv.t1_s);
     return;
   }
-  encoders_standstill_ = iv.v_m_s == 0.0 && iv.omega_rad_s == 0.0;  // no tick on either wheel
+  const bool still = iv.v_m_s == 0.0 && iv.omega_rad_s == 0.0;  // no tick on either wheel
+  if (still && !encoders_standstill_) standstill_since_s_ = iv.t0_s;
+  encoders_standstill_ = still;
   const int n = pm_.stateDim();
+  addErrorNoise();
   const Eigen::VectorXd& x = ekf_.x();
   // a = the true mean speeds the encoders see and d a / d x.
   Eigen::Vector2d a;
@@ -401,7 +442,7 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     if (!encoders_standstill_ && r.S.rows() == 2 && r.S(1, 1) > 0 &&
         health_.encoderInnovation(iv.t1_s, r.innovation(1) / std::sqrt(r.S(1, 1))))
       reopenEncoderScales();
-    fasterWheelIsRight();
+    encoderFaultPrior();
     health_.scales(iv.t1_s, sensorErrors());
   }
   wrap();
@@ -570,10 +611,18 @@ Measurement& WheelchairEkf::pozyxModel(const Eigen::VectorXd& x, const Eigen::Ve
 
 UpdateResult WheelchairEkf::correct(Measurement& m, double g) {
   const bool error_states = pm_.stateDim() > kPhysicsStateDim;
-  // With the sensor-error states, the gyro and the sonar do not teach the common encoder
-  // scale k_s (scaleKnownUpdate; docs/estimation.md "Sensor-error states"); Pozyx does.
+  // With the sensor-error states, the gyro does not teach the common encoder scale k_s
+  // (scaleKnownUpdate; docs/estimation.md "Sensor-error states"); Pozyx does, and the sonar
+  // (range rate to the static obstacle: the absolute speed) once the health monitor has found
+  // an encoder fault (open_sensor_errors_on_alarm): until the first turn it is the only data
+  // that tells a wheel reading short from the other reading long. Not on an alarm-free drive
+  // (the scales are closed there) nor with the scales open from the start (it moved a clean
+  // drive's pose by 20 cm when the obstacle came into view: range-only bearing ambiguity).
+  const bool sonar_teaches = opt_.open_sensor_errors_on_alarm && encoder_scales_open_;
   const bool scale_known =
-      error_states && m.dim() == 1 && (m.sensor == Sensor::Gyro || m.sensor == Sensor::Sonar);
+      error_states && m.dim() == 1 &&
+      (m.sensor == Sensor::Gyro || (m.sensor == Sensor::Sonar && !sonar_teaches));
+  if (error_states) addErrorNoise();
   const UpdateResult r =
       scale_known ? scaleKnownUpdate(m.z(0) - m.h(0), m.H, m.R(0, 0), g) : ekf_.correct(m, g);
   if (error_states && m.sensor == Sensor::Gyro) gyroHealth(m.z(0), m.R(0, 0));
@@ -583,17 +632,25 @@ UpdateResult WheelchairEkf::correct(Measurement& m, double g) {
 
 void WheelchairEkf::gyroHealth(double z_rad_s, double R) {
   // Health monitor: the gyro against the encoders' standstill (HealthMonitor.h); an alarm
-  // re-opens the bias state (a step: prior variance added, cross-covariances kept).
+  // opens the bias state (a step: variance topped up to the prior, cross-covariances kept).
   // At standstill the gyro is compared with the KNOWN omega = 0 (not with the filter's
-  // omega, which follows the more precise gyro): nu = (z - b_g) / sqrt(R + var b_g).
+  // omega, which follows the more precise gyro): nu = (z - b_g) / sqrt(R + var b_g + var_w).
+  // "Known" to a tick: no tick on either wheel for T seconds bounds the mean |omega| over them
+  // by w_max = 2 tick_m / (l_w T) (each rim moved less than a tick); var_w = w_max^2 / 3
+  // (uniform). Without it the chair's last sub-tick creep when stopping (or first, when
+  // starting) was read as a gyro bias: false alarms on clean three-task drives at 20.8 s.
   const double t = ekf_.time();
   const double var_b = std::max(0.0, ekf_.P()(kIdxGyroBias, kIdxGyroBias));
-  const double nu = (z_rad_s - ekf_.x()(kIdxGyroBias)) / std::sqrt(R + var_b);
+  const double still_s = std::max(t - standstill_since_s_, 1e-3);
+  const double w_max = 2.0 * wheel_radius_m_ * wheel_rad_per_tick_ / (track_width_m_ * still_s);
+  const double nu = (z_rad_s - ekf_.x()(kIdxGyroBias)) / std::sqrt(R + var_b + w_max * w_max / 3.0);
   if (encoders_standstill_ && health_.gyroInnovation(t, nu, opt_.estimate_gyro_bias) &&
       opt_.estimate_gyro_bias) {
     Pw_ = ekf_.P();
-    Pw_(kIdxGyroBias, kIdxGyroBias) += opt_.gyro_bias_sigma_rad_s * opt_.gyro_bias_sigma_rad_s;
+    const double s2 = opt_.gyro_bias_sigma_rad_s * opt_.gyro_bias_sigma_rad_s;
+    Pw_(kIdxGyroBias, kIdxGyroBias) += std::max(0.0, s2 - Pw_(kIdxGyroBias, kIdxGyroBias));
     ekf_.setCovariance(Pw_);
+    if (!gyro_bias_open_) gyro_bias_open_ = true, gyro_noise_t_s_ = t;
   }
   if (opt_.estimate_gyro_bias)
     health_.gyroBias(t, ekf_.x()(kIdxGyroBias),

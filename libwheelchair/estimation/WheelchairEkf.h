@@ -30,8 +30,12 @@
 // ~9 % off) nor from the gyro or sonar; until a turn its uncertainty is carried into the pose
 // by a consider update (gains computed with k_s known, Joseph covariance with the true
 // Jacobian), and a turn corrects the pose along its sensitivity to k_s. Fault prior
-// (faulty_encoder_reads_short): once the ratio is known, the wheel reading more is taken as
-// healthy. At standstill nothing is observable except b_g (omega = 0 is known from the
+// (encoder_fault_prior): once the ratio is known, one wheel is taken as healthy (either side
+// by default: the turn decides which). Fault detection and isolation
+// (open_sensor_errors_on_alarm, default): a group starts closed (its prior mean, zero variance:
+// the estimates are those of the filter without it) and opens on its sensor's CUSUM alarm
+// (HealthMonitor.h): encoder scales on the encoders' yaw-rate row, gyro bias at standstill.
+// At standstill nothing is observable except b_g (omega = 0 is known from the
 // encoders): the scale states keep their prior (tests/estimation/test_sensor_error_states.cpp). A
 // gyro SCALE is not a state: with the encoders the only yaw-rate reference, it trades off exactly
 // with the common encoder scale (it needs an absolute heading or position reference such as Pozyx).
@@ -131,9 +135,12 @@ class WheelchairEkf : public Estimator {
   /// Adds the prior variance to the encoder scale states (a step of unknown size; their
   /// cross-covariances are kept): the fault hypothesis after a health-monitor alarm.
   void reopenEncoderScales();
-  /// The encoder fault prior (a faulty encoder reads short): once the wheels disagree and
-  /// before a turn, the wheel reading more is taken as healthy (one pseudo-measurement).
-  void fasterWheelIsRight();
+  /// The encoder fault prior (EkfOptions::encoder_fault_prior): once the wheels disagree and
+  /// before a turn, one pseudo-measurement of the common scale (one wheel is healthy).
+  void encoderFaultPrior();
+  /// The random walks of the open sensor-error groups since their last update
+  /// (open_sensor_errors_on_alarm: the process model has none for them).
+  void addErrorNoise();
   /// Keeps in the scale columns of the encoder Jacobian H only the entries the update may
   /// learn from and adds the others' variance to R (see the .cpp: excitation, motor model).
   /// Returns which entries learn (rows z_v, z_omega; columns k_s, k_d; 1 learns, 0 not).
@@ -188,7 +195,12 @@ class WheelchairEkf : public Estimator {
   HealthMonitor health_;
   bool obstacle_initialised_ = false;
   bool fault_prior_applied_ = false;
+  // Fault detection and isolation (open_sensor_errors_on_alarm): a group is closed (zero
+  // variance, no walk) until its sensor's CUSUM alarms; the walk is added from then on.
+  bool encoder_scales_open_ = false, gyro_bias_open_ = false;
+  double encoder_noise_t_s_ = 0, gyro_noise_t_s_ = 0;  ///< walk added up to these times (s)
   bool encoders_standstill_ = false;  ///< the last encoder interval had no tick on either wheel
+  double standstill_since_s_ = 0;     ///< start of the current run of tick-free intervals (s)
   double acc_start_s_ = -1e300;
   bool acc_valid_ = false;
 };

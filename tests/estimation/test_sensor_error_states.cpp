@@ -19,11 +19,20 @@ using namespace wheelchair::estimation::test;
 
 namespace {
 
+/// The scale states OPEN from the start (what is tested here is the states themselves; the
+/// shipped detection-first mode, closed until an alarm, is tested at the end).
 EkfOptions withScales() {
   EkfOptions opt;
   opt.estimate_encoder_scales = true;
+  opt.open_sensor_errors_on_alarm = false;
   opt.output_rate_hz = 5;
   return opt;
+}
+
+const char* priorName(EncoderFaultPrior p) {
+  return p == EncoderFaultPrior::Either  ? "either"
+         : p == EncoderFaultPrior::Short ? "short"
+                                         : "none";
 }
 
 }  // namespace
@@ -118,12 +127,13 @@ TEST(SensorErrorStates, AShortLeftEncoderIsEstimatedOnACurvyDrive) {
 }
 
 TEST(SensorErrorStates, NoScaleIsInventedOnStraightOrStandingDrives) {
-  // Without the fault prior (faulty_encoder_reads_short = 0) the common scale must keep its
-  // prior sd; with it (the default) it may shrink to the healthy-encoder sd the prior states
-  // once the wheels are seen to agree, but not below it, and its mean must stay 1.
-  for (const bool fault_prior : {false, true}) {
+  // Without the fault prior (encoder_fault_prior = none) the common scale must keep its
+  // prior sd; with it (either, the default; short) it may shrink to the healthy-encoder sd the
+  // prior states once the wheels are seen to agree, but not below it, and its mean must stay 1.
+  for (const EncoderFaultPrior prior : {EncoderFaultPrior::None, EncoderFaultPrior::Either}) {
+    const bool fault_prior = prior != EncoderFaultPrior::None;
     EkfOptions opt = withScales();
-    opt.faulty_encoder_reads_short = fault_prior;
+    opt.encoder_fault_prior = prior;
     const double prior_sd = opt.encoder_scale_sigma;
     // Straight only (equal currents): the ratio k_R / k_L is observable and is 1; the common
     // scale is not (no turning), so it must stay at its prior mean and keep about its prior sd.
@@ -190,9 +200,9 @@ namespace {
 /// states: per output time the mean over `runs` seeded drives, then its mean over the times.
 /// The drive goes straight for 6 s (the common scale unobservable: its uncertainty must show
 /// in the pose covariance) and then turns.
-double meanPositionNees(double left_scale, bool fault_prior, int runs) {
+double meanPositionNees(double left_scale, EncoderFaultPrior prior, int runs) {
   EkfOptions opt = withScales();
-  opt.faulty_encoder_reads_short = fault_prior;
+  opt.encoder_fault_prior = prior;
   opt.q_xy_m2_s = opt.q_phi_rad2_s = 1e-9;  // the truth's pose kinematics are exact
   opt.initial_sigma_xy_m = opt.initial_sigma_phi_rad = 1e-6;
   std::vector<double> sum;
@@ -227,12 +237,83 @@ TEST(SensorErrorStates, PoseCovarianceStaysHonestOnCleanAndFaultyDrives) {
   // scale's correlation with the pose was kept. Pessimistic is allowed on the clean drive
   // (the prior says a scale MAY be off by the healthy encoder's 0.5 %).
   constexpr int kRuns = 8;
-  for (const bool fault_prior : {false, true})
-    for (const double left : {1.0, 0.95}) {
-      const double nees = meanPositionNees(left, fault_prior, kRuns);
-      std::printf("[left scale %.2f, fault prior %d] mean position NEES %.2f (2 dof)\n", left,
-                  int(fault_prior), nees);
+  // The left encoder reading 5 % LONG too: the either-side prior assumes no direction.
+  for (const EncoderFaultPrior prior : {EncoderFaultPrior::None, EncoderFaultPrior::Either})
+    for (const double left : {1.0, 0.95, 1.05}) {
+      const double nees = meanPositionNees(left, prior, kRuns);
+      std::printf("[left scale %.2f, fault prior %s] mean position NEES %.2f (2 dof)\n", left,
+                  priorName(prior), nees);
       EXPECT_LT(nees, 4.0);
       EXPECT_GT(nees, 0.02);
     }
+}
+
+// Fault detection and isolation (open_sensor_errors_on_alarm, the default): the states are
+// closed until their sensor's CUSUM alarms.
+
+TEST(SensorErrorStates, ClosedStatesGiveTheStatesOffEstimatesOnACleanDrive) {
+  SynthOptions so;
+  so.duration_s = 20.0;
+  so.currents = curvyCurrents(0.8, 2.0, 0.6);
+  const SynthRun sr = synthesize(nominal(), so, 31);
+  EkfOptions on;  // detection first: both groups closed until an alarm
+  on.estimate_encoder_scales = on.estimate_gyro_bias = true;
+  on.output_rate_hz = 5;
+  on.cvode.rel_tol = 1e-9;  // tight: the difference below is then the filters', not CVODE's
+  on.cvode.abs_tol_state = on.cvode.abs_tol_cov = 1e-12;
+  ASSERT_TRUE(on.open_sensor_errors_on_alarm);
+  EkfOptions off = on;
+  off.estimate_encoder_scales = off.estimate_gyro_bias = false;
+  const EstimationResult a = runEstimator(sr.rec, nominal(), on);
+  const EstimationResult b = runEstimator(sr.rec, nominal(), off);
+  ASSERT_TRUE(a.sensor_errors.present);
+  EXPECT_FALSE(b.sensor_errors.present);
+  for (const HealthEvent& h : a.health) EXPECT_EQ(h.sensor, "sonar") << h.text;  // no alarm
+  // Held at the prior: exactly 1 and 0 with zero sd.
+  EXPECT_EQ(a.sensor_errors.encoder_scale_left, 1.0);
+  EXPECT_EQ(a.sensor_errors.encoder_scale_left_sd, 0.0);
+  EXPECT_EQ(a.sensor_errors.gyro_bias_sd_rad_s, 0.0);
+  // The 12-state filter with closed states is the 9-state one, to CVODE's tolerance (its
+  // error control sees three more components: at the default rel_tol 1e-4 the estimates differ
+  // by up to 8e-5, at 1e-9 by 2e-7).
+  ASSERT_EQ(a.estimates.size(), b.estimates.size());
+  Eigen::Matrix<double, 7, 1> dmax = Eigen::Matrix<double, 7, 1>::Zero();
+  for (std::size_t i = 0; i < a.estimates.size(); ++i)
+    dmax = dmax.cwiseMax((a.estimates[i].x - b.estimates[i].x).cwiseAbs());
+  std::printf("closed states: largest difference to the states-off filter, v omega x y phi px py:");
+  for (int j = 0; j < 7; ++j) std::printf(" %.1e", dmax(j));
+  std::printf("\n");
+  EXPECT_LT(dmax.maxCoeff(), 1e-6);
+}
+
+TEST(SensorErrorStates, AnEncoderFaultOpensTheScalesShortOrLong) {
+  // No assumption about the direction: a left encoder 5 % short and one 5 % long are both
+  // detected (the alarm opens the scales), estimated and corrected.
+  SynthOptions so;
+  so.duration_s = 40.0;
+  so.currents = curvyCurrents(0.8, 2.0, 0.6);
+  EkfOptions on;
+  on.estimate_encoder_scales = true;
+  on.output_rate_hz = 5;
+  EkfOptions off = on;
+  off.estimate_encoder_scales = false;
+  for (const double left : {0.95, 1.05}) {
+    so.left_encoder_scale = left;
+    const SynthRun sr = synthesize(nominal(), so, 31);
+    const EstimationResult res = runEstimator(sr.rec, nominal(), on);
+    const EstimationResult res0 = runEstimator(sr.rec, nominal(), off);
+    const SensorErrorEstimate& e = res.sensor_errors;
+    ASSERT_FALSE(res.health.empty());
+    EXPECT_EQ(res.health.front().kind, "inconsistent");
+    EXPECT_EQ(res.health.front().sensor, "encoders");
+    EXPECT_NEAR(e.encoder_scale_left, left, std::max(3 * e.encoder_scale_left_sd, 0.005));
+    EXPECT_NEAR(e.encoder_scale_right, 1.0, std::max(3 * e.encoder_scale_right_sd, 0.005));
+    auto err = [&](const EstimationResult& r) {
+      const TruthPoint& t = sr.at(r.final().t_s);
+      return std::hypot(r.final().x(2) - t.x, r.final().x(3) - t.y);
+    };
+    std::printf("[left x%.2f] k_L = %.4f +- %.4f; final position error %.3f m (states off %.3f)\n",
+                left, e.encoder_scale_left, e.encoder_scale_left_sd, err(res), err(res0));
+    EXPECT_LT(err(res), 0.5 * err(res0));
+  }
 }
