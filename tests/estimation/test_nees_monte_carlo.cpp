@@ -65,7 +65,11 @@ struct McNees {
 McNees monteCarlo(const Case& c) {
   EkfOptions opt = shippedOptions();
   opt.estimate_encoder_scales = c.scale_states;
-  opt.faulty_encoder_reads_short = false;  // a prior on WHICH wheel fails: not sampled here
+  opt.encoder_fault_prior = EncoderFaultPrior::None;  // a prior on WHICH wheel fails: not sampled
+  // The states as estimated from the start (not held until an alarm) and no gyro bias: this
+  // checks the noise model of the pose and the scales, not the alarm's timing.
+  opt.open_sensor_errors_on_alarm = false;
+  opt.estimate_gyro_bias = false;
   if (c.encoder_scale_sigma > 0) opt.encoder_scale_sigma = c.encoder_scale_sigma;
   std::mt19937_64 rng(4242);
   std::normal_distribution<double> N01(0.0, 1.0);
