@@ -16,12 +16,15 @@
 // discovery_campaign_mujoco_clean.
 //
 // --engine mujoco: the drives come from the MuJoCo multibody (docs/simulation.md), whose
-// physics is not the model the diagnosis fits. --unknown N (mujoco only): N drives with one
-// of the MuJoCo engine's own effects (castor friction, tyre scrub, rolling resistance, soft
-// tyre, low grip) at a random magnitude; the diagnosis does not know these names, the
-// campaign reports how often it flags a mismatch and which catalogue names it used.
+// physics is not the model the diagnosis fits. --unknown N: N drives with one effect outside
+// the catalogue at a random magnitude (simulation/UnknownEffects.h: forward drags, yaw
+// frictions, a heading-dependent moment, yaw inertia, a current-sensor offset; on MuJoCo also
+// the engine's own castor friction, tyre scrub, rolling resistance, soft tyre, low grip); the
+// diagnosis does not know these names. Scored: flagged, located (a reported unmodeled term on
+// the effect's channel) and described (with the effect's dependence class), against the
+// truth the generator states (unknownEffectTruth).
 #include "libwheelchair/diagnosis/Campaign.h"
-#include "libwheelchair/simulation/MujocoEngine.h"
+#include "libwheelchair/simulation/UnknownEffects.h"
 
 #include <fmt/format.h>
 
@@ -85,25 +88,10 @@ int main(int argc, char** argv) {
     std::cerr << "discovery_campaign: --engine must be model or mujoco\n";
     return 2;
   }
-  if (o.unknown_runs > 0 && o.engine != "mujoco") {
-    std::cerr << "discovery_campaign: --unknown needs --engine mujoco\n";
-    return 2;
-  }
-  // Physics outside the catalogue, at random magnitudes (docs/simulation.md).
-  o.unknown_effects = [](std::mt19937_64& rng) {
-    auto U = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
-    auto f = [](double x) { return fmt::format("{:.4g}", x); };
-    const auto& cat = simulation::mujocoEffectCatalogue();
-    const std::string id = cat[std::uniform_int_distribution<size_t>(0, cat.size() - 1)(rng)].id;
-    effects::EffectSpec e;
-    e.id = id;
-    if (id == "castor_friction") e.params["swivel_friction_Nm"] = f(U(0.5, 3));
-    if (id == "tyre_scrub") e.params["torsion_m"] = f(U(0.005, 0.03));
-    if (id == "rolling_resistance") e.params["coefficient_m"] = f(U(0.001, 0.004));
-    if (id == "soft_tyre") e.params["growth_m"] = f(U(0.002, 0.008));
-    if (id == "tyre_grip") e.params["mu"] = f(U(0.15, 0.4));
-    simulation::validateEngineEffect(e, "mujoco");
-    return std::vector<effects::EffectSpec>{e};
+  // Physics outside the catalogue, at random magnitudes, with its truth
+  // (simulation/UnknownEffects.h).
+  o.unknown_effects = [engine = o.engine](std::mt19937_64& rng) {
+    return std::vector<effects::EffectSpec>{simulation::randomUnknownEffect(engine, rng)};
   };
   auto cfg =
       cfg_path.empty() ? config::WheelchairConfig() : config::WheelchairConfig::load(cfg_path);

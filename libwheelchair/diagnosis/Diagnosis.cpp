@@ -6,6 +6,7 @@
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/diagnosis/SensorFaults.h"
 #include "libwheelchair/diagnosis/Stages.h"
+#include "libwheelchair/diagnosis/UnmodeledPhysics.h"
 #include "libwheelchair/model/DriveDynamics.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/sensors/Filtering.h"
@@ -682,8 +683,11 @@ void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows&
   if (!sr.accepted) return;
   static const std::vector<std::string> names = {"v",        "|omega|",  "omega*|omega|",
                                                  "cos(phi)", "sin(phi)", "v*omega"};
-  rep.addFinding(unmodeledFinding(sr, names, "gyro_vs_encoders", "gyro - odometric turn rate",
-                                  "turn-rate consistency", "rad/s", "rad"));
+  Finding f = unmodeledFinding(sr, names, "gyro_vs_encoders", "gyro - odometric turn rate",
+                               "turn-rate consistency", "rad/s", "rad");
+  f.physics = describeKinematicTerms(f);
+  if (!f.physics.empty()) f.description += "; physically: " + physicsSummary(f.physics);
+  rep.addFinding(f);
 }
 
 /// Why a gyro-vs-encoder time offset `delay_s` (> 0: the gyro stamps late) cannot be told
@@ -860,27 +864,51 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
                       DiagnosisReport& rep) {
   const Eigen::VectorXd& rf = sel.fit.residual;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
+  const int nlib = static_cast<int>(dynLibNames().size());
+  // The other motor's measured current (column 13) is kept out (reads as zero; stlsq skips
+  // zero columns), as is i_self (12, excluded below): see the loop.
+  auto column = [](const DynRows& d, int j, int r0, int n) -> Eigen::VectorXd {
+    if (j == 13) return Eigen::VectorXd::Zero(n);
+    return d.libColumn(j, r0, n);
+  };
+  SparseResult srs[2];
   for (int s2 = 0; s2 < 2; ++s2) {
     // This motor's rows of the library. i_self (column 12) is the measured quantity itself:
     // keep it out (it would absorb everything); the other motor's measured current (column 13)
     // carries the other equation's error (what both channels share, e.g. a forward drag, and its
     // noise): as a regressor it borrows that error instead of describing a physical term, so it
     // is kept out as well (issue 16; its physics - the coupling through the chassis - is spanned
-    // by vdot and omegadot). A column kept out reads as zero (stlsq skips zero columns).
-    const int nlib = static_cast<int>(dynLibNames().size());
-    auto column = [](const DynRows& d, int j, int r0, int n) -> Eigen::VectorXd {
-      if (j == 13) return Eigen::VectorXd::Zero(n);
-      return d.libColumn(j, r0, n);
-    };
+    // by vdot and omegadot).
     const Library L{nRf, nlib, [&](int j) { return column(df2, j, s2 * nRf, nRf); }};
     const Library Lv{nRv2, nlib, [&](int j) { return column(dv2, j, s2 * nRv2, nRv2); }};
-    SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
-                            rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
-                            lags, opt, opt.min_relevance * cfg.motors.current_noise_A, 12);
-    if (!sr.accepted) continue;
+    srs[s2] = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
+                    rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags, opt,
+                    opt.min_relevance * cfg.motors.current_noise_A, 12);
+  }
+  // What the kept terms are physically: both motors' terms refitted jointly as forward / yaw /
+  // one-motor components (UnmodeledPhysics.h).
+  std::vector<int> terms;
+  for (const auto& sr : srs)
+    if (sr.accepted)
+      for (int j : sr.terms)
+        if (std::find(terms.begin(), terms.end(), j) == terms.end()) terms.push_back(j);
+  DynamicTermData td;
+  td.column = [&](int j, int side, bool fit) {
+    return fit ? column(df2, j, side * nRf, nRf) : column(dv2, j, side * nRv2, nRv2);
+  };
+  td.y_fit = rf, td.y_val = rv_after, td.groups_fit = df2.groups, td.lags = lags;
+  const nlohmann::json physics = describeDynamicTerms(terms, dynLibNames(), td, cfg);
+  for (int s2 = 0; s2 < 2; ++s2) {
+    if (!srs[s2].accepted) continue;
     std::string ch = s2 == 0 ? "current_right" : "current_left";
-    rep.addFinding(
-        unmodeledFinding(sr, dynLibNames(), ch, ch + " - model", ch + " equation", "A", "A"));
+    Finding f =
+        unmodeledFinding(srs[s2], dynLibNames(), ch, ch + " - model", ch + " equation", "A", "A");
+    for (const auto& c : physics) {  // the components this motor carries
+      const std::string pc = c["channel"];
+      if (pc == ch || pc == "forward" || pc == "yaw" || pc == "wheels") f.physics.push_back(c);
+    }
+    if (!f.physics.empty()) f.description += "; physically: " + physicsSummary(f.physics);
+    rep.addFinding(f);
   }
 }
 
