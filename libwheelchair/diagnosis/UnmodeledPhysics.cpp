@@ -128,9 +128,13 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
     const double sf = std::sqrt(std::max(0.0, f.cov(2 * a, 2 * a)));
     const double sy = std::sqrt(std::max(0.0, f.cov(2 * a + 1, 2 * a + 1)));
     const bool tf = std::abs(bf) >= d.t_threshold * sf, ty = std::abs(by) >= d.t_threshold * sy;
-    const double sd_diff = std::sqrt(sf * sf + sy * sy);
-    if (tf && ty && std::abs(std::abs(bf) - std::abs(by)) <= 2 * sd_diff)
-      kept.push_back({terms[a], bf * by > 0 ? 2 : 3});
+    // Per motor: right = f + y, left = f - y. One motor when the other's share is within
+    // 2 sigma of zero or below a quarter of it.
+    const double sd_m = std::sqrt(sf * sf + sy * sy);
+    const double mr = std::abs(bf + by), ml = std::abs(bf - by);
+    const double lo = std::min(mr, ml), hi = std::max(mr, ml);
+    if (tf && ty && (lo <= 2 * sd_m || lo <= 0.25 * hi))
+      kept.push_back({terms[a], mr > ml ? 2 : 3});
     else {
       if (tf) kept.push_back({terms[a], 0});
       if (ty) kept.push_back({terms[a], 1});
