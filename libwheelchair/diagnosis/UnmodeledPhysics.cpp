@@ -187,7 +187,10 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
       if (dep == "acceleration") unit = channel == "yaw" ? "kg m^2" : "kg";
       else if (!termUnit(term).empty()) unit += " per " + termUnit(term);
       // A load opposing the motion (b > 0) as a positive coefficient; inertia as a mass.
-      comp["physical"] = {{"quantity", channel == "yaw" ? "yaw moment" : "forward force"},
+      const std::string quantity = dep == "acceleration"
+                                       ? (channel == "yaw" ? "yaw inertia" : "mass")
+                                       : (channel == "yaw" ? "yaw moment" : "forward force");
+      comp["physical"] = {{"quantity", quantity},
                           {"value", kk * b},
                           {"sd", kk * sd},
                           {"unit", unit}};
