@@ -427,6 +427,7 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
                        int lags, const DiagnosisOptions& opt, double min_contribution_rms,
                        int excluded, bool& untestable) {
   untestable = false;
+  bool pruned = false;
   SparseResult res;
   std::vector<int> act;
   for (int j = 0; j < L.cols; ++j)
@@ -445,11 +446,19 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
       if (t < worst) worst = t, worst_k = static_cast<int>(k);
     }
     if (worst >= opt.stlsq_threshold_sigma) {
+      if (yv.size() > 10 && !pruned) {
+        // Whether the held-out rows can test these terms at all (else the pruning below is
+        // blind: every term would look removable).
+        SparseResult probe;
+        heldOutGain(predict(act), yv, gv, lags, probe);
+        untestable = untestable || probe.lr_val_expected < opt.validation_min_expected_lr;
+      }
       if (yv.size() > 10) {
         const std::vector<int> kept =
             heldOutPrune(predict, yv, gv, lags, opt, min_contribution_rms, act);
         if (kept.size() < act.size()) {  // refit the kept terms (and their covariance)
           act = kept;
+          pruned = true;
           continue;
         }
       }
