@@ -4,7 +4,8 @@
 //
 //   build-diag/bench/discovery_campaign [--runs N] [--pairs N] [--triples N] [--clean N]
 //        [--unknown N] [--seed S] [--duration S] [--effects a,b,...] [--engine model|mujoco]
-//        [--config F] [--json OUT] [--check-named-rate R] [--check-false-alarms N] [-v]
+//        [--config F] [--json OUT] [--check-named-rate R] [--check-false-alarms N]
+//        [--check-described-rate R] [-v]
 //
 // --check-named-rate R: exit 1 unless at least a fraction R of the single-effect drives has
 // the concealed effect named (and nothing else of the catalogue; `unmodeled` findings set
@@ -14,6 +15,9 @@
 // on MuJoCo its effective wheel geometry and centre-of-mass current terms, measured on the
 // multibody, simulation/MujocoTruth.h, are not false; on the model engine every finding is); CTest
 // discovery_campaign_mujoco_clean.
+// --check-described-rate R: exit 1 unless a fraction R of the --unknown drives has the effect
+// located on its channel and described with its dependence class (CTest
+// discovery_campaign_unknown_described).
 //
 // --engine mujoco: the drives come from the MuJoCo multibody (docs/simulation.md), whose
 // physics is not the model the diagnosis fits. --unknown N: N drives with one effect outside
@@ -37,7 +41,7 @@ using namespace wheelchair;
 int main(int argc, char** argv) {
   diagnosis::CampaignOptions o;
   std::string cfg_path, json_path;
-  double check_named_rate = -1;
+  double check_named_rate = -1, check_described_rate = -1;
   int check_false_alarms = -1;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
@@ -57,6 +61,8 @@ int main(int argc, char** argv) {
       o.engine = next();
     else if (a == "--check-named-rate")
       check_named_rate = std::stod(next());
+    else if (a == "--check-described-rate")
+      check_described_rate = std::stod(next());
     else if (a == "--check-false-alarms")
       check_false_alarms = std::stoi(next());
     else if (a == "--clean")
@@ -80,7 +86,7 @@ int main(int argc, char** argv) {
       std::cerr << "usage: discovery_campaign [--runs N] [--pairs N] [--triples N] "
                    "[--clean N] [--unknown N] [--seed S] [--duration S] [--effects a,b] "
                    "[--scenarios a,b] [--engine model|mujoco] [--config F] [--json OUT] "
-                   "[--check-named-rate R] [--check-false-alarms N] [-v]\n";
+                   "[--check-named-rate R] [--check-false-alarms N] [--check-described-rate R] [-v]\n";
       return 2;
     }
   }
@@ -120,6 +126,13 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::cerr << "check passed: named rate " << rate << " >= " << check_named_rate << "\n";
+  }
+  if (check_described_rate >= 0 && res.contains("unknown")) {
+    const double rate = res["unknown"]["described_rate"].get<double>();
+    const bool bad = rate < check_described_rate;
+    std::cerr << "check " << (bad ? "FAILED" : "passed") << ": out-of-catalogue effects located "
+              << "and described " << rate << (bad ? " < " : " >= ") << check_described_rate << "\n";
+    if (bad) status = 1;
   }
   return status;
 }
