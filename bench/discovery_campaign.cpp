@@ -83,10 +83,11 @@ int main(int argc, char** argv) {
     } else if (a == "-v")
       o.verbose = true;
     else {
-      std::cerr << "usage: discovery_campaign [--runs N] [--pairs N] [--triples N] "
-                   "[--clean N] [--unknown N] [--seed S] [--duration S] [--effects a,b] "
-                   "[--scenarios a,b] [--engine model|mujoco] [--config F] [--json OUT] "
-                   "[--check-named-rate R] [--check-false-alarms N] [--check-described-rate R] [-v]\n";
+      std::cerr
+          << "usage: discovery_campaign [--runs N] [--pairs N] [--triples N] "
+             "[--clean N] [--unknown N] [--seed S] [--duration S] [--effects a,b] "
+             "[--scenarios a,b] [--engine model|mujoco] [--config F] [--json OUT] "
+             "[--check-named-rate R] [--check-false-alarms N] [--check-described-rate R] [-v]\n";
       return 2;
     }
   }

@@ -700,8 +700,9 @@ Finding unmodeledFinding(const SparseResult& sr, const std::vector<std::string>&
     f.evidence["validation_tested"] = false;
     f.evidence["cross_validation"] = {
         {"folds", 5},
-        {"why", "the held-out part cannot test it: confirmed on blocked 5-fold cross-validation "
-                "of the fit data"},
+        {"why",
+         "the held-out part cannot test it: confirmed on blocked 5-fold cross-validation "
+         "of the fit data"},
         {"likelihood_ratio", sr.cv_lr},
         {"rms_before", sr.cv_rms_before},
         {"rms_after", sr.cv_rms_after}};

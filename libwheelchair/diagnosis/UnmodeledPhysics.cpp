@@ -1,7 +1,7 @@
 #include "libwheelchair/diagnosis/UnmodeledPhysics.h"
 
-#include <Eigen/QR>
 #include <fmt/format.h>
+#include <Eigen/QR>
 
 #include <cmath>
 #include <map>
@@ -35,15 +35,26 @@ std::string dependenceWords(const std::string& d) {
 
 namespace {
 
-bool perSideTerm(const std::string& t) { return t == "sgn(u)" || t == "|u|" || t == "u^2"; }
+bool perSideTerm(const std::string& t) {
+  return t == "sgn(u)" || t == "|u|" || t == "u^2";
+}
 
 /// Unit of one unit of a term (for "per ..." in the words).
 std::string termUnit(const std::string& t) {
-  static const std::map<std::string, std::string> u = {
-      {"1", ""},           {"v", "m/s"},          {"omega", "rad/s"},      {"vdot", "m/s^2"},
-      {"omegadot", "rad/s^2"}, {"sgn(u)", ""},     {"|u|", "m/s"},          {"u^2", "m^2/s^2"},
-      {"v*omega", "m rad/s^2"}, {"omega^2", "rad^2/s^2"}, {"v*|v|", "m^2/s^2"},
-      {"sgn(omega)", ""},  {"|omega|", "rad/s"},  {"omega*|omega|", "rad^2/s^2"}};
+  static const std::map<std::string, std::string> u = {{"1", ""},
+                                                       {"v", "m/s"},
+                                                       {"omega", "rad/s"},
+                                                       {"vdot", "m/s^2"},
+                                                       {"omegadot", "rad/s^2"},
+                                                       {"sgn(u)", ""},
+                                                       {"|u|", "m/s"},
+                                                       {"u^2", "m^2/s^2"},
+                                                       {"v*omega", "m rad/s^2"},
+                                                       {"omega^2", "rad^2/s^2"},
+                                                       {"v*|v|", "m^2/s^2"},
+                                                       {"sgn(omega)", ""},
+                                                       {"|omega|", "rad/s"},
+                                                       {"omega*|omega|", "rad^2/s^2"}};
   auto it = u.find(t);
   return it == u.end() ? "" : it->second;
 }
@@ -55,13 +66,15 @@ std::string loadReading(const std::string& channel, const std::string& dep, cons
   const std::string q = yaw ? "a moment about the axle" : "a force along the heading";
   const std::string num = fmt::format("{:.3g} +- {:.2g} {}", value, sd, unit);
   if (dep == "rate")
-    return value > 0 ? fmt::format("{} opposing the {} in proportion to its rate: {} (viscous: "
-                                   "{})",
-                                   q, yaw ? "turn" : "motion", num,
-                                   yaw ? "castor swivel or tyre damping" : "soft ground, grass")
-                     : fmt::format("{} assisting the {} in proportion to its rate: {} (less "
-                                   "viscous friction than the model has)",
-                                   q, yaw ? "turn" : "motion", num);
+    return value > 0 ? fmt::format(
+                           "{} opposing the {} in proportion to its rate: {} (viscous: "
+                           "{})",
+                           q, yaw ? "turn" : "motion", num,
+                           yaw ? "castor swivel or tyre damping" : "soft ground, grass")
+                     : fmt::format(
+                           "{} assisting the {} in proportion to its rate: {} (less "
+                           "viscous friction than the model has)",
+                           q, yaw ? "turn" : "motion", num);
   if (dep == "sign_of_rate")
     return fmt::format("{} of constant size opposing the {}: {} (dry friction: {})", q,
                        yaw ? "turn" : "motion", num,
@@ -70,9 +83,10 @@ std::string loadReading(const std::string& channel, const std::string& dep, cons
     return fmt::format("{} growing with the rate squared ({}): {} (drag: air, water, tall grass)",
                        q, term, num);
   if (dep == "rate_product")
-    return fmt::format("{} proportional to {}: {} (centripetal / Coriolis: a centre of mass off "
-                       "the axle)",
-                       q, term, num);
+    return fmt::format(
+        "{} proportional to {}: {} (centripetal / Coriolis: a centre of mass off "
+        "the axle)",
+        q, term, num);
   if (dep == "acceleration")
     return fmt::format("inertia the model lacks: {} ({})", num,
                        yaw ? "a load far from the axle" : "an extra mass");
@@ -112,8 +126,8 @@ double valRms(const DynamicTermData& d, const std::vector<Col>& cols) {
 }  // namespace
 
 nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
-                                    const std::vector<std::string>& names,
-                                    const DynamicTermData& d, const config::WheelchairConfig& cfg) {
+                                    const std::vector<std::string>& names, const DynamicTermData& d,
+                                    const config::WheelchairConfig& cfg) {
   nlohmann::json out = nlohmann::json::array();
   if (terms.empty() || d.y_fit.size() == 0) return out;
   // 1. Forward and yaw column of every term, jointly.
@@ -163,16 +177,16 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
     without.erase(without.begin() + static_cast<long>(k));
     const double gain = valRms(d, without) - rms_all;
     const double b = g.beta(k), sd = std::sqrt(std::max(0.0, g.cov(k, k)));
-    nlohmann::json comp = {{"channel", channel},
-                           {"dependence", dep},
-                           {"dependence_words", dependenceWords(dep)},
-                           {"term", term},
-                           {"coefficient", b},
-                           {"sd", sd},
-                           {"unit", "A per motor" + (termUnit(term).empty()
-                                                         ? std::string()
-                                                         : " per " + termUnit(term))},
-                           {"heldout_gain_A", gain}};
+    nlohmann::json comp = {
+        {"channel", channel},
+        {"dependence", dep},
+        {"dependence_words", dependenceWords(dep)},
+        {"term", term},
+        {"coefficient", b},
+        {"sd", sd},
+        {"unit",
+         "A per motor" + (termUnit(term).empty() ? std::string() : " per " + termUnit(term))},
+        {"heldout_gain_A", gain}};
     if (dep == "heading" && (channel == "forward" || channel == "yaw")) {
       auto& h = heading[c.mode];
       h[term == "cos(phi)" ? "cos" : "sin"] = b;
@@ -184,16 +198,16 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
     if (load) {
       const double kk = channel == "yaw" ? kM : kF;
       std::string unit = channel == "yaw" ? "N m" : "N";
-      if (dep == "acceleration") unit = channel == "yaw" ? "kg m^2" : "kg";
-      else if (!termUnit(term).empty()) unit += " per " + termUnit(term);
+      if (dep == "acceleration")
+        unit = channel == "yaw" ? "kg m^2" : "kg";
+      else if (!termUnit(term).empty())
+        unit += " per " + termUnit(term);
       // A load opposing the motion (b > 0) as a positive coefficient; inertia as a mass.
       const std::string quantity = dep == "acceleration"
                                        ? (channel == "yaw" ? "yaw inertia" : "mass")
                                        : (channel == "yaw" ? "yaw moment" : "forward force");
-      comp["physical"] = {{"quantity", quantity},
-                          {"value", kk * b},
-                          {"sd", kk * sd},
-                          {"unit", unit}};
+      comp["physical"] = {
+          {"quantity", quantity}, {"value", kk * b}, {"sd", kk * sd}, {"unit", unit}};
       comp["reading"] = loadReading(channel, dep, term, kk * b, kk * sd, unit);
     } else if (channel == "wheels") {
       comp["reading"] = fmt::format(
@@ -204,12 +218,14 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
       const std::string side = c.mode == 2 ? "right" : "left";
       comp["reading"] =
           dep == "constant"
-              ? fmt::format("only the {} motor's current: an offset of {:.3g} +- {:.2g} A (its "
-                            "current sensor's zero, or a constant load on that drive alone)",
-                            side, b, sd)
-              : fmt::format("only the {} motor's current, {:.3g} +- {:.2g} A per unit {} ({}: "
-                            "that drive alone)",
-                            side, b, sd, term, dependenceWords(dep));
+              ? fmt::format(
+                    "only the {} motor's current: an offset of {:.3g} +- {:.2g} A (its "
+                    "current sensor's zero, or a constant load on that drive alone)",
+                    side, b, sd)
+              : fmt::format(
+                    "only the {} motor's current, {:.3g} +- {:.2g} A per unit {} ({}: "
+                    "that drive alone)",
+                    side, b, sd, term, dependenceWords(dep));
     }
     out.push_back(comp);
   }
@@ -249,8 +265,8 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
 
 nlohmann::json describeKinematicTerms(const Finding& f) {
   nlohmann::json out = nlohmann::json::array();
-  const double gain = f.fit_before.value("validation_rms_rad", 0.0) -
-                      f.fit_after.value("validation_rms_rad", 0.0);
+  const double gain =
+      f.fit_before.value("validation_rms_rad", 0.0) - f.fit_after.value("validation_rms_rad", 0.0);
   for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it) {
     if (!it->is_number()) continue;
     const std::string& term = it.key();

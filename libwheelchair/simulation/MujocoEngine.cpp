@@ -281,7 +281,8 @@ void validateEngineEffect(const effects::EffectSpec& e, const std::string& engin
   if (engine != "model" && engine != "mujoco")
     throw std::invalid_argument("unknown engine '" + engine + "' (known: model, mujoco)");
   const effects::EffectInfo* info = findMujocoEffect(e.id);
-  if (const effects::EffectInfo* u = findUnknownEffect(e.id)) return effects::validateAgainst(*u, e);
+  if (const effects::EffectInfo* u = findUnknownEffect(e.id))
+    return effects::validateAgainst(*u, e);
   if (!info) return effects::validateEffect(e);
   if (engine != "mujoco")
     throw std::invalid_argument("effect '" + e.id + "' exists only with --engine mujoco");

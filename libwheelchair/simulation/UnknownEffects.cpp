@@ -33,8 +33,14 @@ const std::vector<effects::EffectInfo>& unknownEffectCatalogue() {
       {"heading_yaw_torque",
        "(out of catalogue) A yaw moment that depends on the heading: M = M0 sin(phi - heading).",
        {{"torque_Nm", "N m", "amplitude", "", {}, false, 0, 50},
-        {"heading_deg", "deg", "heading the moment turns the chair towards (start frame)", "0",
-         {}, false, -360, 360}}},
+        {"heading_deg",
+         "deg",
+         "heading the moment turns the chair towards (start frame)",
+         "0",
+         {},
+         false,
+         -360,
+         360}}},
       {"yaw_inertia",
        "(out of catalogue) Extra yaw inertia about the axle (a load far from it).",
        {{"extra_kg_m2", "kg m^2", "added yaw inertia", "", {}, false, 0, 100}}},
@@ -54,8 +60,8 @@ const effects::EffectInfo* findUnknownEffect(const std::string& id) {
 
 Eigen::Vector2d ExternalLoad::forceMoment(double v, double w, double phi) const {
   const double F = -viscous_N_s_m * v - quadratic_N_s2_m2 * v * std::abs(v);
-  const double M = -yaw_dry_Nm * std::tanh(w / kYawDrySmoothing_rad_s) -
-                   yaw_viscous_N_m_s_rad * w + heading_torque_Nm * std::sin(phi - heading_rad);
+  const double M = -yaw_dry_Nm * std::tanh(w / kYawDrySmoothing_rad_s) - yaw_viscous_N_m_s_rad * w +
+                   heading_torque_Nm * std::sin(phi - heading_rad);
   return {F, M};
 }
 
@@ -135,8 +141,7 @@ UnknownEffectTruth unknownEffectTruth(const effects::EffectSpec& e) {
     return {"forward", "rate_squared", "a drag force along the heading, proportional to v|v|"};
   if (id == "yaw_dry_friction")
     return {"yaw", "sign_of_rate", "a dry-friction moment opposing the turn"};
-  if (id == "yaw_viscous_friction")
-    return {"yaw", "rate", "a viscous moment opposing the turn"};
+  if (id == "yaw_viscous_friction") return {"yaw", "rate", "a viscous moment opposing the turn"};
   if (id == "heading_yaw_torque") return {"yaw", "heading", "a yaw moment set by the heading"};
   if (id == "yaw_inertia") return {"yaw", "acceleration", "yaw inertia beyond the model's"};
   if (id == "current_offset")
