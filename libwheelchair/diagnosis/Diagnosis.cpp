@@ -502,7 +502,7 @@ SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, 
   bool untestable = false;
   SparseResult res = stlsqWith(L, y, g, heldOutPredictor(L, y, Lv), yv, gv, lags, opt,
                                min_contribution_rms, excluded, untestable);
-  if (res.accepted || !untestable || y.size() < 50) return res;
+  if (res.accepted || !untestable || y.size() < 50 || !opt.unmodeled_cross_validation) return res;
   bool cv_untestable = false;
   SparseResult cv = stlsqWith(L, y, g, crossValidationPredictor(L, y, 5), y, g, lags, opt,
                               min_contribution_rms, excluded, cv_untestable);
@@ -555,6 +555,8 @@ config::Options DiagnosisOptions::options(const std::string& section) {
       .real("validation_min_expected_lr", validation_min_expected_lr,
             "below: validation cannot test the term (-)", nonneg)
       .flag("enable_unmodeled", enable_unmodeled, "sparse regression on what remains")
+      .flag("unmodeled_cross_validation", unmodeled_cross_validation,
+            "unmodeled terms the held-out part cannot test: confirm by blocked 5-fold CV")
       .real("stlsq_threshold_sigma", stlsq_threshold_sigma,
             "STLSQ keeps terms with |coef| > this x HAC sigma (-)", nonneg)
       .flag("enable_delay", enable_delay, "fit stream delays");
