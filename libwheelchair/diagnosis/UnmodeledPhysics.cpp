@@ -123,6 +123,39 @@ double valRms(const DynamicTermData& d, const std::vector<Col>& cols) {
   return std::sqrt((d.y_val - designOf(d, cols, false) * b).squaredNorm() / d.y_val.size());
 }
 
+/// One heading component of channel `mode` (0 forward, 1 yaw) from its cos / sin coefficients
+/// h {cos, sin, sd, gain}; kF, kM: N and N m per A of one motor.
+nlohmann::json headingComponent(int mode, const nlohmann::json& h, double kF, double kM) {
+  const double c = h.value("cos", 0.0), s = h.value("sin", 0.0), sd = h.value("sd", 0.0);
+  const bool yaw = mode == 1;
+  const double kk = yaw ? kM : kF, amp = kk * std::hypot(c, s);
+  // Load -kk (c cos phi + s sin phi): largest in the +x / +omega sense at atan2(-s, -c).
+  const double towards_deg = std::atan2(-s, -c) * 180 / M_PI;
+  const std::string unit = yaw ? "N m" : "N";
+  return nlohmann::json(
+      {{"channel", yaw ? "yaw" : "forward"},
+       {"dependence", "heading"},
+       {"dependence_words", dependenceWords("heading")},
+       {"term", "cos(phi), sin(phi)"},
+       {"coefficient", {c, s}},
+       {"sd", sd},
+       {"unit", "A per motor"},
+       {"heldout_gain_A", h.value("gain", 0.0)},
+       {"physical",
+        {{"quantity", yaw ? "yaw moment amplitude" : "forward force amplitude"},
+         {"value", amp},
+         {"sd", kk * sd},
+         {"unit", unit},
+         {"towards_heading_deg", towards_deg}}},
+       {"reading",
+        fmt::format("{} fixed in the world: {:.3g} +- {:.2g} {}, {} heading {:.0f} deg (start "
+                    "frame; {})",
+                    yaw ? "a yaw moment" : "a force along the heading", amp, kk * sd, unit,
+                    yaw ? "turning the chair left most at" : "pushing forward most at", towards_deg,
+                    yaw ? "wind on the side, or a cross slope on a mass off the axle"
+                        : "a slope or a wind")}});
+}
+
 }  // namespace
 
 nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
@@ -229,37 +262,7 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
     }
     out.push_back(comp);
   }
-  for (const auto& [mode, h] : heading) {
-    const double c = h.value("cos", 0.0), s = h.value("sin", 0.0), sd = h.value("sd", 0.0);
-    const bool yaw = mode == 1;
-    const double kk = yaw ? kM : kF, amp = kk * std::hypot(c, s);
-    // Load -kk (c cos phi + s sin phi): largest in the +x / +omega sense at atan2(-s, -c).
-    const double towards_deg = std::atan2(-s, -c) * 180 / M_PI;
-    const std::string unit = yaw ? "N m" : "N";
-    out.push_back(
-        {{"channel", yaw ? "yaw" : "forward"},
-         {"dependence", "heading"},
-         {"dependence_words", dependenceWords("heading")},
-         {"term", "cos(phi), sin(phi)"},
-         {"coefficient", {c, s}},
-         {"sd", sd},
-         {"unit", "A per motor"},
-         {"heldout_gain_A", h.value("gain", 0.0)},
-         {"physical",
-          {{"quantity", yaw ? "yaw moment amplitude" : "forward force amplitude"},
-           {"value", amp},
-           {"sd", kk * sd},
-           {"unit", unit},
-           {"towards_heading_deg", towards_deg}}},
-         {"reading",
-          fmt::format("{} fixed in the world: {:.3g} +- {:.2g} {}, {} heading {:.0f} deg (start "
-                      "frame; {})",
-                      yaw ? "a yaw moment" : "a force along the heading", amp, kk * sd, unit,
-                      yaw ? "turning the chair left most at" : "pushing forward most at",
-                      towards_deg,
-                      yaw ? "wind on the side, or a cross slope on a mass off the axle"
-                          : "a slope or a wind")}});
-  }
+  for (const auto& [mode, h] : heading) out.push_back(headingComponent(mode, h, kF, kM));
   return out;
 }
 
