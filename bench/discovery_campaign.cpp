@@ -4,7 +4,8 @@
 //
 //   build-diag/bench/discovery_campaign [--runs N] [--pairs N] [--triples N] [--clean N]
 //        [--unknown N] [--seed S] [--duration S] [--effects a,b,...] [--engine model|mujoco]
-//        [--config F] [--json OUT] [--check-named-rate R] [--check-false-alarms N] [-v]
+//        [--config F] [--json OUT] [--check-named-rate R] [--check-false-alarms N]
+//        [--check-described-rate R] [-v]
 //
 // --check-named-rate R: exit 1 unless at least a fraction R of the single-effect drives has
 // the concealed effect named (and nothing else of the catalogue; `unmodeled` findings set
@@ -14,14 +15,20 @@
 // on MuJoCo its effective wheel geometry and centre-of-mass current terms, measured on the
 // multibody, simulation/MujocoTruth.h, are not false; on the model engine every finding is); CTest
 // discovery_campaign_mujoco_clean.
+// --check-described-rate R: exit 1 unless a fraction R of the --unknown drives has the effect
+// located on its channel and described with its dependence class (CTest
+// discovery_campaign_unknown_described).
 //
 // --engine mujoco: the drives come from the MuJoCo multibody (docs/simulation.md), whose
-// physics is not the model the diagnosis fits. --unknown N (mujoco only): N drives with one
-// of the MuJoCo engine's own effects (castor friction, tyre scrub, rolling resistance, soft
-// tyre, low grip) at a random magnitude; the diagnosis does not know these names, the
-// campaign reports how often it flags a mismatch and which catalogue names it used.
+// physics is not the model the diagnosis fits. --unknown N: N drives with one effect outside
+// the catalogue at a random magnitude (simulation/UnknownEffects.h: forward drags, yaw
+// frictions, a heading-dependent moment, yaw inertia, a current-sensor offset; on MuJoCo also
+// the engine's own castor friction, tyre scrub, rolling resistance, soft tyre, low grip); the
+// diagnosis does not know these names. Scored: flagged, located (a reported unmodeled term on
+// the effect's channel) and described (with the effect's dependence class), against the
+// truth the generator states (unknownEffectTruth).
 #include "libwheelchair/diagnosis/Campaign.h"
-#include "libwheelchair/simulation/MujocoEngine.h"
+#include "libwheelchair/simulation/UnknownEffects.h"
 
 #include <fmt/format.h>
 
@@ -34,7 +41,7 @@ using namespace wheelchair;
 int main(int argc, char** argv) {
   diagnosis::CampaignOptions o;
   std::string cfg_path, json_path;
-  double check_named_rate = -1;
+  double check_named_rate = -1, check_described_rate = -1;
   int check_false_alarms = -1;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
@@ -54,6 +61,8 @@ int main(int argc, char** argv) {
       o.engine = next();
     else if (a == "--check-named-rate")
       check_named_rate = std::stod(next());
+    else if (a == "--check-described-rate")
+      check_described_rate = std::stod(next());
     else if (a == "--check-false-alarms")
       check_false_alarms = std::stoi(next());
     else if (a == "--clean")
@@ -74,10 +83,11 @@ int main(int argc, char** argv) {
     } else if (a == "-v")
       o.verbose = true;
     else {
-      std::cerr << "usage: discovery_campaign [--runs N] [--pairs N] [--triples N] "
-                   "[--clean N] [--unknown N] [--seed S] [--duration S] [--effects a,b] "
-                   "[--scenarios a,b] [--engine model|mujoco] [--config F] [--json OUT] "
-                   "[--check-named-rate R] [--check-false-alarms N] [-v]\n";
+      std::cerr
+          << "usage: discovery_campaign [--runs N] [--pairs N] [--triples N] "
+             "[--clean N] [--unknown N] [--seed S] [--duration S] [--effects a,b] "
+             "[--scenarios a,b] [--engine model|mujoco] [--config F] [--json OUT] "
+             "[--check-named-rate R] [--check-false-alarms N] [--check-described-rate R] [-v]\n";
       return 2;
     }
   }
@@ -85,25 +95,10 @@ int main(int argc, char** argv) {
     std::cerr << "discovery_campaign: --engine must be model or mujoco\n";
     return 2;
   }
-  if (o.unknown_runs > 0 && o.engine != "mujoco") {
-    std::cerr << "discovery_campaign: --unknown needs --engine mujoco\n";
-    return 2;
-  }
-  // Physics outside the catalogue, at random magnitudes (docs/simulation.md).
-  o.unknown_effects = [](std::mt19937_64& rng) {
-    auto U = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
-    auto f = [](double x) { return fmt::format("{:.4g}", x); };
-    const auto& cat = simulation::mujocoEffectCatalogue();
-    const std::string id = cat[std::uniform_int_distribution<size_t>(0, cat.size() - 1)(rng)].id;
-    effects::EffectSpec e;
-    e.id = id;
-    if (id == "castor_friction") e.params["swivel_friction_Nm"] = f(U(0.5, 3));
-    if (id == "tyre_scrub") e.params["torsion_m"] = f(U(0.005, 0.03));
-    if (id == "rolling_resistance") e.params["coefficient_m"] = f(U(0.001, 0.004));
-    if (id == "soft_tyre") e.params["growth_m"] = f(U(0.002, 0.008));
-    if (id == "tyre_grip") e.params["mu"] = f(U(0.15, 0.4));
-    simulation::validateEngineEffect(e, "mujoco");
-    return std::vector<effects::EffectSpec>{e};
+  // Physics outside the catalogue, at random magnitudes, with its truth
+  // (simulation/UnknownEffects.h).
+  o.unknown_effects = [engine = o.engine](std::mt19937_64& rng) {
+    return std::vector<effects::EffectSpec>{simulation::randomUnknownEffect(engine, rng)};
   };
   auto cfg =
       cfg_path.empty() ? config::WheelchairConfig() : config::WheelchairConfig::load(cfg_path);
@@ -132,6 +127,13 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::cerr << "check passed: named rate " << rate << " >= " << check_named_rate << "\n";
+  }
+  if (check_described_rate >= 0 && res.contains("unknown")) {
+    const double rate = res["unknown"]["described_rate"].get<double>();
+    const bool bad = rate < check_described_rate;
+    std::cerr << "check " << (bad ? "FAILED" : "passed") << ": out-of-catalogue effects located "
+              << "and described " << rate << (bad ? " < " : " >= ") << check_described_rate << "\n";
+    if (bad) status = 1;
   }
   return status;
 }

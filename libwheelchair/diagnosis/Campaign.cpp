@@ -4,6 +4,7 @@
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/MujocoTruth.h"
 #include "libwheelchair/simulation/Simulator.h"
+#include "libwheelchair/simulation/UnknownEffects.h"
 #include "libwheelchair/stats/Descriptive.h"
 
 #include <fmt/format.h>
@@ -194,6 +195,39 @@ nlohmann::json CaseResult::toJson() const {
   return j;
 }
 
+nlohmann::json unknownEffectScore(const std::vector<effects::EffectSpec>& truth,
+                                  const nlohmann::json& findings, const std::string& engine) {
+  nlohmann::json out = {{"located", false}, {"described", false}};
+  if (truth.empty()) return out;
+  const simulation::UnknownEffectTruth t = simulation::unknownEffectTruth(truth.front());
+  out["truth"] = {{"channel", t.channel}, {"dependence", t.dependence}, {"physics", t.physics}};
+  nlohmann::json seen = nlohmann::json::array();
+  std::vector<std::string> catalogue;
+  for (const auto& f : findings) {
+    const std::string effect = f.value("effect", std::string());
+    if (effect != "unmodeled") {
+      catalogue.push_back(effect);
+      continue;
+    }
+    for (const auto& c : f.value("physics", nlohmann::json::array())) {
+      const std::string term = c.value("term", std::string());
+      // The multibody's centre of mass ahead of the axle (v*omega, omega^2 per motor; on
+      // every clean MuJoCo drive, engineTruthFinding) is the engine's, not this effect's.
+      if (engine == "mujoco" && (term == "v*omega" || term == "omega^2")) continue;
+      const std::string ch = c.value("channel", std::string());
+      const std::string dep = c.value("dependence", std::string());
+      seen.push_back(ch + ": " + dep + " (" + term + ")");
+      if (ch == t.channel) {
+        out["located"] = true;
+        if (dep == t.dependence) out["described"] = true;
+      }
+    }
+  }
+  out["components"] = seen;
+  out["catalogue_names"] = catalogue;
+  return out;
+}
+
 CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scenario, uint64_t seed,
                    double duration_s, const std::vector<effects::EffectSpec>& effects,
                    const DiagnosisOptions& dopt, const std::string& engine) {
@@ -222,13 +256,16 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
   // (measured on the multibody with this drive's effects; not for its mujoco-only effects,
   // whose truth is what the `unknown` drives ask the diagnosis to find).
   bool engine_only = false;
-  for (const auto& e : effects)
+  for (const auto& e : effects) {
     for (const auto& m : simulation::mujocoEffectCatalogue()) engine_only |= m.id == e.id;
+    engine_only |= simulation::findUnknownEffect(e.id) != nullptr;
+  }
   if (engine == "mujoco" && !engine_only) c.engine_truth = engineTruthJson(cfg, effects);
   std::set<std::string> eset;
   bool engine_ok = true;
   for (const auto& f : rep.findings) {
     c.findings.push_back({{"effect", f.effect}, {"parameters", f.parameters}});
+    if (!f.physics.empty()) c.findings.back()["physics"] = f.physics;
     if (f.effect == "unmodeled" || f.effect == kWheelGeometryEffect) {
       const bool ok = engineTruthFinding(f, c.engine_truth);
       c.findings.back()["engine_truth"] = ok;
@@ -296,25 +333,43 @@ nlohmann::json cleanRuns(CampaignContext& x) {
           {"catalogue_false_alarms", catalogue_alarms}};
 }
 
-/// Drives with effects outside the catalogue: how many were flagged and under which names.
+/// Drives with effects outside the catalogue: flagged, located and described against the truth
+/// the generator states (unknownEffectScore), and the catalogue names used for them.
 nlohmann::json unknownRuns(CampaignContext& x) {
   const auto& [cfg, opt, dopt, rng, pickScenario, log, cases] = x;
-  int n = 0, flagged = 0;
+  int n = 0, flagged = 0, located = 0, described = 0;
   std::map<std::string, int> named;
+  nlohmann::json kinds = nlohmann::json::object();
   for (int k = 0; k < opt.unknown_runs; ++k) {
     const auto es = opt.unknown_effects(rng);
     std::string sc = pickScenario();
     uint64_t seed = rng() % 1000000;
     CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
     log(sc, c);
+    const nlohmann::json score = unknownEffectScore(es, c.findings, opt.engine);
     ++n, flagged += c.mismatch || !c.reported.empty();
+    located += score["located"].get<bool>(), described += score["described"].get<bool>();
     for (const auto& r : c.reported) ++named[r.substr(0, r.find(' '))];
+    const std::string kind = es.empty() ? "none" : es.front().id;
+    if (!kinds.contains(kind)) kinds[kind] = {{"runs", 0}, {"located", 0}, {"described", 0}};
+    auto& kj = kinds[kind];
+    kj["runs"] = kj.value("runs", 0) + 1;
+    kj["located"] = kj.value("located", 0) + score["located"].get<int>();
+    kj["described"] = kj.value("described", 0) + score["described"].get<int>();
     auto j = c.toJson();
     j["scenario"] = sc, j["seed"] = seed, j["kind"] = "unknown";
+    j["unknown_score"] = score;
     cases.push_back(j);
   }
-  return {
-      {"runs", n}, {"flagged", flagged}, {"rate", n ? double(flagged) / n : 0}, {"named", named}};
+  return {{"runs", n},
+          {"flagged", flagged},
+          {"rate", n ? double(flagged) / n : 0},
+          {"located", located},
+          {"described", described},
+          {"located_rate", n ? double(located) / n : 0},
+          {"described_rate", n ? double(described) / n : 0},
+          {"by_effect", kinds},
+          {"named", named}};
 }
 }  // namespace
 

@@ -38,9 +38,10 @@ struct CampaignOptions {
   std::string engine = "model";
   int triple_runs = 0;  ///< runs with three catalogue effects at once
   /// Drives with physics outside the catalogue: `unknown_runs` drives, each with the effects
-  /// `unknown_effects` draws (the campaign program supplies them; the diagnosis does not
-  /// know their names). Scored as flagged (a mismatch or any finding) or silent, with the
-  /// catalogue names the diagnosis used for them.
+  /// `unknown_effects` draws (the campaign program supplies them, e.g.
+  /// simulation::randomUnknownEffect; the diagnosis does not know their names). Scored as
+  /// flagged (a mismatch or any finding), located and described (unknownEffectScore), with
+  /// the catalogue names the diagnosis used for them.
   int unknown_runs = 0;
   std::function<std::vector<effects::EffectSpec>(std::mt19937_64&)> unknown_effects;
 };
@@ -65,6 +66,17 @@ double parameterError(const effects::EffectSpec& truth, const Finding& f,
 /// within 25 % of the engine's value. Anything else (a vdot term too: the step measurement
 /// of vdot_A scatters by ~0.04 A s^2/m, too coarse to confirm one): false (an extra).
 bool engineTruthFinding(const Finding& f, const nlohmann::json& truth);
+
+/// Score of an out-of-catalogue drive against the truth its generator states
+/// (simulation::unknownEffectTruth of truth[0]): `located` when an `unmodeled` finding has a
+/// physics component (UnmodeledPhysics.h) on the effect's channel, `described` when such a
+/// component also has the effect's dependence class. Catalogue findings never count (naming
+/// an unknown effect after the catalogue is a false finding); on MuJoCo the engine's own
+/// centre-of-mass components (terms v*omega, omega^2) are set aside. `findings`: the
+/// CaseResult's. JSON: {located, described, truth {channel, dependence, physics}, components,
+/// catalogue_names}.
+nlohmann::json unknownEffectScore(const std::vector<effects::EffectSpec>& truth,
+                                  const nlohmann::json& findings, const std::string& engine);
 
 struct CaseResult {
   std::vector<effects::EffectSpec> truth;
@@ -95,7 +107,9 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
 /// median_param_error, ...}}, "pairs": {...}, "triples": {...} (if triple_runs),
 /// "clean": {runs, false_alarms, named_false_alarms, engine_false_alarms,
 /// catalogue_false_alarms (drives with a catalogue name other than unmodeled /
-/// wheel_geometry)}, "unknown": {runs, flagged, named} (if unknown_runs), "cases": [...]}.
+/// wheel_geometry)}, "unknown": {runs, flagged, located, described, located_rate,
+/// described_rate, by_effect {id: {runs, located, described}}, named} (if unknown_runs),
+/// "cases": [...]}.
 nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOptions& opt,
                            const DiagnosisOptions& dopt);
 

@@ -6,6 +6,7 @@
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/diagnosis/SensorFaults.h"
 #include "libwheelchair/diagnosis/Stages.h"
+#include "libwheelchair/diagnosis/UnmodeledPhysics.h"
 #include "libwheelchair/model/DriveDynamics.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/sensors/Filtering.h"
@@ -329,6 +330,10 @@ struct SparseResult {
   double rms_before_val = 0, rms_after_val = 0;
   nlohmann::json cv = nlohmann::json::object();          ///< per term: blockedCvTerm numbers
   nlohmann::json cannot_tell = nlohmann::json::array();  ///< terms below the misspecification
+  /// Confirmed by blocked cross-validation on the fit rows because the held-out part could
+  /// not test it (cv_lr: n_eff log(RSS_cv without / with), cv_rms_*: CV RMS without / with).
+  bool cross_validated = false;
+  double cv_lr = 0, cv_rms_before = 0, cv_rms_after = 0;
 };
 
 /// A term library over a set of rows, its columns made on demand (a long drive's library is
@@ -362,8 +367,39 @@ std::vector<BlockedCvTerm> blockedCv(const Library& L, const Eigen::VectorXd& y,
   return r;
 }
 
+/// Out-of-sample prediction of a term set's fit (rows of the data it is judged on).
+using Predictor = std::function<Eigen::VectorXd(const std::vector<int>&)>;
+
+/// Fit on L's rows, predict Lv's (the held-out part).
+Predictor heldOutPredictor(const Library& L, const Eigen::VectorXd& y, const Library& Lv) {
+  return [&L, &y, &Lv](const std::vector<int>& t) {
+    const Eigen::VectorXd b = L.design(t).colPivHouseholderQr().solve(y);
+    return Eigen::VectorXd(Lv.design(t) * b);
+  };
+}
+
+/// Blocked K-fold cross-validation on the fit rows: each of K contiguous blocks predicted by
+/// a fit on the others (for terms the held-out part cannot test, e.g. a turn-rate term when
+/// the last 30 % of a `square` drive does not turn).
+Predictor crossValidationPredictor(const Library& L, const Eigen::VectorXd& y, int K) {
+  return [&L, &y, K](const std::vector<int>& t) {
+    const Eigen::MatrixXd A = L.design(t);
+    const Eigen::Index n = A.rows();
+    Eigen::VectorXd p(n);
+    for (int k = 0; k < K; ++k) {
+      const Eigen::Index a = n * k / K, b = n * (k + 1) / K;
+      Eigen::MatrixXd At(n - (b - a), A.cols());
+      Eigen::VectorXd yt(n - (b - a));
+      At << A.topRows(a), A.bottomRows(n - b);
+      yt << y.head(a), y.tail(n - b);
+      p.segment(a, b - a) = A.middleRows(a, b - a) * At.colPivHouseholderQr().solve(yt);
+    }
+    return p;
+  };
+}
+
 /// The held-out rule applied to each term of a sparse fit (issue 16): backward elimination
-/// on the validation rows. Each round refits (on the fit rows) without each term in turn; the
+/// on the judged rows yv (the held-out part, or cross-validation folds: valPrediction). Each round refits (on the fit rows) without each term in turn; the
 /// term whose removal costs the held-out prediction least is dropped unless that cost is both
 /// significant, n_eff log(RSS_val without / RSS_val with) >= chi2_1(1 - alpha), and relevant:
 /// the held-out prediction changes by at least min_contribution_rms (the floor every finding
@@ -372,14 +408,12 @@ std::vector<BlockedCvTerm> blockedCv(const Library& L, const Eigen::VectorXd& y,
 /// must pass blocked cross-validation over all rows (blockedCvTerm: block-bootstrap held-out
 /// gain and delete-one-block jackknife of its coefficient); the weakest failing one is dropped
 /// (one per call: the caller refits the rest and calls again).
-std::vector<int> heldOutPrune(const Library& L, const Eigen::VectorXd& y, const Library& Lv,
-                              const Eigen::VectorXd& yv, const Groups& gv, int lags,
+/// (L, y) fit rows and (Lv, yv_all) held-out rows: the blocked cross-validation's data.
+std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::VectorXd& yv,
+                              const Groups& gv, const Library& L, const Eigen::VectorXd& y,
+                              const Library& Lv, const Eigen::VectorXd& yv_all, int lags,
                               const DiagnosisOptions& opt, double min_contribution_rms,
                               std::vector<int> terms) {
-  auto valPrediction = [&](const std::vector<int>& t) {
-    const Eigen::VectorXd b = L.design(t).colPivHouseholderQr().solve(y);
-    return Eigen::VectorXd(Lv.design(t) * b);
-  };
   const double crit = stats::chi2Quantile(1 - opt.alpha, 1);
   const double nv = std::max<double>(1, yv.size());
   while (terms.size() > 1) {
@@ -403,7 +437,7 @@ std::vector<int> heldOutPrune(const Library& L, const Eigen::VectorXd& y, const 
   // not predict the blocks it was not fitted on better, or whose coefficient is within its
   // block-to-block (misspecification) uncertainty, goes; the weakest first, one per call (the
   // caller refits the rest).
-  const std::vector<BlockedCvTerm> cv = blockedCv(L, y, Lv, yv, terms, lags);
+  const std::vector<BlockedCvTerm> cv = blockedCv(L, y, Lv, yv_all, terms, lags);
   int worst = -1;
   double worst_t = std::numeric_limits<double>::infinity();
   for (size_t k = 0; k < cv.size(); ++k) {
@@ -448,15 +482,34 @@ std::vector<std::pair<int, double>> belowMisspecification(
   return out;
 }
 
-/// Column `excluded` (-1: none) of the library L (fit; Lv validation) is left out as if it
-/// were zero. noise_var > 0: the misspecification bound (belowMisspecification, `partner`
-/// pairs columns that are one physical term) marks terms that stay in the fit (leaving them out
-/// would bias the others) but are not reported: SparseResult::cannot_tell (library index,
-/// numbers); the caller reports the rest.
-SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, const Library& Lv,
-                   const Eigen::VectorXd& yv, const Groups& gv, int lags,
-                   const DiagnosisOptions& opt, double min_contribution_rms, int excluded = -1,
-                   double noise_var = 0, const std::function<int(int)>& partner = {}) {
+/// Held-out numbers of a prediction p of yv: LR gain, the gain expected from p's size, RMS.
+void heldOutGain(const Eigen::VectorXd& p, const Eigen::VectorXd& yv, const Groups& gv, int lags,
+                 SparseResult& res) {
+  const Eigen::VectorXd r1 = yv - p;
+  const double nev = effectiveSampleSize(r1, gv, lags);
+  res.lr_val = nev * std::log(yv.squaredNorm() / std::max(1e-300, r1.squaredNorm()));
+  res.lr_val_expected = nev * std::log(1 + p.squaredNorm() / std::max(1e-300, r1.squaredNorm()));
+  res.rms_before_val = std::sqrt(yv.squaredNorm() / yv.size());
+  res.rms_after_val = std::sqrt(r1.squaredNorm() / yv.size());
+}
+
+/// STLSQ on (L, y) with each term set judged by `predict` against yj (groups gj): the
+/// held-out rows (Lv, yv) or, for terms they cannot test, cross-validation on the fit rows.
+/// Blocked cross-validation over all rows and the misspecification bound always use (L, y)
+/// and (Lv, yv). Column `excluded` (-1: none) of the library is left out as if it were zero.
+/// noise_var > 0: the misspecification bound (belowMisspecification, `partner` pairs columns
+/// that are one physical term) marks terms that stay in the fit (leaving them out would bias
+/// the others) but are not reported: SparseResult::cannot_tell (library index, numbers); the
+/// caller reports the rest. `untestable`: set when the result is rejected only because the
+/// judged data cannot test it.
+SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups& g,
+                       const Library& Lv, const Eigen::VectorXd& yv, const Predictor& predict,
+                       const Eigen::VectorXd& yj, const Groups& gj, int lags,
+                       const DiagnosisOptions& opt, double min_contribution_rms, int excluded,
+                       double noise_var, const std::function<int(int)>& partner,
+                       bool& untestable) {
+  untestable = false;
+  bool pruned = false;
   SparseResult res;
   std::vector<int> act;
   for (int j = 0; j < L.cols; ++j)
@@ -475,11 +528,19 @@ SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, 
       if (t < worst) worst = t, worst_k = static_cast<int>(k);
     }
     if (worst >= opt.stlsq_threshold_sigma) {
-      if (yv.size() > 10) {
+      if (yj.size() > 10 && !pruned) {
+        // Whether the held-out rows can test these terms at all (else the pruning below is
+        // blind: every term would look removable).
+        SparseResult probe;
+        heldOutGain(predict(act), yj, gj, lags, probe);
+        untestable = untestable || probe.lr_val_expected < opt.validation_min_expected_lr;
+      }
+      if (yj.size() > 10) {
         const std::vector<int> kept =
-            heldOutPrune(L, y, Lv, yv, gv, lags, opt, min_contribution_rms, act);
+            heldOutPrune(predict, yj, gj, L, y, Lv, yv, lags, opt, min_contribution_rms, act);
         if (kept.size() < act.size()) {  // refit the kept terms (and their covariance)
           act = kept;
+          pruned = true;
           continue;
         }
         double sigma_m = 0;
@@ -505,24 +566,45 @@ SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, 
   if ((L.design(res.terms) * res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) <
       min_contribution_rms)
     return res;
-  if (yv.size() > 10) {
+  if (yj.size() > 10) {
     const std::vector<BlockedCvTerm> cv = blockedCv(L, y, Lv, yv, res.terms, lags);
     for (size_t k = 0; k < cv.size(); ++k) res.cv[std::to_string(res.terms[k])] = cv[k].toJson();
-    const Eigen::MatrixXd Av = Lv.design(res.terms);
-    Eigen::VectorXd r1 = yv - Av * res.coef;
-    double nev = effectiveSampleSize(r1, gv, lags);
-    res.lr_val = nev * std::log(yv.squaredNorm() / std::max(1e-300, r1.squaredNorm()));
-    res.lr_val_expected =
-        nev * std::log(1 + (Av * res.coef).squaredNorm() / std::max(1e-300, r1.squaredNorm()));
-    res.rms_before_val = std::sqrt(yv.squaredNorm() / yv.size());
-    res.rms_after_val = std::sqrt(r1.squaredNorm() / yv.size());
+    heldOutGain(predict(res.terms), yj, gj, lags, res);
     if (res.lr_val_expected >= opt.validation_min_expected_lr &&
         res.lr_val < opt.validation_fraction_of_expected * res.lr_val_expected)
       return res;
-    if (res.lr_val_expected < opt.validation_min_expected_lr) return res;  // must be confirmed
+    if (res.lr_val_expected < opt.validation_min_expected_lr) {  // must be confirmed
+      untestable = true;
+      return res;
+    }
   }
   res.accepted = true;
   return res;
+}
+
+/// STLSQ with the held-out rule on the held-out rows (Lv, yv). A result the held-out part
+/// cannot test (it predicts no difference there, e.g. a turn-rate term when the last 30 % of a
+/// `square` drive does not turn) is confirmed instead by blocked 5-fold cross-validation on
+/// the fit rows (issue 16: "across time blocks of one"), with the same rules; its JSON then
+/// says so (`evidence.cross_validation`), and its held-out numbers stay those of the held-out
+/// part (validation_tested false).
+SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, const Library& Lv,
+                   const Eigen::VectorXd& yv, const Groups& gv, int lags,
+                   const DiagnosisOptions& opt, double min_contribution_rms, int excluded = -1,
+                   double noise_var = 0, const std::function<int(int)>& partner = {}) {
+  bool untestable = false;
+  SparseResult res = stlsqWith(L, y, g, Lv, yv, heldOutPredictor(L, y, Lv), yv, gv, lags, opt,
+                               min_contribution_rms, excluded, noise_var, partner, untestable);
+  if (res.accepted || !untestable || y.size() < 50 || !opt.unmodeled_cross_validation) return res;
+  bool cv_untestable = false;
+  SparseResult cv =
+      stlsqWith(L, y, g, Lv, yv, crossValidationPredictor(L, y, 5), y, g, lags, opt,
+                min_contribution_rms, excluded, noise_var, partner, cv_untestable);
+  if (!cv.accepted) return res;
+  cv.cross_validated = true;
+  cv.cv_lr = cv.lr_val, cv.cv_rms_before = cv.rms_before_val, cv.cv_rms_after = cv.rms_after_val;
+  heldOutGain(Lv.design(cv.terms) * cv.coef, yv, gv, lags, cv);
+  return cv;
 }
 
 nlohmann::json evidenceJson(const SelectionStep& st, double alpha_b) {
@@ -567,6 +649,8 @@ config::Options DiagnosisOptions::options(const std::string& section) {
       .real("validation_min_expected_lr", validation_min_expected_lr,
             "below: validation cannot test the term (-)", nonneg)
       .flag("enable_unmodeled", enable_unmodeled, "sparse regression on what remains")
+      .flag("unmodeled_cross_validation", unmodeled_cross_validation,
+            "unmodeled terms the held-out part cannot test: confirm by blocked 5-fold CV")
       .real("stlsq_threshold_sigma", stlsq_threshold_sigma,
             "STLSQ keeps terms with |coef| > this x HAC sigma (-)", nonneg)
       .flag("enable_delay", enable_delay, "fit stream delays");
@@ -714,6 +798,17 @@ Finding unmodeledFinding(const SparseResult& sr, const std::vector<std::string>&
   f.evidence["delta_bic"] = sr.ev.delta_bic;
   f.evidence["n_eff"] = sr.ev.n_eff;
   f.evidence["validation_likelihood_ratio"] = sr.lr_val;
+  if (sr.cross_validated) {
+    f.evidence["validation_tested"] = false;
+    f.evidence["cross_validation"] = {
+        {"folds", 5},
+        {"why",
+         "the held-out part cannot test it: confirmed on blocked 5-fold cross-validation "
+         "of the fit data"},
+        {"likelihood_ratio", sr.cv_lr},
+        {"rms_before", sr.cv_rms_before},
+        {"rms_after", sr.cv_rms_after}};
+  }
   f.fit_before = {{"validation_rms_" + rms_unit, sr.rms_before_val}};
   f.fit_after = {{"validation_rms_" + rms_unit, sr.rms_after_val}};
   return f;
@@ -773,8 +868,11 @@ void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows&
   if (!sr.accepted) return;
   static const std::vector<std::string> names = {"v",        "|omega|",  "omega*|omega|",
                                                  "cos(phi)", "sin(phi)", "v*omega"};
-  rep.addFinding(unmodeledFinding(sr, names, "gyro_vs_encoders", "gyro - odometric turn rate",
-                                  "turn-rate consistency", "rad/s", "rad"));
+  Finding f = unmodeledFinding(sr, names, "gyro_vs_encoders", "gyro - odometric turn rate",
+                               "turn-rate consistency", "rad/s", "rad");
+  f.physics = describeKinematicTerms(f);
+  if (!f.physics.empty()) f.description += "; physically: " + physicsSummary(f.physics);
+  rep.addFinding(f);
 }
 
 /// Why a gyro-vs-encoder time offset `delay_s` (> 0: the gyro stamps late) cannot be told
@@ -990,6 +1088,59 @@ void addFrictionShape(Finding& friction, const SparseResult& shape, const std::s
                           " A (the shape of the friction law, e.g. stiction; not a new effect).";
 }
 
+/// Whether the selection accepted a motor asymmetry on BOTH sides with equal coefficients
+/// (within 10 % of the larger, or 3 sigma): the same extra viscous friction on both motors.
+bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cands) {
+  double b[2] = {0, 0}, sd[2] = {0, 0};
+  int found = 0;
+  for (std::size_t a = 0; a < sel.accepted.size(); ++a) {
+    const std::string& n = cands[sel.accepted[a]].name;
+    const int side = n == "motor_asymmetry/right" ? 0 : (n == "motor_asymmetry/left" ? 1 : -1);
+    if (side < 0) continue;
+    const int i = sel.ranges[a].first;
+    b[side] = sel.fit.beta(i), sd[side] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
+    ++found;
+  }
+  if (found < 2 || b[0] * b[1] <= 0) return false;
+  const double diff = std::abs(b[0] - b[1]);
+  return diff <= 0.1 * std::max(std::abs(b[0]), std::abs(b[1])) ||
+         diff <= 3 * std::hypot(sd[0], sd[1]);
+}
+
+/// The terms of motor `ch`'s sparse fit that are reported as `unmodeled`: a friction finding
+/// (index friction_finding in rep.findings, -1: none) first takes the terms that are the shape
+/// of its friction law (addFrictionShape), and terms below the channel's unexplained structure
+/// (SparseResult::cannot_tell) go to info.cannot_tell. sr.accepted false: nothing is left.
+void reportableTerms(SparseResult& sr, const std::string& ch, int friction_finding,
+                     DiagnosisReport& rep) {
+  if (const int fi = friction_finding; fi >= 0) {  // the friction law's shape first
+    const SparseResult shape = sparseSubset(sr, frictionShapeTerm);
+    if (!shape.terms.empty()) addFrictionShape(rep.findings[fi], shape, ch);
+    sr = sparseSubset(sr, [](int j) { return !frictionShapeTerm(j); });
+    if (sr.terms.empty()) {
+      sr.accepted = false;
+      return;
+    }
+  }
+  std::vector<int> untold;  // in the fit, not reported
+  for (const auto& c : sr.cannot_tell) {
+    if (std::find(sr.terms.begin(), sr.terms.end(), c["term"].get<int>()) == sr.terms.end())
+      continue;  // went into the friction shape
+    untold.push_back(c["term"].get<int>());
+    rep.info["cannot_tell"].push_back(fmt::format(
+        "{}: a term {:+.3g}*{} predicts held-out data better, but its held-out contribution "
+        "{:.3g} A is below the {:.3g} A of structure the model still leaves unexplained on "
+        "this channel, which could produce it; not reported. To tell: drive where that term "
+        "is excited and the rest is not (e.g. speed changes on straight runs for vdot, turns "
+        "at constant speed for omega terms)",
+        ch, c["coefficient"].get<double>(), dynLibNames()[untold.back()],
+        c["heldout_contribution_rms"].get<double>(), c["unexplained_rms"].get<double>()));
+  }
+  sr = sparseSubset(
+      sr, [&](int j) { return std::find(untold.begin(), untold.end(), j) == untold.end(); });
+  if (sr.terms.empty()) sr.accepted = false;
+}
+
 /// Stage 2 terms outside the catalogue: STLSQ per motor over the term library.
 /// friction_finding[s]: index in rep.findings of the accepted Coulomb friction acting on
 /// motor s (0 right, 1 left), -1 if none.
@@ -999,53 +1150,58 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
                       const std::array<int, 2>& friction_finding, DiagnosisReport& rep) {
   const Eigen::VectorXd& rf = sel.fit.residual;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
+  const int nlib = static_cast<int>(dynLibNames().size());
+  // The other motor's measured current (column 13) is kept out (reads as zero; stlsq skips
+  // zero columns), as is i_self (12, excluded below): see the loop.
+  auto column = [](const DynRows& d, int j, int r0, int n) -> Eigen::VectorXd {
+    if (j == 13) return Eigen::VectorXd::Zero(n);
+    return d.libColumn(j, r0, n);
+  };
+  SparseResult srs[2];
   for (int s2 = 0; s2 < 2; ++s2) {
     // This motor's rows of the library. i_self (column 12) is the measured quantity itself:
     // keep it out (it would absorb everything); the other motor's measured current (column 13)
     // carries the other equation's error (what both channels share, e.g. a forward drag, and its
     // noise): as a regressor it borrows that error instead of describing a physical term, so it
     // is kept out as well (issue 16; its physics - the coupling through the chassis - is spanned
-    // by vdot and omegadot). A column kept out reads as zero (stlsq skips zero columns).
-    const int nlib = static_cast<int>(dynLibNames().size());
-    auto column = [](const DynRows& d, int j, int r0, int n) -> Eigen::VectorXd {
-      if (j == 13) return Eigen::VectorXd::Zero(n);
-      return d.libColumn(j, r0, n);
-    };
+    // by vdot and omegadot).
     const Library L{nRf, nlib, [&](int j) { return column(df2, j, s2 * nRf, nRf); }};
     const Library Lv{nRv2, nlib, [&](int j) { return column(dv2, j, s2 * nRv2, nRv2); }};
-    SparseResult sr =
+    srs[s2] =
         stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
               rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags, opt,
               opt.min_relevance * cfg.motors.current_noise_A, 12, df2.noise_var, [](int j) {
                 return j == 10 ? 11 : j == 11 ? 10 : -1;
               });
-    if (!sr.accepted) continue;
-    const std::string ch = s2 == 0 ? "current_right" : "current_left";
-    if (const int fi = friction_finding[s2]; fi >= 0) {  // the friction law's shape first
-      const SparseResult shape = sparseSubset(sr, frictionShapeTerm);
-      if (!shape.terms.empty()) addFrictionShape(rep.findings[fi], shape, ch);
-      sr = sparseSubset(sr, [](int j) { return !frictionShapeTerm(j); });
-      if (sr.terms.empty()) continue;
+  }
+  for (int s2 = 0; s2 < 2; ++s2)
+    if (srs[s2].accepted)
+      reportableTerms(srs[s2], s2 == 0 ? "current_right" : "current_left", friction_finding[s2],
+                      rep);
+  // What the kept terms are physically: both motors' terms refitted jointly as forward / yaw /
+  // one-motor components (UnmodeledPhysics.h).
+  std::vector<int> terms;
+  for (const auto& sr : srs)
+    if (sr.accepted)
+      for (int j : sr.terms)
+        if (std::find(terms.begin(), terms.end(), j) == terms.end()) terms.push_back(j);
+  DynamicTermData td;
+  td.column = [&](int j, int side, bool fit) {
+    return fit ? column(df2, j, side * nRf, nRf) : column(dv2, j, side * nRv2, nRv2);
+  };
+  td.y_fit = rf, td.y_val = rv_after, td.groups_fit = df2.groups, td.lags = lags;
+  const nlohmann::json physics = describeDynamicTerms(terms, dynLibNames(), td, cfg);
+  for (int s2 = 0; s2 < 2; ++s2) {
+    if (!srs[s2].accepted) continue;
+    std::string ch = s2 == 0 ? "current_right" : "current_left";
+    Finding f =
+        unmodeledFinding(srs[s2], dynLibNames(), ch, ch + " - model", ch + " equation", "A", "A");
+    for (const auto& c : physics) {  // the components this motor carries
+      const std::string pc = c["channel"];
+      if (pc == ch || pc == "forward" || pc == "yaw" || pc == "wheels") f.physics.push_back(c);
     }
-    std::vector<int> untold;  // in the fit, not reported
-    for (const auto& c : sr.cannot_tell) {
-      if (std::find(sr.terms.begin(), sr.terms.end(), c["term"].get<int>()) == sr.terms.end())
-        continue;  // went into the friction shape
-      untold.push_back(c["term"].get<int>());
-      rep.info["cannot_tell"].push_back(fmt::format(
-          "{}: a term {:+.3g}*{} predicts held-out data better, but its held-out contribution "
-          "{:.3g} A is below the {:.3g} A of structure the model still leaves unexplained on "
-          "this channel, which could produce it; not reported. To tell: drive where that term "
-          "is excited and the rest is not (e.g. speed changes on straight runs for vdot, turns "
-          "at constant speed for omega terms)",
-          ch, c["coefficient"].get<double>(), dynLibNames()[untold.back()],
-          c["heldout_contribution_rms"].get<double>(), c["unexplained_rms"].get<double>()));
-    }
-    sr = sparseSubset(
-        sr, [&](int j) { return std::find(untold.begin(), untold.end(), j) == untold.end(); });
-    if (sr.terms.empty()) continue;
-    rep.addFinding(
-        unmodeledFinding(sr, dynLibNames(), ch, ch + " - model", ch + " equation", "A", "A"));
+    if (!f.physics.empty()) f.description += "; physically: " + physicsSummary(f.physics);
+    rep.addFinding(f);
   }
 }
 
@@ -1063,6 +1219,17 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   SelectionData sd{df.y,      dv.y,      df.X, dv.X,
                    df.groups, dv.groups, lags, opt.min_relevance * cfg.motors.current_noise_A};
   Selection sel = forwardSelect(sd, cands, opt);
+  if (symmetricAsymmetry(sel, cands)) {
+    // Both motors' viscous friction up by the same amount is no asymmetry: it is a load the
+    // catalogue does not have (e.g. a drag proportional to speed). Not forced onto the
+    // catalogue name: selected again without it, so the unmodeled terms describe it.
+    std::vector<Candidate> rest;
+    for (const auto& c : cands)
+      if (c.effect != "motor_asymmetry") rest.push_back(c);
+    cands = rest;
+    alpha_b = selectionRule(opt, cands.size()).level();
+    sel = forwardSelect(sd, cands, opt);
+  }
   // The rows re-built with the re-estimated delay; without a delay df, dv themselves (no
   // copy: the rows are the bulk of diagnose's memory).
   DelayRefit<DynRows> refit;

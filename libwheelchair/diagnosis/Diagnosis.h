@@ -48,6 +48,9 @@ struct DiagnosisOptions {
   /// effects are within the reconstruction's approximation error.
   double min_relevance = 0.25;
   bool enable_unmodeled = true;        ///< sparse regression on what remains
+  /// Unmodeled terms the held-out part cannot test are confirmed by blocked 5-fold
+  /// cross-validation of the fit data (false: they are not reported).
+  bool unmodeled_cross_validation = true;
   double stlsq_threshold_sigma = 4.0;  ///< STLSQ keeps terms with |coef| > this x HAC sigma
   bool enable_delay = true;
 

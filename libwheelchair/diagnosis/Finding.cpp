@@ -45,6 +45,7 @@ nlohmann::json Finding::toJson() const {
   j["evidence"] = evidence;
   j["fit_before"] = fit_before;
   j["fit_after"] = fit_after;
+  if (!physics.empty()) j["physics"] = physics;
   if (is_fault) j["fault"] = true;
   if (command_response) j["analyser"] = "command_response";
   return j;

@@ -30,6 +30,9 @@ struct Finding {
   nlohmann::json evidence = nlohmann::json::object();     ///< lr, p_value, delta_bic, n_eff, ...
   nlohmann::json fit_before = nlohmann::json::object();   ///< validation metrics without it
   nlohmann::json fit_after = nlohmann::json::object();    ///< ... and with it
+  /// `unmodeled` findings: what the terms are physically (UnmodeledPhysics.h): per component
+  /// channel, dependence class, term, coefficient +- sd, physical reading, held-out gain.
+  nlohmann::json physics = nlohmann::json::array();
   bool is_fault = false;  ///< sensor fault (sonar_dropout, pozyx_outliers), not physics
   /// Found by the command-driven analyser (CommandResponse.h): its corrected parameters go to
   /// [mrclam_response], not to [model_extensions] (JSON: "analyser": "command_response").

@@ -257,8 +257,8 @@ std::vector<Candidate> stageCandidates(effects::Stage stage, const effects::Term
 
 const std::vector<std::string>& dynLibNames() {
   static const std::vector<std::string> n = {
-      "1",   "v",       "omega",   "vdot",     "omegadot", "sgn(u)", "|u|",
-      "u^2", "v*omega", "omega^2", "cos(phi)", "sin(phi)", "i_self", "i_other"};
+      "1",       "v",       "omega",    "vdot",     "omegadot", "sgn(u)",  "|u|",   "u^2",
+      "v*omega", "omega^2", "cos(phi)", "sin(phi)", "i_self",   "i_other", "v*|v|", "sgn(omega)"};
   return n;
 }
 
@@ -371,21 +371,33 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   return d;
 }
 
+/// tanh width of the library's sgn(omega) (rad/s): a dry moment's sign, on the filtered rate.
+constexpr double kSgnOmegaWidth_rad_s = 0.02;
+
 Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
-  if (j < 0 || j >= 14)
+  if (j < 0 || j >= 16)
     throw std::out_of_range("DynRows::libColumn: no column " + std::to_string(j));
   const int nR = static_cast<int>(y.size() / 2);
   Eigen::VectorXd c(n);
   for (int q = 0; q < n; ++q) {
     const int k = r0 + q;
     const double uk = u[k], vk = v[k], wk = omega[k];
-    const double row[14] = {1.0,          vk,
-                            wk,           vdot[k],
-                            omegadot[k],  sgn_u[k],
-                            std::abs(uk), uk * uk,
-                            vk * wk,      wk * wk,
-                            cos_phi[k],   sin_phi[k],
-                            current[k],   current[k < nR ? k + nR : k - nR]};
+    const double row[16] = {1.0,
+                            vk,
+                            wk,
+                            vdot[k],
+                            omegadot[k],
+                            sgn_u[k],
+                            std::abs(uk),
+                            uk * uk,
+                            vk * wk,
+                            wk * wk,
+                            cos_phi[k],
+                            sin_phi[k],
+                            current[k],
+                            current[k < nR ? k + nR : k - nR],
+                            vk * std::abs(vk),
+                            std::tanh(wk / kSgnOmegaWidth_rad_s)};
     c(q) = row[j];
   }
   return c;

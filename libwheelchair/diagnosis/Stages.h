@@ -75,7 +75,7 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
 /// Stage 2 rows: per grid sample the right and then the left motor equation error (A),
 /// y = filtered current - nominal model current. Columns: driveColumns() (asymmetry right/left,
 /// Coulomb right/left, payload per kg, slope cos/sin, motors delay).
-/// The unmodeled-term library (names in dynLibNames()) is not stored as a matrix (14 doubles
+/// The unmodeled-term library (names in dynLibNames()) is not stored as a matrix (16 doubles
 /// a row; memory, docs/benchmarks.md): libColumn() makes a column from the per-row signals.
 struct DynRows {
   Eigen::VectorXd y;
@@ -88,7 +88,9 @@ struct DynRows {
   stats::Groups groups;
   double noise_var = 0;  ///< predicted variance of y from the current-sensor noise
   /// Library column j over rows [r0, r0 + n): 1, v, omega, vdot, omegadot, sgn(u), |u|, u^2,
-  /// v*omega, omega^2, cos(phi), sin(phi), i_self, i_other (the other motor's current).
+  /// v*omega, omega^2, cos(phi), sin(phi), i_self, i_other (the other motor's current),
+  /// v*|v| (a drag's signed square) and sgn(omega) = tanh(omega / 0.02 rad/s) (a dry
+  /// moment's sign; from the filtered rate).
   Eigen::VectorXd libColumn(int j, int r0, int n) const;
 };
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,

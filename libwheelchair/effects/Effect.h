@@ -88,6 +88,7 @@ struct SensorDistortion {
   double delay_s[6] = {0, 0, 0, 0, 0, 0};  ///< stamp lag per stream (streamNames order)
   double dropout_probability = 0, dropout_burst = 3;
   double outlier_rate = 0, outlier_magnitude_m = 1;
+  double current_offset_A[2] = {0, 0};  ///< added to the measured motor currents (right, left)
 };
 
 /// The truth an effect acts on: the true drive train, the power module's response and the

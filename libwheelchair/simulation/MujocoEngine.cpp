@@ -1,6 +1,7 @@
 #include "libwheelchair/simulation/MujocoEngine.h"
 
 #include "libwheelchair/config/Options.h"
+#include "libwheelchair/simulation/UnknownEffects.h"
 
 #include <mujoco/mujoco.h>
 
@@ -155,6 +156,7 @@ ChairSpec makeSpec(const config::WheelchairConfig& cfg, const MujocoOptions& o,
   if (!(rest > 0))
     throw std::runtime_error("[vehicle] yaw_inertia_kg_m2 too small for the [mujoco] layout");
   for (auto& p : c.parts) p.izz = rest * p.mass / m_nom;
+  c.parts[0].izz += externalLoad(effects).extra_yaw_inertia_kg_m2;  // UnknownEffects.h
   // Payload: the mass difference as its own body (a 0.3 m cube) ahead of the axle; a lighter
   // body takes the difference off the occupant.
   const double dm = body_mass - v.geom.body_mass_kg;
@@ -279,6 +281,8 @@ void validateEngineEffect(const effects::EffectSpec& e, const std::string& engin
   if (engine != "model" && engine != "mujoco")
     throw std::invalid_argument("unknown engine '" + engine + "' (known: model, mujoco)");
   const effects::EffectInfo* info = findMujocoEffect(e.id);
+  if (const effects::EffectInfo* u = findUnknownEffect(e.id))
+    return effects::validateAgainst(*u, e);
   if (!info) return effects::validateEffect(e);
   if (engine != "mujoco")
     throw std::invalid_argument("effect '" + e.id + "' exists only with --engine mujoco");
@@ -360,6 +364,8 @@ struct MujocoChair::Impl {
   MujocoOptions opt;
   int q_wheel[2] = {0, 0}, v_wheel[2] = {0, 0}, q_swivel[2] = {0, 0};
   int tyre_geom[2] = {0, 0};
+  int chassis = 0;
+  ExternalLoad load;  ///< out-of-catalogue force and moment on the chassis (UnknownEffects.h)
   double phi = 0;  // unwrapped heading
   double step_h = 0;
   int substeps = 1;
@@ -377,6 +383,14 @@ struct MujocoChair::Impl {
     double dphi = y - std::remainder(phi, 2 * M_PI);
     dphi = std::remainder(dphi, 2 * M_PI);
     phi += dphi;
+  }
+  /// The out-of-catalogue forward force and yaw moment on the chassis (world frame).
+  void externalForce() {
+    const double c = std::cos(phi), sn = std::sin(phi);
+    const double* v = d->qvel;
+    const Eigen::Vector2d fm = load.forceMoment(c * v[0] + sn * v[1], v[5], phi);
+    double* x = d->xfrc_applied + 6 * chassis;
+    x[0] = fm(0) * c, x[1] = fm(0) * sn, x[5] = fm(1);
   }
   void softTyre() {
     if (spec.tyre_growth == 0) return;
@@ -397,6 +411,7 @@ MujocoChair::MujocoChair(const config::WheelchairConfig& cfg, const MujocoOption
   Impl& I = *impl_;
   I.spec = makeSpec(cfg, opt, effects);
   I.opt = opt;
+  I.load = externalLoad(effects);
   auto vfs = std::make_unique<mjVFS>();
   mj_defaultVFS(vfs.get());
   const char* name = "wheelchair.xml";
@@ -413,6 +428,7 @@ MujocoChair::MujocoChair(const config::WheelchairConfig& cfg, const MujocoOption
     throw std::runtime_error(std::string("MuJoCo: the chair model does not compile: ") + err);
   I.d = mj_makeData(I.m);
   const char* side_name[2] = {"right", "left"};
+  I.chassis = mj_name2id(I.m, mjOBJ_BODY, "chassis");
   for (int s = 0; s < 2; ++s) {
     const int jw = mj_name2id(I.m, mjOBJ_JOINT, ("wheel_" + std::string(side_name[s])).c_str());
     const int js = mj_name2id(I.m, mjOBJ_JOINT, ("swivel_" + std::string(side_name[s])).c_str());
@@ -456,6 +472,7 @@ void MujocoChair::step(const Eigen::Vector2d& current_A, double h_s) {
   I.d->ctrl[0] = current_A(0);
   I.d->ctrl[1] = current_A(1);
   for (int k = 0; k < I.substeps; ++k) {
+    if (I.load.any()) I.externalForce();
     I.softTyre();
     mj_step(I.m, I.d);
     I.unwrap();

@@ -9,6 +9,7 @@
 #include "libwheelchair/sensors/VoltageCircuit.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/Random.h"
+#include "libwheelchair/simulation/UnknownEffects.h"
 #include "libwheelchair/util/AtomicFile.h"
 
 #include <fmt/format.h>
@@ -79,18 +80,35 @@ struct Mech {
   }
 };
 
-Mech derivative(const Mech& s, const model::DriveTrain& dt, const Eigen::Vector2d& I) {
-  const Eigen::Vector2d acc = dt.acceleration({s.v, s.om, s.phi}, I);
+/// The motor currents an external forward force F (N) and yaw moment M (N m) are worth:
+/// i_i = -(r / r_G) (F/2 + s_i M / l_w) / (eta_i k_i), s_R = +1, s_L = -1 (they save current).
+Eigen::Vector2d externalCurrents(const Mech& s, const model::DriveTrain& dt,
+                                 const ExternalLoad& ext) {
+  const Eigen::Vector2d fm = ext.forceMoment(s.v, s.om, s.phi);
+  const double r = dt.geom.wheel_radius_m, lw = dt.geom.track_width_m, rG = dt.geom.gear_ratio;
+  Eigen::Vector2d i;
+  for (int k = 0; k < 2; ++k) {
+    const double alpha = 1.0 / (dt.side[k].gearbox_efficiency * dt.side[k].torque_constant_Nm_A);
+    i(k) = -alpha * r / rG * (fm(0) / 2 + (k == 0 ? 1 : -1) * fm(1) / lw);
+  }
+  return i;
+}
+
+Mech derivative(const Mech& s, const model::DriveTrain& dt, const Eigen::Vector2d& I,
+                const ExternalLoad& ext) {
+  const Eigen::Vector2d acc = dt.acceleration(
+      {s.v, s.om, s.phi}, ext.any() ? Eigen::Vector2d(I - externalCurrents(s, dt, ext)) : I);
   const double r = dt.geom.wheel_radius_m, lw = dt.geom.track_width_m;
   return {s.v * std::cos(s.phi),     s.v * std::sin(s.phi),    s.om, acc(0), acc(1),
           (s.v + lw * s.om / 2) / r, (s.v - lw * s.om / 2) / r};
 }
 
-Mech rk4(const Mech& s, const model::DriveTrain& dt, const Eigen::Vector2d& I, double h) {
-  const Mech k1 = derivative(s, dt, I);
-  const Mech k2 = derivative(s + k1 * (h / 2), dt, I);
-  const Mech k3 = derivative(s + k2 * (h / 2), dt, I);
-  const Mech k4 = derivative(s + k3 * h, dt, I);
+Mech rk4(const Mech& s, const model::DriveTrain& dt, const Eigen::Vector2d& I, double h,
+         const ExternalLoad& ext) {
+  const Mech k1 = derivative(s, dt, I, ext);
+  const Mech k2 = derivative(s + k1 * (h / 2), dt, I, ext);
+  const Mech k3 = derivative(s + k2 * (h / 2), dt, I, ext);
+  const Mech k4 = derivative(s + k3 * h, dt, I, ext);
   return s + (k1 + k2 * 2 + k3 * 2 + k4) * (h / 6);
 }
 
@@ -410,8 +428,10 @@ class SensorSuite {
   io::MotorSample motors(double stamp, const Snap& q, const Eigen::Vector2d& I) {
     io::MotorSample ms;
     ms.t_s = stamp;
-    ms.current_right_A = I(0) + cfg_.motors.current_noise_A * cur_noise_.normal();
-    ms.current_left_A = I(1) + cfg_.motors.current_noise_A * cur_noise_.normal();
+    ms.current_right_A =
+        I(0) + se_.current_offset_A[0] + cfg_.motors.current_noise_A * cur_noise_.normal();
+    ms.current_left_A =
+        I(1) + se_.current_offset_A[1] + cfg_.motors.current_noise_A * cur_noise_.normal();
     ms.vrc_right_V = q.vrcR + cfg_.motors.vrc_noise_V * vrc_noise_.normal();
     ms.vrc_left_V = q.vrcL + cfg_.motors.vrc_noise_V * vrc_noise_.normal();
     return ms;
@@ -497,6 +517,11 @@ effects::TruthModel trueVehicle(const config::WheelchairConfig& cfg, const Simul
   truth.actuator_delay_s = opt.power.delay_s;
   truth.actuator_time_constant_s = opt.power.time_constant_s;
   effects::actOnTruth(effects, truth);
+  // Out-of-catalogue effects on the truth (UnknownEffects.h): the extra yaw inertia and the
+  // current sensor's offset; their forces act in the mechanics (ExternalLoad).
+  const ExternalLoad ext = externalLoad(effects);
+  truth.drive.yaw_inertia_kg_m2 += ext.extra_yaw_inertia_kg_m2;
+  for (int s = 0; s < 2; ++s) truth.sensors.current_offset_A[s] += ext.current_offset_A[s];
   return truth;
 }
 
@@ -565,6 +590,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
 
   const effects::TruthModel truth = trueVehicle(cfg, opt, effects);
   const model::DriveTrain& dt = truth.drive;
+  const ExternalLoad ext = externalLoad(effects);  // model engine; MuJoCo applies its own
   PowerModuleParams pmp = opt.power;
   pmp.delay_s = truth.actuator_delay_s;
   pmp.time_constant_s = truth.actuator_time_constant_s;
@@ -648,7 +674,7 @@ SimulationResult simulate(const config::WheelchairConfig& cfg, const std::string
       const ChairState c = mj->state();
       s = {c.x_m, c.y_m, c.phi_rad, c.v_m_s, c.omega_rad_s, c.psi_right_rad, c.psi_left_rad};
     } else {
-      s = rk4(s, dt, I, h);
+      s = rk4(s, dt, I, h, ext);
     }
     const Eigen::Vector2d rim_end = rimSpeeds();
     for (int m = 0; m < 2; ++m) wires.step(m, Rm * I(m) + emf(m, rim_end(m)));

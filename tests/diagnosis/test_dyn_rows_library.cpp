@@ -19,14 +19,14 @@ TEST(DynRowsLibrary, EveryColumnIsTheNamedSignalOfItsRow) {
   const diagnosis::DynRows d = diagnosis::dynamicRows({s}, {}, cfg, opt);
   const int N = static_cast<int>(d.y.size()), nR = N / 2;
   ASSERT_GT(nR, 1000);  // 60 s at 50 Hz, minus the trimmed edges
-  ASSERT_EQ(diagnosis::dynLibNames().size(), 14u);
+  ASSERT_EQ(diagnosis::dynLibNames().size(), 16u);
   // Right rows first, then left; the groups cover both halves exactly.
   int covered = 0;
   for (auto [a, b] : d.groups) covered += b - a;
   EXPECT_EQ(covered, N);
   for (int k = 0; k < N; ++k) ASSERT_EQ(d.side[k], k < nR ? 0 : 1);
   std::vector<Eigen::VectorXd> L;
-  for (int j = 0; j < 14; ++j) L.push_back(d.libColumn(j, 0, N));
+  for (int j = 0; j < 16; ++j) L.push_back(d.libColumn(j, 0, N));
   const double lw = cfg.vehicle.geom.track_width_m;
   double max_current = 0;
   for (int k = 0; k < N; ++k) {
@@ -39,6 +39,8 @@ TEST(DynRowsLibrary, EveryColumnIsTheNamedSignalOfItsRow) {
     EXPECT_EQ(L[7](k), d.u[k] * d.u[k]);
     EXPECT_EQ(L[8](k), d.v[k] * d.omega[k]);
     EXPECT_EQ(L[9](k), d.omega[k] * d.omega[k]);
+    EXPECT_EQ(L[14](k), d.v[k] * std::abs(d.v[k]));
+    EXPECT_NEAR(L[15](k), std::tanh(d.omega[k] / 0.02), 1e-12);
     // u is the motor's own rim speed: v +- omega l_w / 2 (right +, left -).
     EXPECT_NEAR(d.u[k], d.v[k] + (k < nR ? 0.5 : -0.5) * lw * d.omega[k], 1e-9);
     EXPECT_LE(std::abs(L[5](k)), 1.2);  // the smoothed, filtered sign of u
@@ -53,5 +55,5 @@ TEST(DynRowsLibrary, EveryColumnIsTheNamedSignalOfItsRow) {
   // A window of rows is the same window of the full column.
   const Eigen::VectorXd w = d.libColumn(13, nR + 10, 100);
   EXPECT_EQ(w, L[13].segment(nR + 10, 100));
-  EXPECT_THROW(d.libColumn(14, 0, 1), std::out_of_range);
+  EXPECT_THROW(d.libColumn(16, 0, 1), std::out_of_range);
 }

@@ -1,0 +1,308 @@
+#include "libwheelchair/diagnosis/UnmodeledPhysics.h"
+
+#include <fmt/format.h>
+#include <Eigen/QR>
+
+#include <cmath>
+#include <map>
+
+namespace wheelchair::diagnosis {
+
+std::string dependenceOf(const std::string& t) {
+  if (t == "1") return "constant";
+  if (t == "v" || t == "omega" || t == "|omega|" || t == "|u|") return "rate";
+  if (t == "sgn(u)" || t == "sgn(omega)") return "sign_of_rate";
+  if (t == "u^2" || t == "v*|v|" || t == "omega*|omega|") return "rate_squared";
+  if (t == "v*omega" || t == "omega^2") return "rate_product";
+  if (t == "vdot" || t == "omegadot") return "acceleration";
+  if (t == "cos(phi)" || t == "sin(phi)") return "heading";
+  return "command";  // a measured current or command as regressor: the actuator
+}
+
+std::string dependenceWords(const std::string& d) {
+  static const std::map<std::string, std::string> w = {
+      {"constant", "constant -> an offset or a constant load"},
+      {"rate", "rate -> viscous"},
+      {"sign_of_rate", "sign of a rate -> dry friction"},
+      {"rate_squared", "rate squared -> drag"},
+      {"rate_product", "product of rates -> centripetal (a mass off the axle)"},
+      {"acceleration", "acceleration -> inertia"},
+      {"heading", "heading -> a field or slope fixed in the world"},
+      {"command", "command -> the actuator"}};
+  auto it = w.find(d);
+  return it == w.end() ? d : it->second;
+}
+
+namespace {
+
+bool perSideTerm(const std::string& t) {
+  return t == "sgn(u)" || t == "|u|" || t == "u^2";
+}
+
+/// Unit of one unit of a term (for "per ..." in the words).
+std::string termUnit(const std::string& t) {
+  static const std::map<std::string, std::string> u = {{"1", ""},
+                                                       {"v", "m/s"},
+                                                       {"omega", "rad/s"},
+                                                       {"vdot", "m/s^2"},
+                                                       {"omegadot", "rad/s^2"},
+                                                       {"sgn(u)", ""},
+                                                       {"|u|", "m/s"},
+                                                       {"u^2", "m^2/s^2"},
+                                                       {"v*omega", "m rad/s^2"},
+                                                       {"omega^2", "rad^2/s^2"},
+                                                       {"v*|v|", "m^2/s^2"},
+                                                       {"sgn(omega)", ""},
+                                                       {"|omega|", "rad/s"},
+                                                       {"omega*|omega|", "rad^2/s^2"}};
+  auto it = u.find(t);
+  return it == u.end() ? "" : it->second;
+}
+
+/// The physicist's reading of a load `value` (+- sd) of a dependence class on a channel.
+std::string loadReading(const std::string& channel, const std::string& dep, const std::string& term,
+                        double value, double sd, const std::string& unit) {
+  const bool yaw = channel == "yaw";
+  const std::string q = yaw ? "a moment about the axle" : "a force along the heading";
+  const std::string num = fmt::format("{:.3g} +- {:.2g} {}", value, sd, unit);
+  if (dep == "rate")
+    return value > 0 ? fmt::format(
+                           "{} opposing the {} in proportion to its rate: {} (viscous: "
+                           "{})",
+                           q, yaw ? "turn" : "motion", num,
+                           yaw ? "castor swivel or tyre damping" : "soft ground, grass")
+                     : fmt::format(
+                           "{} assisting the {} in proportion to its rate: {} (less "
+                           "viscous friction than the model has)",
+                           q, yaw ? "turn" : "motion", num);
+  if (dep == "sign_of_rate")
+    return fmt::format("{} of constant size opposing the {}: {} (dry friction: {})", q,
+                       yaw ? "turn" : "motion", num,
+                       yaw ? "castor swivels, tyre scrub" : "bearings, rolling resistance");
+  if (dep == "rate_squared")
+    return fmt::format("{} growing with the rate squared ({}): {} (drag: air, water, tall grass)",
+                       q, term, num);
+  if (dep == "rate_product")
+    return fmt::format(
+        "{} proportional to {}: {} (centripetal / Coriolis: a centre of mass off "
+        "the axle)",
+        q, term, num);
+  if (dep == "acceleration")
+    return fmt::format("inertia the model lacks: {} ({})", num,
+                       yaw ? "a load far from the axle" : "an extra mass");
+  if (dep == "constant")
+    return fmt::format("a constant {}: {} (a push, or a pull)", yaw ? "moment" : "force", num);
+  return fmt::format("{} depending on {}: {}", q, term, num);
+}
+
+struct Col {
+  int term = 0;
+  int mode = 0;  ///< 0 forward ([c_R; c_L]), 1 yaw ([c_R; -c_L]), 2 right only, 3 left only
+};
+
+Eigen::VectorXd stacked(const DynamicTermData& d, const Col& c, bool fit) {
+  const Eigen::VectorXd R = d.column(c.term, 0, fit), L = d.column(c.term, 1, fit);
+  Eigen::VectorXd out(R.size() + L.size());
+  const double sr = c.mode == 3 ? 0.0 : 1.0;
+  const double sl = c.mode == 0 ? 1.0 : (c.mode == 1 ? -1.0 : (c.mode == 2 ? 0.0 : 1.0));
+  out << sr * R, sl * L;
+  return out;
+}
+
+Eigen::MatrixXd designOf(const DynamicTermData& d, const std::vector<Col>& cols, bool fit) {
+  Eigen::MatrixXd A(fit ? d.y_fit.size() : d.y_val.size(), cols.size());
+  for (std::size_t k = 0; k < cols.size(); ++k) A.col(k) = stacked(d, cols[k], fit);
+  return A;
+}
+
+/// Validation RMS of a least-squares fit of `cols` on the fit rows.
+double valRms(const DynamicTermData& d, const std::vector<Col>& cols) {
+  if (d.y_val.size() == 0) return 0;
+  if (cols.empty()) return std::sqrt(d.y_val.squaredNorm() / d.y_val.size());
+  const Eigen::VectorXd b = designOf(d, cols, true).colPivHouseholderQr().solve(d.y_fit);
+  return std::sqrt((d.y_val - designOf(d, cols, false) * b).squaredNorm() / d.y_val.size());
+}
+
+/// One heading component of channel `mode` (0 forward, 1 yaw) from its cos / sin coefficients
+/// h {cos, sin, sd, gain}; kF, kM: N and N m per A of one motor.
+nlohmann::json headingComponent(int mode, const nlohmann::json& h, double kF, double kM) {
+  const double c = h.value("cos", 0.0), s = h.value("sin", 0.0), sd = h.value("sd", 0.0);
+  const bool yaw = mode == 1;
+  const double kk = yaw ? kM : kF, amp = kk * std::hypot(c, s);
+  // Load -kk (c cos phi + s sin phi): largest in the +x / +omega sense at atan2(-s, -c).
+  const double towards_deg = std::atan2(-s, -c) * 180 / M_PI;
+  const std::string unit = yaw ? "N m" : "N";
+  return nlohmann::json(
+      {{"channel", yaw ? "yaw" : "forward"},
+       {"dependence", "heading"},
+       {"dependence_words", dependenceWords("heading")},
+       {"term", "cos(phi), sin(phi)"},
+       {"coefficient", {c, s}},
+       {"sd", sd},
+       {"unit", "A per motor"},
+       {"heldout_gain_A", h.value("gain", 0.0)},
+       {"physical",
+        {{"quantity", yaw ? "yaw moment amplitude" : "forward force amplitude"},
+         {"value", amp},
+         {"sd", kk * sd},
+         {"unit", unit},
+         {"towards_heading_deg", towards_deg}}},
+       {"reading",
+        fmt::format("{} fixed in the world: {:.3g} +- {:.2g} {}, {} heading {:.0f} deg (start "
+                    "frame; {})",
+                    yaw ? "a yaw moment" : "a force along the heading", amp, kk * sd, unit,
+                    yaw ? "turning the chair left most at" : "pushing forward most at", towards_deg,
+                    yaw ? "wind on the side, or a cross slope on a mass off the axle"
+                        : "a slope or a wind")}});
+}
+
+}  // namespace
+
+nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
+                                    const std::vector<std::string>& names, const DynamicTermData& d,
+                                    const config::WheelchairConfig& cfg) {
+  nlohmann::json out = nlohmann::json::array();
+  if (terms.empty() || d.y_fit.size() == 0) return out;
+  // 1. Forward and yaw column of every term, jointly.
+  std::vector<Col> cols;
+  for (int j : terms) cols.push_back({j, 0}), cols.push_back({j, 1});
+  stats::LinearFit f = stats::fitLinear(designOf(d, cols, true), d.y_fit, d.groups_fit, d.lags);
+  if (!f.ok) return out;
+  // 2. Channel per term.
+  std::vector<Col> kept;
+  for (std::size_t a = 0; a < terms.size(); ++a) {
+    const double bf = f.beta(2 * a), by = f.beta(2 * a + 1);
+    const double sf = std::sqrt(std::max(0.0, f.cov(2 * a, 2 * a)));
+    const double sy = std::sqrt(std::max(0.0, f.cov(2 * a + 1, 2 * a + 1)));
+    const bool tf = std::abs(bf) >= d.t_threshold * sf, ty = std::abs(by) >= d.t_threshold * sy;
+    // Per motor: right = f + y, left = f - y. One motor when the other's share is within
+    // 2 sigma of zero or below a quarter of it.
+    const double sd_m = std::sqrt(sf * sf + sy * sy);
+    const double mr = std::abs(bf + by), ml = std::abs(bf - by);
+    const double lo = std::min(mr, ml), hi = std::max(mr, ml);
+    if (tf && ty && (lo <= 2 * sd_m || lo <= 0.25 * hi))
+      kept.push_back({terms[a], mr > ml ? 2 : 3});
+    else {
+      if (tf) kept.push_back({terms[a], 0});
+      if (ty) kept.push_back({terms[a], 1});
+    }
+  }
+  if (kept.empty()) return out;
+  stats::LinearFit g = stats::fitLinear(designOf(d, kept, true), d.y_fit, d.groups_fit, d.lags);
+  if (!g.ok) return out;
+  const double rms_all = valRms(d, kept);
+  // 3. Components (cos and sin of one channel merged into one heading component).
+  const auto& v = cfg.vehicle;
+  const double alpha = 1.0 / (v.gearbox_efficiency * v.torque_constant_Nm_A);
+  const double kF = 2 * v.geom.gear_ratio / (alpha * v.geom.wheel_radius_m);  // N per A
+  const double kM = v.geom.track_width_m * v.geom.gear_ratio / (alpha * v.geom.wheel_radius_m);
+  std::map<int, nlohmann::json> heading;  // mode -> {cos, sin, sd, gain}
+  for (std::size_t k = 0; k < kept.size(); ++k) {
+    const Col& c = kept[k];
+    const std::string& term = names[c.term];
+    const std::string dep = dependenceOf(term);
+    std::string channel = c.mode == 2   ? "current_right"
+                          : c.mode == 3 ? "current_left"
+                          : c.mode == 1 ? "yaw"
+                                        : (perSideTerm(term) ? "wheels" : "forward");
+    if (perSideTerm(term) && c.mode == 1) channel = "wheels";
+    std::vector<Col> without = kept;
+    without.erase(without.begin() + static_cast<long>(k));
+    const double gain = valRms(d, without) - rms_all;
+    const double b = g.beta(k), sd = std::sqrt(std::max(0.0, g.cov(k, k)));
+    nlohmann::json comp = {
+        {"channel", channel},
+        {"dependence", dep},
+        {"dependence_words", dependenceWords(dep)},
+        {"term", term},
+        {"coefficient", b},
+        {"sd", sd},
+        {"unit",
+         "A per motor" + (termUnit(term).empty() ? std::string() : " per " + termUnit(term))},
+        {"heldout_gain_A", gain}};
+    if (dep == "heading" && (channel == "forward" || channel == "yaw")) {
+      auto& h = heading[c.mode];
+      h[term == "cos(phi)" ? "cos" : "sin"] = b;
+      h["sd"] = std::max(h.value("sd", 0.0), sd);
+      h["gain"] = h.value("gain", 0.0) + gain;
+      continue;
+    }
+    const bool load = channel == "forward" || channel == "yaw";
+    if (load) {
+      const double kk = channel == "yaw" ? kM : kF;
+      std::string unit = channel == "yaw" ? "N m" : "N";
+      if (dep == "acceleration")
+        unit = channel == "yaw" ? "kg m^2" : "kg";
+      else if (!termUnit(term).empty())
+        unit += " per " + termUnit(term);
+      // A load opposing the motion (b > 0) as a positive coefficient; inertia as a mass.
+      const std::string quantity = dep == "acceleration"
+                                       ? (channel == "yaw" ? "yaw inertia" : "mass")
+                                       : (channel == "yaw" ? "yaw moment" : "forward force");
+      comp["physical"] = {
+          {"quantity", quantity}, {"value", kk * b}, {"sd", kk * sd}, {"unit", unit}};
+      comp["reading"] = loadReading(channel, dep, term, kk * b, kk * sd, unit);
+    } else if (channel == "wheels") {
+      comp["reading"] = fmt::format(
+          "each drive wheel, on its own speed ({}): {:.3g} +- {:.2g} A per motor ({})", term, b, sd,
+          dep == "sign_of_rate" ? "dry friction of the wheels: rolling resistance, bearings"
+                                : dependenceWords(dep));
+    } else {
+      const std::string side = c.mode == 2 ? "right" : "left";
+      comp["reading"] =
+          dep == "constant"
+              ? fmt::format(
+                    "only the {} motor's current: an offset of {:.3g} +- {:.2g} A (its "
+                    "current sensor's zero, or a constant load on that drive alone)",
+                    side, b, sd)
+              : fmt::format(
+                    "only the {} motor's current, {:.3g} +- {:.2g} A per unit {} ({}: "
+                    "that drive alone)",
+                    side, b, sd, term, dependenceWords(dep));
+    }
+    out.push_back(comp);
+  }
+  for (const auto& [mode, h] : heading) out.push_back(headingComponent(mode, h, kF, kM));
+  return out;
+}
+
+nlohmann::json describeKinematicTerms(const Finding& f) {
+  nlohmann::json out = nlohmann::json::array();
+  const double gain =
+      f.fit_before.value("validation_rms_rad", 0.0) - f.fit_after.value("validation_rms_rad", 0.0);
+  for (auto it = f.parameters.begin(); it != f.parameters.end(); ++it) {
+    if (!it->is_number()) continue;
+    const std::string& term = it.key();
+    const std::string dep = dependenceOf(term);
+    const double b = it->get<double>(), sd = f.uncertainty.value(term, 0.0);
+    const std::string unit =
+        "rad/s" + (termUnit(term).empty() ? std::string() : " per " + termUnit(term));
+    std::string why = dep == "rate"           ? "a scale error of the odometry or the gyro"
+                      : dep == "rate_squared" ? "wheels whose rolling radius changes with speed"
+                      : dep == "heading"      ? "a heading-dependent gyro or wheel error"
+                      : dep == "rate_product" ? "the chassis slipping sideways in turns"
+                                              : dependenceWords(dep);
+    out.push_back({{"channel", "gyro_vs_encoders"},
+                   {"dependence", dep},
+                   {"dependence_words", dependenceWords(dep)},
+                   {"term", term},
+                   {"coefficient", b},
+                   {"sd", sd},
+                   {"unit", unit},
+                   {"heldout_gain_rad", gain},
+                   {"reading", fmt::format("the gyro's turn rate minus the wheels' grows with {}: "
+                                           "{:.3g} +- {:.2g} {} ({})",
+                                           term, b, sd, unit, why)}});
+  }
+  return out;
+}
+
+std::string physicsSummary(const nlohmann::json& comps) {
+  std::string s;
+  for (const auto& c : comps)
+    s += (s.empty() ? "" : "; ") + c.value("channel", std::string()) + ", " +
+         c.value("dependence_words", std::string()) + ": " + c.value("reading", std::string());
+  return s;
+}
+
+}  // namespace wheelchair::diagnosis

@@ -1,0 +1,76 @@
+// What an `unmodeled` finding is, in a physicist's words (issue 16 item 3): the channel it
+// acts on, the class of its dependence, a physical reading with its fitted value +- 1 sigma,
+// and its held-out gain. Never a catalogue name.
+//
+// Stage 2 (motor currents): the terms the per-motor sparse regressions kept are refitted
+// jointly on both motors' rows, each term j as a FORWARD column (the same on both motors:
+// [c_R; c_L], a force along the heading splits equally) and a YAW column ([c_R; -c_L], a
+// moment about the axle midpoint loads the motors oppositely). With HAC t-values (threshold
+// t >= 3):
+//   forward and yaw both significant and equal in size -> ONE MOTOR (right if they have the
+//     same sign: the left motor's coefficient f - y is zero), e.g. a current-sensor offset;
+//   else forward significant -> `forward` (per-wheel terms sgn(u), |u|, u^2: `wheels`),
+//        yaw significant -> `yaw`.
+// Readings convert the current coefficient b (A per motor per unit of the term) with the
+// nominal drive: a forward force F = -(2 r_G / (alpha r)) b x term (N), a yaw moment
+// M = -(l_w r_G / (alpha r)) b x term (N m), alpha = 1 / (eta k_m): a positive b is a load.
+// cos(phi) and sin(phi) on one channel are one `heading` component (amplitude, direction).
+// Held-out gain of a component: validation RMS of the joint fit without it (refitted on the
+// fit rows) minus with it (A).
+// Stage 1 (gyro_vs_encoders): each kept term is a component of that channel.
+//
+// Vocabulary (shared with simulation/UnknownEffects.h, the campaign's truth):
+//   channel    forward | yaw | wheels | current_right | current_left | gyro_vs_encoders
+//   dependence constant | sign_of_rate | rate | rate_squared | rate_product | heading |
+//              acceleration | command
+//
+// Example (JSON of one component in Finding::physics):
+//   {"channel": "yaw", "dependence": "sign_of_rate", "term": "sgn(omega)",
+//    "coefficient": 0.181, "sd": 0.004, "unit": "A per motor",
+//    "physical": {"quantity": "yaw moment", "value": 0.81, "sd": 0.02, "unit": "N m"},
+//    "reading": "a dry-friction moment opposing the turn: 0.81 +- 0.02 N m ...",
+//    "heldout_gain_A": 0.05}
+#pragma once
+
+#include "libwheelchair/config/WheelchairConfig.h"
+#include "libwheelchair/diagnosis/Finding.h"
+#include "libwheelchair/stats/LeastSquares.h"
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace wheelchair::diagnosis {
+
+/// Dependence class of a library term ("v" -> "rate", "sgn(u)" -> "sign_of_rate", ...).
+std::string dependenceOf(const std::string& term);
+/// "rate -> viscous", ... for a class.
+std::string dependenceWords(const std::string& dependence);
+
+/// The stage-2 data the joint description needs: the library column j of one motor
+/// (0 right, 1 left) on the fit or validation rows, the stacked residuals [right; left] after
+/// the catalogue terms, their groups and the HAC lags.
+struct DynamicTermData {
+  std::function<Eigen::VectorXd(int j, int side, bool fit)> column;
+  Eigen::VectorXd y_fit, y_val;
+  stats::Groups groups_fit;
+  int lags = 0;
+  double t_threshold = 3.0;
+};
+
+/// Components (JSON as above) of the stage-2 terms `terms` (library indices, names `names`).
+nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
+                                    const std::vector<std::string>& names,
+                                    const DynamicTermData& data,
+                                    const config::WheelchairConfig& cfg);
+
+/// Components of a stage-1 (gyro_vs_encoders) unmodeled finding from its own terms.
+nlohmann::json describeKinematicTerms(const Finding& f);
+
+/// One line summarising the components ("yaw: sign of rate -> dry friction (...); ...").
+std::string physicsSummary(const nlohmann::json& components);
+
+}  // namespace wheelchair::diagnosis

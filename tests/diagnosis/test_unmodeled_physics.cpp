@@ -1,0 +1,88 @@
+// Physics outside the catalogue, located and described (issue 16 item 3; diagnosis/
+// UnmodeledPhysics.h, simulation/UnknownEffects.h). Three seeded campaign drives of the model
+// engine, each with one effect the diagnosis has no name for, simulated and diagnosed through
+// the CLI: the `unmodeled` finding must carry a physics component on the effect's channel with
+// its dependence class (the truth the generator states, unknownEffectTruth), the fitted value
+// within 10 % of the injected one, a positive held-out gain, and no catalogue name for it.
+#include "../common/TestUtil.h"
+#include "libwheelchair/effects/Effect.h"
+#include "libwheelchair/simulation/UnknownEffects.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+namespace {
+
+using namespace wheelchair;
+using wheelchair::test::cli;
+using wheelchair::test::readFile;
+using wheelchair::test::TempDir;
+
+nlohmann::json diagnoseWith(const std::string& effect, int seed) {
+  const TempDir d;
+  const std::string rec = d / "u.rawlog", json = d / "u.json";
+  const auto sim = cli("simulate --scenario excite --seed " + std::to_string(seed) +
+                       " --duration 90 --effect " + effect + " -o " + rec);
+  EXPECT_EQ(sim.exit_code, 0) << sim.out;
+  const auto diag = cli("diagnose " + rec + " --no-progress --json " + json);
+  EXPECT_EQ(diag.exit_code, 0) << diag.out;
+  return nlohmann::json::parse(readFile(json));
+}
+
+/// The physics component of an unmodeled finding on the effect's true channel and dependence
+/// (null if none).
+nlohmann::json componentFor(const nlohmann::json& j, const std::string& effect) {
+  const auto truth = simulation::unknownEffectTruth(effects::parseEffect(effect));
+  for (const auto& f : j["findings"]) {
+    if (f["effect"] != "unmodeled") continue;
+    for (const auto& c : f.value("physics", nlohmann::json::array()))
+      if (c["channel"] == truth.channel && c["dependence"] == truth.dependence) return c;
+  }
+  return nullptr;
+}
+
+void expectNoCatalogueName(const nlohmann::json& j, const std::vector<std::string>& names) {
+  for (const auto& f : j["findings"])
+    for (const auto& n : names) EXPECT_NE(f["effect"], n) << f.dump();
+}
+
+TEST(UnmodeledPhysics, YawDryFrictionIsAYawMomentOfConstantSize) {
+  const std::string e = "yaw_dry_friction:torque_Nm=1.146";
+  const auto j = diagnoseWith(e, 907103);
+  const auto c = componentFor(j, e);
+  ASSERT_FALSE(c.is_null()) << j["findings"].dump();
+  EXPECT_EQ(c["term"], "sgn(omega)");
+  EXPECT_NEAR(c["physical"]["value"].get<double>(), 1.146, 0.115);
+  EXPECT_EQ(c["physical"]["unit"], "N m");
+  EXPECT_GT(c["physical"]["sd"].get<double>(), 0);
+  EXPECT_GT(c["heldout_gain_A"].get<double>(), 0);
+  expectNoCatalogueName(j, {"coulomb_friction", "motor_asymmetry"});
+}
+
+TEST(UnmodeledPhysics, QuadraticDragIsAForwardForceGrowingWithSpeedSquared) {
+  const std::string e = "forward_quadratic_drag:c_N_s2_m2=9.841";
+  const auto j = diagnoseWith(e, 760316);
+  const auto c = componentFor(j, e);
+  ASSERT_FALSE(c.is_null()) << j["findings"].dump();
+  EXPECT_EQ(c["term"], "v*|v|");
+  EXPECT_NEAR(c["physical"]["value"].get<double>(), 9.841, 0.98);
+  EXPECT_GT(c["heldout_gain_A"].get<double>(), 0);
+}
+
+TEST(UnmodeledPhysics, CurrentSensorOffsetIsOneMotorConstant) {
+  const std::string e = "current_offset:offset_A=-0.3874,side=left";
+  const auto j = diagnoseWith(e, 573010);
+  const auto c = componentFor(j, e);
+  ASSERT_FALSE(c.is_null()) << j["findings"].dump();
+  EXPECT_EQ(c["term"], "1");
+  EXPECT_NEAR(c["coefficient"].get<double>(), -0.3874, 0.039);
+  EXPECT_GT(c["heldout_gain_A"].get<double>(), 0);
+  // Not a load on both motors: no forward or yaw component with a constant.
+  for (const auto& f : j["findings"])
+    for (const auto& p : f.value("physics", nlohmann::json::array()))
+      if (p["dependence"] == "constant") EXPECT_EQ(p["channel"], "current_left") << p.dump();
+}
+
+}  // namespace
