@@ -18,6 +18,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -348,9 +349,9 @@ struct Library {
 /// must pass). Collinear library terms (e.g. the other motor's current, which carries the
 /// same dynamics) then no longer smear one physical term over several.
 std::vector<int> heldOutPrune(const Library& L, const Eigen::VectorXd& y, const Library& Lv,
-                              const Eigen::VectorXd& yv,
-                              const Groups& gv, int lags, const DiagnosisOptions& opt,
-                              double min_contribution_rms, std::vector<int> terms) {
+                              const Eigen::VectorXd& yv, const Groups& gv, int lags,
+                              const DiagnosisOptions& opt, double min_contribution_rms,
+                              std::vector<int> terms) {
   auto valPrediction = [&](const std::vector<int>& t) {
     const Eigen::VectorXd b = L.design(t).colPivHouseholderQr().solve(y);
     return Eigen::VectorXd(Lv.design(t) * b);
@@ -853,12 +854,13 @@ void dynamicChannels(const DynRows& df, const DynRows& dv, const DynRows& dv2, c
   }
 }
 
-/// Stage 2 terms outside the catalogue: STLSQ per motor over the term library.
-void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& dv2,
-                      const Eigen::VectorXd& rv_after, int lags,
-                      const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
-                      DiagnosisReport& rep) {
-  const Eigen::VectorXd& rf = sel.fit.residual;
+/// Stage 2 terms outside the catalogue: STLSQ per motor over the term library, on the residuals
+/// of the catalogue fit `rf` (fit rows) and `rv` (validation rows).
+std::array<SparseResult, 2> dynamicUnmodeled(const DynRows& df2, const DynRows& dv2,
+                                             const Eigen::VectorXd& rf, const Eigen::VectorXd& rv,
+                                             int lags, const config::WheelchairConfig& cfg,
+                                             const DiagnosisOptions& opt) {
+  std::array<SparseResult, 2> out;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   for (int s2 = 0; s2 < 2; ++s2) {
     // This motor's rows of the library. i_self (column 12) is the measured quantity itself:
@@ -874,14 +876,168 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
     };
     const Library L{nRf, nlib, [&](int j) { return column(df2, j, s2 * nRf, nRf); }};
     const Library Lv{nRv2, nlib, [&](int j) { return column(dv2, j, s2 * nRv2, nRv2); }};
-    SparseResult sr = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
-                            rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1),
-                            lags, opt, opt.min_relevance * cfg.motors.current_noise_A, 12);
-    if (!sr.accepted) continue;
-    std::string ch = s2 == 0 ? "current_right" : "current_left";
-    rep.addFinding(
-        unmodeledFinding(sr, dynLibNames(), ch, ch + " - model", ch + " equation", "A", "A"));
+    out[s2] = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
+                    rv.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags, opt,
+                    opt.min_relevance * cfg.motors.current_noise_A, 12);
   }
+  return out;
+}
+
+/// true: the column x lies nearly in the span of D (uncentred R^2 >= 0.9): |x - D D^+ x|^2 <=
+/// 0.1 |x|^2. Beyond that the split between x and D is not identifiable from the drive (the
+/// joint fit would trade large opposite coefficients).
+bool inSpan(const Eigen::ColPivHouseholderQR<Eigen::MatrixXd>& qrD, const Eigen::MatrixXd& D,
+            const Eigen::VectorXd& x) {
+  const double n2 = x.squaredNorm();
+  if (!(n2 > 0)) return true;
+  if (D.cols() == 0) return false;
+  return (x - D * qrD.solve(x)).squaredNorm() <= 0.1 * n2;
+}
+
+/// The catalogue's coefficients estimated jointly with the out-of-catalogue terms (issue 16).
+/// Physics the model (6) lacks (on a multibody: the centre of mass ahead of the axle costs
+/// -(m d c / 2) omega^2 on both motors) is correlated with catalogue columns (omega^2 >= 0 and
+/// sgn(u) mostly > 0): fitted alone, a catalogue term absorbs part of it (Coulomb friction
+/// 10-15 % low on MuJoCo drives) and the per-motor sparse search then finds the rest of the
+/// catalogue term itself (`sgn(u)`). Here the terms the sparse search found are refitted
+/// together with the catalogue design D on both motors' rows:
+///  - a term found on one motor that D nearly spans there (inSpan) is the catalogue's: dropped;
+///  - a term found on both motors whose sum over the motors D spans (D is symmetric, e.g.
+///    coulomb_friction/both, ground_slope) enters as its antisymmetric part (+ right, - left):
+///    the symmetric part is the catalogue's (a slope's cos(phi) on both motors is the slope,
+///    the centre of mass' turn across the slope is the difference);
+///  - terms below stlsq_threshold_sigma in the joint fit are dropped one at a time.
+/// Then the sparse search runs again on the residual of the joint catalogue coefficients and the
+/// joint fit is repeated once. Without out-of-catalogue terms nothing changes.
+struct JointDynamicFit {
+  Eigen::VectorXd beta;
+  Eigen::MatrixXd cov;
+  std::array<SparseResult, 2> unmodeled;
+};
+JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
+                                const Eigen::MatrixXd& Dv, const DynRows& df2, const DynRows& dv2,
+                                int lags, const config::WheelchairConfig& cfg,
+                                const DiagnosisOptions& opt) {
+  JointDynamicFit j{sel.fit.beta, sel.fit.cov, {}};
+  const int nR = static_cast<int>(df2.y.size() / 2);
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrD;
+  if (Df.cols() > 0) qrD.compute(Df);
+  for (int pass = 0; pass < 2; ++pass) {
+    const Eigen::VectorXd rf = df2.y - Df * j.beta, rv = dv2.y - Dv * j.beta;
+    j.unmodeled = dynamicUnmodeled(df2, dv2, rf, rv, lags, cfg, opt);
+    if (Df.cols() == 0 || !(j.unmodeled[0].accepted || j.unmodeled[1].accepted)) break;
+    // The unmodeled columns: (library column, sides) with sides 0 right, 1 left, 2 antisymmetric.
+    struct Col {
+      int lib, sides;
+    };
+    std::vector<Col> cols;
+    auto has = [&](int s2, int lib) {
+      const auto& t = j.unmodeled[s2].terms;
+      return j.unmodeled[s2].accepted && std::find(t.begin(), t.end(), lib) != t.end();
+    };
+    auto sideCol = [&](int s2, int lib) {
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(df2.y.size());
+      x.segment(s2 * nR, nR) = df2.libColumn(lib, s2 * nR, nR);
+      return x;
+    };
+    for (int lib = 0; lib < 12; ++lib) {
+      const bool r = has(0, lib), l = has(1, lib);
+      if (r && l && inSpan(qrD, Df, sideCol(0, lib) + sideCol(1, lib)))
+        cols.push_back({lib, 2});
+      else
+        for (int s2 = 0; s2 < 2; ++s2)
+          if ((s2 == 0 ? r : l) && !inSpan(qrD, Df, sideCol(s2, lib))) cols.push_back({lib, s2});
+    }
+    auto colOf = [&](const Col& c) -> Eigen::VectorXd {
+      return c.sides == 2 ? Eigen::VectorXd(sideCol(0, c.lib) - sideCol(1, c.lib))
+                          : sideCol(c.sides, c.lib);
+    };
+    LinearFit f;
+    for (;;) {  // joint fit; the weakest unmodeled column below the threshold goes
+      Eigen::MatrixXd A(Df.rows(), Df.cols() + cols.size());
+      A.leftCols(Df.cols()) = Df;
+      for (size_t c = 0; c < cols.size(); ++c) A.col(Df.cols() + c) = colOf(cols[c]);
+      f = fitLinear(std::move(A), df2.y, df2.groups, lags);
+      if (!f.ok) {
+        if (cols.empty()) break;
+        cols.pop_back();
+        continue;
+      }
+      double worst = std::numeric_limits<double>::infinity();
+      size_t wk = 0;
+      for (size_t c = 0; c < cols.size(); ++c) {
+        const Eigen::Index q = Df.cols() + static_cast<Eigen::Index>(c);
+        const double t = std::abs(f.beta(q)) / std::sqrt(std::max(1e-300, f.cov(q, q)));
+        if (t < worst) worst = t, wk = c;
+      }
+      if (cols.empty() || worst >= opt.stlsq_threshold_sigma) break;
+      cols.erase(cols.begin() + static_cast<long>(wk));
+    }
+    if (!f.ok) break;
+    j.beta = f.beta.head(Df.cols());
+    j.cov = f.cov.topLeftCorner(Df.cols(), Df.cols());
+    // The unmodeled findings carry the joint coefficients.
+    for (int s2 = 0; s2 < 2; ++s2) {
+      SparseResult& sr = j.unmodeled[s2];
+      std::vector<int> terms;
+      std::vector<double> coef, se;
+      for (size_t c = 0; c < cols.size(); ++c)
+        if (cols[c].sides == s2 || cols[c].sides == 2) {
+          const Eigen::Index q = Df.cols() + static_cast<Eigen::Index>(c);
+          terms.push_back(cols[c].lib);
+          coef.push_back((cols[c].sides == 2 && s2 == 1 ? -1.0 : 1.0) * f.beta(q));
+          se.push_back(std::sqrt(std::max(0.0, f.cov(q, q))));
+        }
+      sr.accepted = sr.accepted && !terms.empty();
+      sr.terms = terms;
+      sr.coef = Eigen::Map<Eigen::VectorXd>(coef.data(), coef.size());
+      sr.se = Eigen::Map<Eigen::VectorXd>(se.data(), se.size());
+    }
+  }
+  return j;
+}
+
+/// After the joint fit (jointDynamicFit), the accepted catalogue term (index into sel.accepted)
+/// that no longer holds: its coefficients implausible, their contribution below the relevance
+/// floor, or not significant at the Bonferroni level (Wald, HAC covariance). A term accepted
+/// only because it absorbed out-of-catalogue physics (e.g. a motor asymmetry next to Coulomb
+/// friction, both taking the centre of mass' omega^2 current) shrinks here. Stream delays are
+/// kept (their rows were rebuilt with them). -1: all hold; else the one with the least evidence.
+int failingAfterJointFit(const Selection& sel, const std::vector<Candidate>& cands,
+                         const Eigen::MatrixXd& Df, double min_contribution_rms, double alpha_b) {
+  int worst = -1;
+  double worst_wald = std::numeric_limits<double>::infinity();
+  for (size_t a = 0; a < sel.accepted.size(); ++a) {
+    const Candidate& c = cands[sel.accepted[a]];
+    if (c.effect == "sensor_delay") continue;
+    const auto [i, k] = sel.ranges[a];
+    const Eigen::VectorXd b = sel.fit.beta.segment(i, k);
+    const Eigen::MatrixXd C = sel.fit.cov.block(i, i, k, k);
+    const double wald = b.dot(C.ldlt().solve(b));
+    const double rms = (Df.middleCols(i, k) * b).norm() / std::sqrt(std::max<double>(1, Df.rows()));
+    const bool holds = (!c.plausible || c.plausible(b)) && rms >= min_contribution_rms &&
+                       wald >= stats::chi2Quantile(1 - alpha_b, k);
+    if (!holds && wald < worst_wald) worst = static_cast<int>(a), worst_wald = wald;
+  }
+  return worst;
+}
+
+/// Removes accepted term `a` from the selection and its columns from the designs; the remaining
+/// catalogue terms refitted alone on (Df, y).
+void removeAccepted(Selection& sel, int a, Eigen::MatrixXd& Df, Eigen::MatrixXd& Dv,
+                    const DynRows& df2, int lags) {
+  const auto [i, k] = sel.ranges[a];
+  auto dropCols = [i = i, k = k](Eigen::MatrixXd& D) {
+    Eigen::MatrixXd E(D.rows(), D.cols() - k);
+    E << D.leftCols(i), D.rightCols(D.cols() - i - k);
+    D = std::move(E);
+  };
+  dropCols(Df), dropCols(Dv);
+  sel.accepted.erase(sel.accepted.begin() + a);
+  sel.steps.erase(sel.steps.begin() + a);
+  sel.ranges.erase(sel.ranges.begin() + a);
+  for (size_t q = a; q < sel.ranges.size(); ++q) sel.ranges[q].first -= k;
+  sel.fit = fitLinear(Df, df2.y, df2.groups, lags);
 }
 
 /// Stage 2: the per-motor equation error of the drive model in current space, with the
@@ -914,9 +1070,30 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     pf2 = &refit.fit;
     pv2 = &refit.val;
   }
+  std::array<SparseResult, 2> unmodeled;
   const DynRows& df2 = *pf2;
   const DynRows& dv2 = *pv2;
-  Eigen::VectorXd rv_after = dv2.y - acceptedDesign(dv2.X, cands, sel.accepted) * sel.fit.beta;
+  // The accepted catalogue terms' designs (a few columns), then the catalogue estimated jointly
+  // with what it does not contain (jointDynamicFit).
+  Eigen::MatrixXd Df = acceptedDesign(df2.X, cands, sel.accepted);
+  Eigen::MatrixXd Dv = acceptedDesign(dv2.X, cands, sel.accepted);
+  if (opt.enable_unmodeled) {
+    // The unmodeled-term search reads the rows' signals (DynRows::libColumn), not their
+    // designs: those go first, as the search's own fits are the peak of diagnose (memory).
+    for (DynRows* rows : {&df, &dv, &refit.fit, &refit.val}) rows->X = Eigen::MatrixXd();
+    for (;;) {
+      JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
+      sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;
+      unmodeled = std::move(joint.unmodeled);
+      const int a = failingAfterJointFit(sel, cands, Df, sd.min_contribution_rms, alpha_b);
+      if (a < 0) break;
+      sel.log.push_back(cands[sel.accepted[a]].name +
+                        ": no longer significant and relevant when fitted jointly with the "
+                        "out-of-catalogue terms");
+      removeAccepted(sel, a, Df, Dv, df2, lags);
+    }
+  }
+  Eigen::VectorXd rv_after = dv2.y - Dv * sel.fit.beta;
   {
     // The fully nominal model (no sensor corrections either), as the report's figures show it.
     std::optional<DynRows> dn_rows;
@@ -941,7 +1118,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     Eigen::VectorXd b = sel.fit.beta.segment(i, k);
     Finding f =
         termFinding(c, sel.steps[a], alpha_b, regimes, "currents", "A", dv.y.size(), df.y.size());
-    Eigen::VectorXd contrib = (df2.X * c.S) * b;
+    Eigen::VectorXd contrib = Df.middleCols(i, k) * b;
     std::vector<std::pair<double, double>> tc;
     for (int q = 0; q < contrib.size(); ++q) tc.push_back({df2.t[q], contrib(q)});
     f.segments = activeSegments(tc, sigma);
@@ -949,15 +1126,11 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     describeFinding(f, c, sel, a, fit);
     rep.addFinding(f);
   }
-  if (opt.enable_unmodeled) {
-    // The unmodeled-term search reads the rows' signals (DynRows::libColumn), not their
-    // designs: those go first, as the search's own fits are the peak of diagnose (memory).
-    for (DynRows* rows : {&df, &dv, &refit.fit, &refit.val}) {
-      rows->X = Eigen::MatrixXd();
-      rows->t = rows->phi = {};
-      rows->side = {};
-    }
-    dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, rep);
+  for (int s2 = 0; s2 < 2; ++s2) {
+    if (!unmodeled[s2].accepted) continue;
+    const std::string ch = s2 == 0 ? "current_right" : "current_left";
+    rep.addFinding(unmodeledFinding(unmodeled[s2], dynLibNames(), ch, ch + " - model",
+                                    ch + " equation", "A", "A"));
   }
   return true;
 }
