@@ -913,6 +913,7 @@ struct JointDynamicFit {
   Eigen::VectorXd beta;
   Eigen::MatrixXd cov;
   std::array<SparseResult, 2> unmodeled;
+  bool refitted = false;  ///< the catalogue was refitted with out-of-catalogue terms
 };
 JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
                                 const Eigen::MatrixXd& Dv, const DynRows& df2, const DynRows& dv2,
@@ -976,6 +977,7 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
     if (!f.ok) break;
     j.beta = f.beta.head(Df.cols());
     j.cov = f.cov.topLeftCorner(Df.cols(), Df.cols());
+    j.refitted = j.refitted || !cols.empty();
     // The unmodeled findings carry the joint coefficients.
     for (int s2 = 0; s2 < 2; ++s2) {
       SparseResult& sr = j.unmodeled[s2];
@@ -1085,6 +1087,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
       JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
       sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;
       unmodeled = std::move(joint.unmodeled);
+      if (!joint.refitted) break;
       const int a = failingAfterJointFit(sel, cands, Df, sd.min_contribution_rms, alpha_b);
       if (a < 0) break;
       sel.log.push_back(cands[sel.accepted[a]].name +
