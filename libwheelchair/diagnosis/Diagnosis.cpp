@@ -399,16 +399,17 @@ Predictor crossValidationPredictor(const Library& L, const Eigen::VectorXd& y, i
 }
 
 /// The held-out rule applied to each term of a sparse fit (issue 16): backward elimination
-/// on the judged rows yv (the held-out part, or cross-validation folds: valPrediction). Each round refits (on the fit rows) without each term in turn; the
-/// term whose removal costs the held-out prediction least is dropped unless that cost is both
-/// significant, n_eff log(RSS_val without / RSS_val with) >= chi2_1(1 - alpha), and relevant:
-/// the held-out prediction changes by at least min_contribution_rms (the floor every finding
-/// must pass). Collinear library terms (e.g. the other motor's current, which carries the same
-/// dynamics) then no longer smear one physical term over several. Then every surviving term
-/// must pass blocked cross-validation over all rows (blockedCvTerm: block-bootstrap held-out
-/// gain and delete-one-block jackknife of its coefficient); the weakest failing one is dropped
-/// (one per call: the caller refits the rest and calls again).
-/// (L, y) fit rows and (Lv, yv_all) held-out rows: the blocked cross-validation's data.
+/// on the judged rows yv (the held-out part, or cross-validation folds: valPrediction). Each round
+/// refits (on the fit rows) without each term in turn; the term whose removal costs the held-out
+/// prediction least is dropped unless that cost is both significant, n_eff log(RSS_val without /
+/// RSS_val with) >= chi2_1(1 - alpha), and relevant: the held-out prediction changes by at least
+/// min_contribution_rms (the floor every finding must pass). Collinear library terms (e.g. the
+/// other motor's current, which carries the same dynamics) then no longer smear one physical term
+/// over several. Then every surviving term must pass blocked cross-validation over all rows
+/// (blockedCvTerm: block-bootstrap held-out gain and delete-one-block jackknife of its
+/// coefficient); the weakest failing one is dropped (one per call: the caller refits the rest and
+/// calls again). (L, y) fit rows and (Lv, yv_all) held-out rows: the blocked cross-validation's
+/// data.
 std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::VectorXd& yv,
                               const Groups& gv, const Library& L, const Eigen::VectorXd& y,
                               const Library& Lv, const Eigen::VectorXd& yv_all, int lags,
@@ -506,8 +507,7 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
                        const Library& Lv, const Eigen::VectorXd& yv, const Predictor& predict,
                        const Eigen::VectorXd& yj, const Groups& gj, int lags,
                        const DiagnosisOptions& opt, double min_contribution_rms, int excluded,
-                       double noise_var, const std::function<int(int)>& partner,
-                       bool& untestable) {
+                       double noise_var, const std::function<int(int)>& partner, bool& untestable) {
   untestable = false;
   bool pruned = false;
   SparseResult res;
@@ -597,9 +597,8 @@ SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, 
                                min_contribution_rms, excluded, noise_var, partner, untestable);
   if (res.accepted || !untestable || y.size() < 50 || !opt.unmodeled_cross_validation) return res;
   bool cv_untestable = false;
-  SparseResult cv =
-      stlsqWith(L, y, g, Lv, yv, crossValidationPredictor(L, y, 5), y, g, lags, opt,
-                min_contribution_rms, excluded, noise_var, partner, cv_untestable);
+  SparseResult cv = stlsqWith(L, y, g, Lv, yv, crossValidationPredictor(L, y, 5), y, g, lags, opt,
+                              min_contribution_rms, excluded, noise_var, partner, cv_untestable);
   if (!cv.accepted) return res;
   cv.cross_validated = true;
   cv.cv_lr = cv.lr_val, cv.cv_rms_before = cv.rms_before_val, cv.cv_rms_after = cv.rms_after_val;
@@ -1141,23 +1140,22 @@ void reportableTerms(SparseResult& sr, const std::string& ch, int friction_findi
   if (sr.terms.empty()) sr.accepted = false;
 }
 
-/// Stage 2 terms outside the catalogue: STLSQ per motor over the term library.
-/// friction_finding[s]: index in rep.findings of the accepted Coulomb friction acting on
-/// motor s (0 right, 1 left), -1 if none.
-void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& dv2,
-                      const Eigen::VectorXd& rv_after, int lags,
-                      const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
-                      const std::array<int, 2>& friction_finding, DiagnosisReport& rep) {
-  const Eigen::VectorXd& rf = sel.fit.residual;
+/// Column j of the stage 2 term library on rows [r0, r0 + n) of d. The other motor's measured
+/// current (column 13) is kept out: it reads as zero (stlsq skips zero columns).
+Eigen::VectorXd unmodeledColumn(const DynRows& d, int j, int r0, int n) {
+  if (j == 13) return Eigen::VectorXd::Zero(n);
+  return d.libColumn(j, r0, n);
+}
+
+/// Stage 2 terms outside the catalogue: STLSQ per motor over the term library, on the residuals
+/// of the catalogue fit `rf` (fit rows) and `rv` (validation rows).
+std::array<SparseResult, 2> dynamicUnmodeled(const DynRows& df2, const DynRows& dv2,
+                                             const Eigen::VectorXd& rf, const Eigen::VectorXd& rv,
+                                             int lags, const config::WheelchairConfig& cfg,
+                                             const DiagnosisOptions& opt) {
+  std::array<SparseResult, 2> out;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   const int nlib = static_cast<int>(dynLibNames().size());
-  // The other motor's measured current (column 13) is kept out (reads as zero; stlsq skips
-  // zero columns), as is i_self (12, excluded below): see the loop.
-  auto column = [](const DynRows& d, int j, int r0, int n) -> Eigen::VectorXd {
-    if (j == 13) return Eigen::VectorXd::Zero(n);
-    return d.libColumn(j, r0, n);
-  };
-  SparseResult srs[2];
   for (int s2 = 0; s2 < 2; ++s2) {
     // This motor's rows of the library. i_self (column 12) is the measured quantity itself:
     // keep it out (it would absorb everything); the other motor's measured current (column 13)
@@ -1165,15 +1163,266 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
     // noise): as a regressor it borrows that error instead of describing a physical term, so it
     // is kept out as well (issue 16; its physics - the coupling through the chassis - is spanned
     // by vdot and omegadot).
-    const Library L{nRf, nlib, [&](int j) { return column(df2, j, s2 * nRf, nRf); }};
-    const Library Lv{nRv2, nlib, [&](int j) { return column(dv2, j, s2 * nRv2, nRv2); }};
-    srs[s2] =
-        stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
-              rv_after.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags, opt,
-              opt.min_relevance * cfg.motors.current_noise_A, 12, df2.noise_var, [](int j) {
-                return j == 10 ? 11 : j == 11 ? 10 : -1;
-              });
+    const Library L{nRf, nlib, [&](int j) { return unmodeledColumn(df2, j, s2 * nRf, nRf); }};
+    const Library Lv{nRv2, nlib, [&](int j) { return unmodeledColumn(dv2, j, s2 * nRv2, nRv2); }};
+    out[s2] = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
+                    rv.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags, opt,
+                    opt.min_relevance * cfg.motors.current_noise_A, 12, df2.noise_var, [](int j) {
+                      return j == 10 ? 11 : j == 11 ? 10 : -1;
+                    });
   }
+  return out;
+}
+
+/// true: the column x lies nearly in the span of D (uncentred R^2 >= 0.9): |x - D D^+ x|^2 <=
+/// 0.1 |x|^2. Beyond that the split between x and D is not identifiable from the drive (the
+/// joint fit would trade large opposite coefficients).
+bool inSpan(const Eigen::ColPivHouseholderQR<Eigen::MatrixXd>& qrD, const Eigen::MatrixXd& D,
+            const Eigen::VectorXd& x) {
+  const double n2 = x.squaredNorm();
+  if (!(n2 > 0)) return true;
+  if (D.cols() == 0) return false;
+  return (x - D * qrD.solve(x)).squaredNorm() <= 0.1 * n2;
+}
+
+/// The catalogue's coefficients estimated jointly with the out-of-catalogue terms (issue 16).
+/// Physics the model (6) lacks (on a multibody: the centre of mass ahead of the axle costs
+/// -(m d c / 2) omega^2 on both motors) is correlated with catalogue columns (omega^2 >= 0 and
+/// sgn(u) mostly > 0): fitted alone, a catalogue term absorbs part of it (Coulomb friction
+/// 10-15 % low on MuJoCo drives) and the per-motor sparse search then finds the rest of the
+/// catalogue term itself (`sgn(u)`). Here the terms the sparse search found are refitted
+/// together with the catalogue design D on both motors' rows:
+///  - a term found on one motor that D nearly spans there (inSpan) is the catalogue's: dropped;
+///  - a term found on both motors whose sum over the motors D spans (D is symmetric, e.g.
+///    coulomb_friction/both, ground_slope) enters as its antisymmetric part (+ right, - left):
+///    the symmetric part is the catalogue's (a slope's cos(phi) on both motors is the slope,
+///    the centre of mass' turn across the slope is the difference);
+///  - terms below stlsq_threshold_sigma in the joint fit are dropped one at a time.
+/// Then the sparse search runs again on the residual of the joint catalogue coefficients and the
+/// joint fit is repeated once. Without out-of-catalogue terms nothing changes.
+struct JointDynamicFit {
+  Eigen::VectorXd beta;
+  Eigen::MatrixXd cov;
+  std::array<SparseResult, 2> unmodeled;
+  bool refitted = false;  ///< the catalogue was refitted with out-of-catalogue terms
+};
+JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
+                                const Eigen::MatrixXd& Dv, const DynRows& df2, const DynRows& dv2,
+                                int lags, const config::WheelchairConfig& cfg,
+                                const DiagnosisOptions& opt) {
+  JointDynamicFit j{sel.fit.beta, sel.fit.cov, {}};
+  const int nR = static_cast<int>(df2.y.size() / 2);
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrD;
+  if (Df.cols() > 0) qrD.compute(Df);
+  for (int pass = 0; pass < 2; ++pass) {
+    const Eigen::VectorXd rf = df2.y - Df * j.beta, rv = dv2.y - Dv * j.beta;
+    j.unmodeled = dynamicUnmodeled(df2, dv2, rf, rv, lags, cfg, opt);
+    if (Df.cols() == 0 || !(j.unmodeled[0].accepted || j.unmodeled[1].accepted)) break;
+    // The unmodeled columns: (library column, sides) with sides 0 right, 1 left, 2 antisymmetric.
+    struct Col {
+      int lib, sides;
+    };
+    std::vector<Col> cols;
+    auto has = [&](int s2, int lib) {
+      const auto& t = j.unmodeled[s2].terms;
+      return j.unmodeled[s2].accepted && std::find(t.begin(), t.end(), lib) != t.end();
+    };
+    auto sideCol = [&](int s2, int lib) {
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(df2.y.size());
+      x.segment(s2 * nR, nR) = df2.libColumn(lib, s2 * nR, nR);
+      return x;
+    };
+    for (int lib = 0; lib < 12; ++lib) {
+      const bool r = has(0, lib), l = has(1, lib);
+      if (r && l && inSpan(qrD, Df, sideCol(0, lib) + sideCol(1, lib)))
+        cols.push_back({lib, 2});
+      else
+        for (int s2 = 0; s2 < 2; ++s2)
+          if ((s2 == 0 ? r : l) && !inSpan(qrD, Df, sideCol(s2, lib))) cols.push_back({lib, s2});
+    }
+    auto colOf = [&](const Col& c) -> Eigen::VectorXd {
+      return c.sides == 2 ? Eigen::VectorXd(sideCol(0, c.lib) - sideCol(1, c.lib))
+                          : sideCol(c.sides, c.lib);
+    };
+    LinearFit f;
+    for (;;) {  // joint fit; the weakest unmodeled column below the threshold goes
+      Eigen::MatrixXd A(Df.rows(), Df.cols() + cols.size());
+      A.leftCols(Df.cols()) = Df;
+      for (size_t c = 0; c < cols.size(); ++c) A.col(Df.cols() + c) = colOf(cols[c]);
+      f = fitLinear(std::move(A), df2.y, df2.groups, lags);
+      if (!f.ok) {
+        if (cols.empty()) break;
+        cols.pop_back();
+        continue;
+      }
+      double worst = std::numeric_limits<double>::infinity();
+      size_t wk = 0;
+      for (size_t c = 0; c < cols.size(); ++c) {
+        const Eigen::Index q = Df.cols() + static_cast<Eigen::Index>(c);
+        const double t = std::abs(f.beta(q)) / std::sqrt(std::max(1e-300, f.cov(q, q)));
+        if (t < worst) worst = t, wk = c;
+      }
+      if (cols.empty() || worst >= opt.stlsq_threshold_sigma) break;
+      cols.erase(cols.begin() + static_cast<long>(wk));
+    }
+    if (!f.ok) break;
+    j.beta = f.beta.head(Df.cols());
+    j.cov = f.cov.topLeftCorner(Df.cols(), Df.cols());
+    j.refitted = j.refitted || !cols.empty();
+    // The unmodeled findings carry the joint coefficients.
+    for (int s2 = 0; s2 < 2; ++s2) {
+      SparseResult& sr = j.unmodeled[s2];
+      std::vector<int> terms;
+      std::vector<double> coef, se;
+      for (size_t c = 0; c < cols.size(); ++c)
+        if (cols[c].sides == s2 || cols[c].sides == 2) {
+          const Eigen::Index q = Df.cols() + static_cast<Eigen::Index>(c);
+          terms.push_back(cols[c].lib);
+          coef.push_back((cols[c].sides == 2 && s2 == 1 ? -1.0 : 1.0) * f.beta(q));
+          se.push_back(std::sqrt(std::max(0.0, f.cov(q, q))));
+        }
+      sr.accepted = sr.accepted && !terms.empty();
+      sr.terms = terms;
+      sr.coef = Eigen::Map<Eigen::VectorXd>(coef.data(), coef.size());
+      sr.se = Eigen::Map<Eigen::VectorXd>(se.data(), se.size());
+    }
+  }
+  return j;
+}
+
+/// After the joint fit (jointDynamicFit), the accepted catalogue term (index into sel.accepted)
+/// that no longer holds: its coefficients implausible, their contribution below the relevance
+/// floor, or not significant at the Bonferroni level (Wald, HAC covariance). A term accepted
+/// only because it absorbed out-of-catalogue physics (e.g. a motor asymmetry next to Coulomb
+/// friction, both taking the centre of mass' omega^2 current) shrinks here. Stream delays are
+/// kept (their rows were rebuilt with them). -1: all hold; else the one with the least evidence.
+int failingAfterJointFit(const Selection& sel, const std::vector<Candidate>& cands,
+                         const Eigen::MatrixXd& Df, double min_contribution_rms, double alpha_b) {
+  int worst = -1;
+  double worst_wald = std::numeric_limits<double>::infinity();
+  for (size_t a = 0; a < sel.accepted.size(); ++a) {
+    const Candidate& c = cands[sel.accepted[a]];
+    if (c.effect == "sensor_delay") continue;
+    const auto [i, k] = sel.ranges[a];
+    const Eigen::VectorXd b = sel.fit.beta.segment(i, k);
+    const Eigen::MatrixXd C = sel.fit.cov.block(i, i, k, k);
+    const double wald = b.dot(C.ldlt().solve(b));
+    const double rms = (Df.middleCols(i, k) * b).norm() / std::sqrt(std::max<double>(1, Df.rows()));
+    const bool holds = (!c.plausible || c.plausible(b)) && rms >= min_contribution_rms &&
+                       wald >= stats::chi2Quantile(1 - alpha_b, k);
+    if (!holds && wald < worst_wald) worst = static_cast<int>(a), worst_wald = wald;
+  }
+  return worst;
+}
+
+/// Removes accepted term `a` from the selection and its columns from the designs; the remaining
+/// catalogue terms refitted alone on (Df, y).
+void removeAccepted(Selection& sel, int a, Eigen::MatrixXd& Df, Eigen::MatrixXd& Dv,
+                    const DynRows& df2, int lags) {
+  const auto [i, k] = sel.ranges[a];
+  auto dropCols = [i = i, k = k](Eigen::MatrixXd& D) {
+    Eigen::MatrixXd E(D.rows(), D.cols() - k);
+    E << D.leftCols(i), D.rightCols(D.cols() - i - k);
+    D = std::move(E);
+  };
+  dropCols(Df), dropCols(Dv);
+  sel.accepted.erase(sel.accepted.begin() + a);
+  sel.steps.erase(sel.steps.begin() + a);
+  sel.ranges.erase(sel.ranges.begin() + a);
+  for (size_t q = a; q < sel.ranges.size(); ++q) sel.ranges[q].first -= k;
+  sel.fit = fitLinear(Df, df2.y, df2.groups, lags);
+}
+
+/// A one-column catalogue term of ONE motor (a motor asymmetry, Coulomb friction of one side)
+/// the forward selection did not accept, with its design on the fit and validation rows (kept
+/// when the rows' full designs go, for addSpannedTerms). Terms of both motors (payload, slope,
+/// Coulomb friction of both) predict the same coefficient on both motors, which per-motor
+/// descriptions need not have (MuJoCo: vdot +0.09 A s^2/m on one motor, +0.12 on the other,
+/// unexplained): they are not re-tested.
+struct SpareTerm {
+  int cand = -1;
+  Eigen::VectorXd xf, xv;
+};
+std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candidate>& cands,
+                                  const DynRows& df2, const DynRows& dv2) {
+  std::vector<SpareTerm> out;
+  for (int ci = 0; ci < static_cast<int>(cands.size()); ++ci) {
+    const Candidate& c = cands[ci];
+    if (c.S.cols() != 1 || c.effect == "sensor_delay" ||
+        std::find(sel.accepted.begin(), sel.accepted.end(), ci) != sel.accepted.end())
+      continue;
+    SpareTerm sp{ci, df2.X * c.S.col(0), dv2.X * c.S.col(0)};
+    const Eigen::Index nR = sp.xf.size() / 2;
+    if (sp.xf.head(nR).norm() > 0 && sp.xf.tail(nR).norm() > 0) continue;  // one motor only
+    out.push_back(std::move(sp));
+  }
+  return out;
+}
+
+/// A catalogue term rejected by the forward selection (typically by its held-out check, the
+/// held-out residual being dominated by physics the catalogue lacks) that the out-of-catalogue
+/// terms found then describe in full (its column nearly in their span, inSpan: e.g. `v` and
+/// `omega` on the left motor in the ratio of u_L = v - omega l_w / 2, a left motor asymmetry)
+/// is that catalogue term: it is added to the accepted set (its evidence the fit-data
+/// likelihood ratio against the accepted terms) and the joint fit repeated, where
+/// failingAfterJointFit still tests it. true if a term was added.
+bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
+                     const std::vector<SpareTerm>& spare,
+                     const std::array<SparseResult, 2>& unmodeled, Eigen::MatrixXd& Df,
+                     Eigen::MatrixXd& Dv, const DynRows& df2, int lags) {
+  const int nR = static_cast<int>(df2.y.size() / 2);
+  std::vector<Eigen::VectorXd> u;
+  for (int s2 = 0; s2 < 2; ++s2)
+    if (unmodeled[s2].accepted)
+      for (int lib : unmodeled[s2].terms) {
+        Eigen::VectorXd x = Eigen::VectorXd::Zero(df2.y.size());
+        x.segment(s2 * nR, nR) = df2.libColumn(lib, s2 * nR, nR);
+        u.push_back(std::move(x));
+      }
+  if (u.empty()) return false;
+  Eigen::MatrixXd U(df2.y.size(), u.size());
+  for (size_t k = 0; k < u.size(); ++k) U.col(k) = u[k];
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrU(U);
+  bool added = false;
+  for (const SpareTerm& sp : spare) {
+    const Candidate& c = cands[sp.cand];
+    bool conflict = false;
+    for (int a : sel.accepted)
+      for (const auto& n : c.conflicts) conflict = conflict || cands[a].name == n;
+    for (int a : sel.accepted)
+      for (const auto& n : cands[a].conflicts) conflict = conflict || c.name == n;
+    if (conflict || !inSpan(qrU, U, sp.xf)) continue;
+    const LinearFit f0 = fitLinear(Df, df2.y, df2.groups, lags);
+    Df.conservativeResize(Eigen::NoChange, Df.cols() + 1);
+    Df.col(Df.cols() - 1) = sp.xf;
+    Dv.conservativeResize(Eigen::NoChange, Dv.cols() + 1);
+    Dv.col(Dv.cols() - 1) = sp.xv;
+    sel.fit = fitLinear(Df, df2.y, df2.groups, lags);
+    SelectionStep st;
+    st.candidate = sp.cand;
+    st.rss0_fit = f0.rss, st.rss1_fit = sel.fit.rss;
+    st.evidence = compareNested(f0.rss, sel.fit.rss, 1,
+                                effectiveSampleSize(sel.fit.residual, df2.groups, lags));
+    st.coef = sel.fit.beta.tail(1);
+    sel.ranges.push_back({static_cast<int>(Df.cols()) - 1, 1});
+    sel.accepted.push_back(sp.cand);
+    sel.steps.push_back(st);
+    sel.log.push_back(c.name + ": described in full by the out-of-catalogue terms found: named");
+    added = true;
+  }
+  return added;
+}
+
+/// The out-of-catalogue terms of both motors (srs, from the joint fit) as findings: a friction
+/// law's shape and terms below the unexplained structure set aside (reportableTerms), then
+/// what the rest is physically, both motors' terms refitted jointly as forward / yaw /
+/// one-motor components (UnmodeledPhysics.h) on the catalogue residuals rf (fit rows) and
+/// rv_after (validation rows). friction[s]: rep.findings index of the friction on motor s.
+void reportUnmodeled(std::array<SparseResult, 2> srs, const DynRows& df2, const DynRows& dv2,
+                     const Eigen::VectorXd& rf, const Eigen::VectorXd& rv_after, int lags,
+                     const config::WheelchairConfig& cfg,
+                     const std::array<int, 2>& friction_finding, DiagnosisReport& rep) {
+  const int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   for (int s2 = 0; s2 < 2; ++s2)
     if (srs[s2].accepted)
       reportableTerms(srs[s2], s2 == 0 ? "current_right" : "current_left", friction_finding[s2],
@@ -1187,7 +1436,8 @@ void dynamicUnmodeled(const Selection& sel, const DynRows& df2, const DynRows& d
         if (std::find(terms.begin(), terms.end(), j) == terms.end()) terms.push_back(j);
   DynamicTermData td;
   td.column = [&](int j, int side, bool fit) {
-    return fit ? column(df2, j, side * nRf, nRf) : column(dv2, j, side * nRv2, nRv2);
+    return fit ? unmodeledColumn(df2, j, side * nRf, nRf)
+               : unmodeledColumn(dv2, j, side * nRv2, nRv2);
   };
   td.y_fit = rf, td.y_val = rv_after, td.groups_fit = df2.groups, td.lags = lags;
   const nlohmann::json physics = describeDynamicTerms(terms, dynLibNames(), td, cfg);
@@ -1246,9 +1496,36 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     pf2 = &refit.fit;
     pv2 = &refit.val;
   }
+  std::array<SparseResult, 2> unmodeled;
   const DynRows& df2 = *pf2;
   const DynRows& dv2 = *pv2;
-  Eigen::VectorXd rv_after = dv2.y - acceptedDesign(dv2.X, cands, sel.accepted) * sel.fit.beta;
+  // The accepted catalogue terms' designs (a few columns), then the catalogue estimated jointly
+  // with what it does not contain (jointDynamicFit).
+  Eigen::MatrixXd Df = acceptedDesign(df2.X, cands, sel.accepted);
+  Eigen::MatrixXd Dv = acceptedDesign(dv2.X, cands, sel.accepted);
+  if (opt.enable_unmodeled) {
+    // The unmodeled-term search reads the rows' signals (DynRows::libColumn), not their
+    // designs: those go first, as the search's own fits are the peak of diagnose (memory).
+    std::vector<SpareTerm> spare = spareTerms(sel, cands, df2, dv2);
+    for (DynRows* rows : {&df, &dv, &refit.fit, &refit.val}) rows->X = Eigen::MatrixXd();
+    for (bool retested = false;;) {
+      JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
+      sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;
+      unmodeled = std::move(joint.unmodeled);
+      if (!joint.refitted) break;
+      int a = failingAfterJointFit(sel, cands, Df, sd.min_contribution_rms, alpha_b);
+      if (a < 0 && !retested) {
+        retested = true;
+        if (addSpannedTerms(sel, cands, spare, unmodeled, Df, Dv, df2, lags)) continue;
+      }
+      if (a < 0) break;
+      sel.log.push_back(cands[sel.accepted[a]].name +
+                        ": no longer significant and relevant when fitted jointly with the "
+                        "out-of-catalogue terms");
+      removeAccepted(sel, a, Df, Dv, df2, lags);
+    }
+  }
+  Eigen::VectorXd rv_after = dv2.y - Dv * sel.fit.beta;
   {
     // The fully nominal model (no sensor corrections either), as the report's figures show it.
     std::optional<DynRows> dn_rows;
@@ -1274,7 +1551,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     Eigen::VectorXd b = sel.fit.beta.segment(i, k);
     Finding f =
         termFinding(c, sel.steps[a], alpha_b, regimes, "currents", "A", dv.y.size(), df.y.size());
-    Eigen::VectorXd contrib = (df2.X * c.S) * b;
+    Eigen::VectorXd contrib = Df.middleCols(i, k) * b;
     std::vector<std::pair<double, double>> tc;
     for (int q = 0; q < contrib.size(); ++q) tc.push_back({df2.t[q], contrib(q)});
     f.segments = activeSegments(tc, sigma);
@@ -1287,17 +1564,9 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
       if (c.name != "coulomb_friction/right") friction[1] = idx;
     }
   }
-  if (opt.enable_unmodeled) {
-    // The unmodeled-term search reads the rows' signals (DynRows::libColumn), not their
-    // designs: those go first, as the search's own fits are the peak of diagnose (memory).
-    for (DynRows* rows : {&df, &dv, &refit.fit, &refit.val}) {
-      rows->X = Eigen::MatrixXd();
-      std::vector<double>().swap(rows->t);  // (`= {}` would keep the capacity)
-      std::vector<double>().swap(rows->phi);
-      std::vector<int>().swap(rows->side);
-    }
-    dynamicUnmodeled(sel, df2, dv2, rv_after, lags, cfg, opt, friction, rep);
-  }
+  if (opt.enable_unmodeled)
+    reportUnmodeled(unmodeled, df2, dv2, df2.y - Df * sel.fit.beta, rv_after, lags, cfg, friction,
+                    rep);
   return true;
 }
 
