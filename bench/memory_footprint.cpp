@@ -6,6 +6,8 @@
 //   filter    drive.rawlog --estimates e.csv --trajectory t.tum --variants
 //   evaluate  drive.rawlog -j 1 --csv m.csv
 //   diagnose  drive.rawlog --json d.json
+//   identify  drive.rawlog --json i.json
+//   report    drive.rawlog -o DIR --no-3d
 // each as a child process, its peak RSS (ru_maxrss from wait4, kB -> MB) printed as a table.
 // With two or more durations it also prints the growth per recorded hour,
 //   (RSS(D_max) - RSS(D_min)) / (D_max - D_min) * 3600   [MB/h],
@@ -18,6 +20,9 @@
 //   memory_footprint --cli build/bin/wheelchair --durations 3600,36000 [--keep DIR]
 //   memory_footprint --cli build/bin/wheelchair --durations 300,600
 //       --check-growth simulate=40,filter=40,evaluate=60,diagnose=200
+//   memory_footprint --cli build/bin/wheelchair --durations 3600 --commands diagnose
+// --commands LIST measures only those commands (simulate always runs: it makes the drive, and
+// is measured only when listed).
 // Exit: 0 ok, 1 a command failed or the growth check failed, 2 usage.
 #include <fmt/core.h>
 
@@ -25,6 +30,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -89,6 +95,9 @@ std::map<std::string, double> parseLimits(const std::string& text) {
 int main(int argc, char** argv) {
   std::string cli, keep;
   std::vector<double> durations{300, 600};
+  const std::vector<std::string> all_commands{"simulate", "filter",   "evaluate",
+                                              "diagnose", "identify", "report"};
+  std::vector<std::string> commands = all_commands;
   std::map<std::string, double> limits;  // MB per recorded hour, per command ("" = all)
   try {
     for (int i = 1; i < argc; ++i) {
@@ -105,6 +114,16 @@ int main(int argc, char** argv) {
         limits = parseLimits(value());
       else if (a == "--keep")
         keep = value();
+      else if (a == "--commands") {
+        commands.clear();
+        std::stringstream ss(value());
+        for (std::string c; std::getline(ss, c, ',');) {
+          if (std::find(all_commands.begin(), all_commands.end(), c) == all_commands.end())
+            throw std::invalid_argument("--commands: unknown command " + c);
+          commands.push_back(c);
+        }
+        if (commands.empty()) throw std::invalid_argument("--commands needs at least one");
+      }
       else
         throw std::invalid_argument("unknown option " + a);
     }
@@ -121,11 +140,11 @@ int main(int argc, char** argv) {
       keep.empty() ? fs::temp_directory_path() / ("wc_memory_footprint_" + std::to_string(getpid()))
                    : fs::path(keep);
   fs::create_directories(dir);
-  const std::vector<std::string> commands{"simulate", "filter", "evaluate", "diagnose"};
   std::map<std::string, std::vector<double>> rss;  // per command, per duration
   bool failed = false;
-  fmt::print("{:>10} {:>10} {:>10} {:>10} {:>10}   (peak RSS, MB)\n", "duration_s", "simulate",
-             "filter", "evaluate", "diagnose");
+  fmt::print("{:>10}", "duration_s");
+  for (const auto& c : commands) fmt::print(" {:>10}", c);
+  fmt::print("   (peak RSS, MB)\n");
   for (double d : durations) {
     const std::string tag = fmt::format("d{:.0f}", d);
     const std::string rawlog = (dir / (tag + ".rawlog")).string();
@@ -138,8 +157,17 @@ int main(int argc, char** argv) {
          {cli, "filter", rawlog, "--no-progress", "--estimates", p(".csv"), "--trajectory",
           p(".tum"), "--variants"}},
         {"evaluate", {cli, "evaluate", rawlog, "-j", "1", "-q", "--csv", p("_metrics.csv")}},
-        {"diagnose", {cli, "diagnose", rawlog, "--json", p("_diagnosis.json")}}};
+        {"diagnose", {cli, "diagnose", rawlog, "--json", p("_diagnosis.json")}},
+        {"identify", {cli, "identify", rawlog, "--json", p("_identify.json")}},
+        {"report", {cli, "report", rawlog, "-o", p("_report"), "--no-3d"}}};
     fmt::print("{:>10.0f}", d);
+    const bool measure_simulate =
+        std::find(commands.begin(), commands.end(), "simulate") != commands.end();
+    if (!measure_simulate && !runMeasured(argvs.at("simulate"), p("_simulate.log")).ok) {
+      failed = true;
+      fmt::print(stderr, "\nmemory_footprint: simulate failed on the {} s drive (log: {})\n", d,
+                 p("_simulate.log"));
+    }
     for (const auto& c : commands) {
       const Run r = runMeasured(argvs.at(c), p("_" + c + ".log"));
       if (!r.ok) {
