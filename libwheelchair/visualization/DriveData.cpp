@@ -2,6 +2,7 @@
 
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/model/Kinematics.h"
+#include "libwheelchair/visualization/Plot.h"
 
 #include <nlohmann/json.hpp>
 
@@ -226,7 +227,16 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
     io::Recording kept;
     kept.sonar = std::move(d.rec.sonar);
     d.rec = std::move(kept);
+    d.ekf_trace.shrink_to_fit();  // (sized for one estimate per measurement)
   }
+  auto speeds = [](const std::vector<estimation::DeadReckoningSample>& dr) {
+    std::vector<SpeedPoint> v;
+    v.reserve(dr.size());
+    for (const auto& s : dr) v.push_back({s.t_s, s.v_m_s, s.omega_rad_s});
+    return v;
+  };
+  d.encoder_speeds = speeds(d.est.encoders);
+  d.phase_speeds = speeds(d.est.encoders_gyro.empty() ? d.est.encoders : d.est.encoders_gyro);
   d.truth = readTruthJson(truth_path.empty() ? path + ".truth.json" : truth_path);
 
   evaluation::MetricOptions mo = metric_options;
@@ -248,6 +258,17 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
                                                  : d.est.trajectory(variant);
         row.n_estimates = t.size();
         row.metrics = evaluation::computeMetrics(t, d.gt.samples, mo);
+        if (lean) {  // from here on only drawn: the points drawn (Fig. 5)
+          const auto keep = pathPointsToDraw(
+              t.size(), [&](std::size_t i) { return t[i].x_m; },
+              [&](std::size_t i) { return t[i].y_m; });
+          if (keep.size() < t.size()) {
+            evaluation::Trajectory drawn;
+            drawn.reserve(keep.size());
+            for (std::size_t i : keep) drawn.push_back(t[i]);
+            t = std::move(drawn);
+          }
+        }
         d.trajectories[variant] = std::move(t);
       } catch (const std::exception& e) {
         row.error = e.what();
@@ -257,6 +278,10 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
     d.metrics.rows.push_back(std::move(row));
   }
   d.metrics.failed_recordings = failed ? 1 : 0;
+  if (lean) {  // their trajectories and speeds are taken
+    std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders);
+    std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders_gyro);
+  }
   // Ground truth in the start frame.
   if (!d.gt.samples.empty()) {
     evaluation::SE2 T_inv;  // gt frame -> start frame

@@ -59,17 +59,26 @@ struct GyroPoint {
 struct CurrentPoint {
   double t_s = 0, current_right_A = 0, current_left_A = 0;
 };
+/// Speeds of a dead reckoning (Fig. 6a, 6b and the shaded phases): 24 B of its 48 B sample.
+struct SpeedPoint {
+  double t_s = 0, v_m_s = 0, omega_rad_s = 0;
+};
 struct SampleCounts {
   std::size_t encoders = 0, imu = 0, motors = 0, sonar = 0, pozyx = 0, ground_truth = 0;
 };
 
-/// What loadDrive keeps. `keep_estimates` false (`wheelchair report`): the filters stream
-/// their estimates (evaluation::estimateVariants with sinks) and only the trace, the pose
-/// trajectories and the full estimates at the start and at `snapshot_since_start_s` (seconds
-/// after the first estimate, `report --at`; NaN: defaultObstacleTime) are kept, so
-/// `est.ekf.estimates` holds those one or two and ekfAt() is exact only at those times, and `rec`
-/// keeps only its sonar stream once the estimates, the ground truth and the figures' series are
-/// made. The figures are the same either way.
+/// What loadDrive keeps. `keep_estimates` false (`wheelchair report`; memory bounded by what the
+/// figures draw, not by the filters' full output):
+///   * the filters stream their estimates (evaluation::estimateVariants with sinks) into the
+///     trace and the pose trajectories; of the full estimates only those at the start and at
+///     `snapshot_since_start_s` (s after the first estimate, `report --at`; NaN:
+///     defaultObstacleTime) are kept in `est.ekf.estimates`: ekfAt() is exact at those times;
+///   * `rec` keeps only its sonar stream once the estimates, the ground truth and the figures'
+///     series are made; `est.encoders` / `est.encoders_gyro` are empty once their trajectories
+///     and speeds are taken;
+///   * `trajectories` keep, once their metrics are computed, the points drawn
+///     (pathPointsToDraw, Plot.h: every point up to Plot::kDecimateAbove).
+/// The figures are the same either way.
 struct DriveLoadOptions {
   bool keep_estimates = true;
   double snapshot_since_start_s = std::numeric_limits<double>::quiet_NaN();  ///< s
@@ -85,12 +94,15 @@ struct DriveData {
   std::vector<evaluation::Position2DStamped> gt_start;  ///< ground truth in the start frame
   std::string gt_frame_note;                            ///< how gt_start was obtained
   std::optional<TruthInfo> truth;
-  evaluation::BatchResult metrics;       ///< one row per variant
-  double t0_s = 0, t1_s = 0;             ///< time span of the EKF estimates
-  std::vector<EkfTracePoint> ekf_trace;  ///< every EKF estimate, as the figures draw it
-  std::vector<GyroPoint> gyro;           ///< the recording's IMU yaw rate (time order as read)
-  std::vector<CurrentPoint> currents;    ///< the recording's motor currents (time order as read)
-  SampleCounts counts;                   ///< samples per stream of the recording
+  evaluation::BatchResult metrics;         ///< one row per variant
+  double t0_s = 0, t1_s = 0;               ///< time span of the EKF estimates
+  std::vector<EkfTracePoint> ekf_trace;    ///< every EKF estimate, as the figures draw it
+  std::vector<GyroPoint> gyro;             ///< the recording's IMU yaw rate (time order as read)
+  std::vector<CurrentPoint> currents;      ///< the recording's motor currents (time order as read)
+  SampleCounts counts;                     ///< samples per stream of the recording
+  std::vector<SpeedPoint> encoder_speeds;  ///< of est.encoders (Fig. 6a, 6b)
+  /// Of est.encoders_gyro, or est.encoders without it: the drive's phases (straight, turn).
+  std::vector<SpeedPoint> phase_speeds;
 
   /// EKF estimate at (the last sample at or before) t.
   const estimation::EstimateSample* ekfAt(double t_s) const;

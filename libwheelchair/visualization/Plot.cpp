@@ -591,6 +591,33 @@ void drawLegend(Raster& r, const Plot& p, const Frame& f, double legend_w) {
 
 }  // namespace
 
+std::vector<std::size_t> pathPointsToDraw(std::size_t n,
+                                          const std::function<double(std::size_t)>& x,
+                                          const std::function<double(std::size_t)>& y) {
+  std::vector<std::size_t> keep;
+  if (n <= Plot::kDecimateAbove) {
+    keep.resize(n);
+    for (std::size_t i = 0; i < n; ++i) keep[i] = i;
+    return keep;
+  }
+  double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double px = x(i), py = y(i);
+    if (!std::isfinite(px) || !std::isfinite(py)) continue;
+    x0 = std::min(x0, px), x1 = std::max(x1, px), y0 = std::min(y0, py), y1 = std::max(y1, py);
+  }
+  const double cell = std::max(x1 - x0, y1 - y0) / 4000.0;
+  double lx = NAN, ly = NAN;  // the last point kept
+  for (std::size_t i = 0; i < n; ++i) {
+    const double px = x(i), py = y(i);
+    const bool finite = std::isfinite(px) && std::isfinite(py);
+    if (finite && i + 1 < n && std::fabs(px - lx) < cell && std::fabs(py - ly) < cell) continue;
+    keep.push_back(i);
+    lx = px, ly = py;
+  }
+  return keep;
+}
+
 Raster Plot::render(int width, int height) const {
   Raster r(width, height, 3);
   const double title_h = title.empty() ? 14 : 44;

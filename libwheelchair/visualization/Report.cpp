@@ -28,7 +28,7 @@ Color mix(Color c, double a) {  // c over white with opacity a
 /// like the three tasks marked in the paper's Fig. 6.
 std::vector<XSpan> motionPhases(const DriveData& d, double t0) {
   std::vector<XSpan> out;
-  const auto& dr = d.est.encoders_gyro.empty() ? d.est.encoders : d.est.encoders_gyro;
+  const auto& dr = d.phase_speeds;
   if (dr.size() < 2) return out;
   struct Run {
     int kind;
@@ -60,15 +60,24 @@ std::vector<XSpan> motionPhases(const DriveData& d, double t0) {
   return out;
 }
 
+// Appends the points of a path (Fig. 5) that are drawn (pathPointsToDraw, Plot.h) to `s`.
+template <class X, class Y>
+void appendPath(Series& s, std::size_t n, X x, Y y) {
+  const auto keep = pathPointsToDraw(n, x, y);
+  s.x.reserve(s.x.size() + keep.size());
+  s.y.reserve(s.y.size() + keep.size());
+  for (std::size_t i : keep) s.x.push_back(x(i)), s.y.push_back(y(i));
+}
+
 Series trajSeries(const evaluation::Trajectory& t, const std::string& variant) {
   Series s;
   s.label = variantLabel(variant);
   s.color = variantColor(variant);
   s.width_px = variant == "ekf" ? 2.6 : 2.0;
   if (variant == "baseline") s.line = LineStyle::Dashed;
-  s.x.reserve(t.size());
-  s.y.reserve(t.size());
-  for (const auto& p : t) s.x.push_back(p.x_m), s.y.push_back(p.y_m);
+  appendPath(
+      s, t.size(), [&](std::size_t i) { return t[i].x_m; },
+      [&](std::size_t i) { return t[i].y_m; });
   return s;
 }
 
@@ -140,8 +149,10 @@ void figureTrajectories(const DriveData& d, const std::string& png, int w, int h
     s.color = variantColor("truth");
     s.width_px = 1.6;
     s.line = LineStyle::Dashed;
-    s.x = d.truth->x_m;
-    s.y = d.truth->y_m;
+    const auto& tr = *d.truth;
+    appendPath(
+        s, tr.x_m.size(), [&](std::size_t i) { return tr.x_m[i]; },
+        [&](std::size_t i) { return tr.y_m[i]; });
     p.series.push_back(s);
   }
   if (!d.gt_start.empty()) {
@@ -180,7 +191,7 @@ void figureVelocity(const DriveData& d, const std::string& png, int w, int h) {
   // visible where they agree (which is most of a good drive).
   p.series.push_back(overTime(
       Series{"v from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 3.4},
-      d.est.encoders, t0, [](const auto& s) { return s.v_m_s; }));
+      d.encoder_speeds, t0, [](const auto& s) { return s.v_m_s; }));
   p.series.push_back(
       overTime(Series{"v estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Solid, 1.3},
                d.ekf_trace, t0, [](const EkfTracePoint& e) { return e.v_m_s; }));
@@ -197,7 +208,7 @@ void figureAngularVelocity(const DriveData& d, const std::string& png, int w, in
       d.gyro, t0, [](const auto& s) { return s.gyro_z_rad_s; }));
   p.series.push_back(overTime(
       Series{"omega from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 1.8},
-      d.est.encoders, t0, [](const auto& s) { return s.omega_rad_s; }));
+      d.encoder_speeds, t0, [](const auto& s) { return s.omega_rad_s; }));
   p.series.push_back(overTime(
       Series{"omega estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Dashed, 1.6},
       d.ekf_trace, t0, [](const EkfTracePoint& e) { return e.omega_rad_s; }));
