@@ -6,6 +6,8 @@
 //   filter    drive.rawlog --estimates e.csv --trajectory t.tum --variants
 //   evaluate  drive.rawlog -j 1 --csv m.csv
 //   diagnose  drive.rawlog --json d.json
+//   identify  drive.rawlog --json i.json
+//   report    drive.rawlog -o DIR --no-3d
 // each as a child process, its peak RSS (ru_maxrss from wait4, kB -> MB) printed as a table.
 // With two or more durations it also prints the growth per recorded hour,
 //   (RSS(D_max) - RSS(D_min)) / (D_max - D_min) * 3600   [MB/h],
@@ -93,7 +95,8 @@ std::map<std::string, double> parseLimits(const std::string& text) {
 int main(int argc, char** argv) {
   std::string cli, keep;
   std::vector<double> durations{300, 600};
-  const std::vector<std::string> all_commands{"simulate", "filter", "evaluate", "diagnose"};
+  const std::vector<std::string> all_commands{"simulate", "filter",   "evaluate",
+                                              "diagnose", "identify", "report"};
   std::vector<std::string> commands = all_commands;
   std::map<std::string, double> limits;  // MB per recorded hour, per command ("" = all)
   try {
@@ -153,7 +156,9 @@ int main(int argc, char** argv) {
          {cli, "filter", rawlog, "--no-progress", "--estimates", p(".csv"), "--trajectory",
           p(".tum"), "--variants"}},
         {"evaluate", {cli, "evaluate", rawlog, "-j", "1", "-q", "--csv", p("_metrics.csv")}},
-        {"diagnose", {cli, "diagnose", rawlog, "--json", p("_diagnosis.json")}}};
+        {"diagnose", {cli, "diagnose", rawlog, "--json", p("_diagnosis.json")}},
+        {"identify", {cli, "identify", rawlog, "--json", p("_identify.json")}},
+        {"report", {cli, "report", rawlog, "-o", p("_report"), "--no-3d"}}};
     fmt::print("{:>10.0f}", d);
     const bool measure_simulate =
         std::find(commands.begin(), commands.end(), "simulate") != commands.end();

@@ -47,7 +47,8 @@ int runIdentify(const IdentifyOptions& o) {
   std::vector<io::Recording> recs;
   for (const auto& p : o.inputs) recs.push_back(readRawlogFor("identify", p, o.salvage));
 
-  const auto res = identification::identify(recs, cfg, opt, o.inputs);
+  const std::size_t n_recordings = recs.size();
+  const auto res = identification::identify(std::move(recs), cfg, opt, o.inputs);
   auto j = res.toJson();
   j["config"] = o.config_path.empty() ? "<nominal>" : o.config_path;
   std::vector<std::string> changes;
@@ -66,7 +67,7 @@ int runIdentify(const IdentifyOptions& o) {
   fmt::print(
       "identified from {} recording(s), {} samples used ({} standstill excluded), "
       "cut-off {} Hz; intervals +-{:.2f} se ({:.0f} %)\n",
-      recs.size(), res.n_used, res.n_standstill, opt.cutoff_hz, z, 100 * opt.confidence);
+      n_recordings, res.n_used, res.n_standstill, opt.cutoff_hz, z, 100 * opt.confidence);
   fmt::print("condition number (scaled): full {:.3g}, identifiable subspace {:.3g}; rank {}/5\n",
              res.theta_regression.condition_number,
              res.theta_regression.condition_number_identifiable, res.theta_regression.rank);

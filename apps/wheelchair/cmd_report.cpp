@@ -34,8 +34,11 @@ int runReport(const ReportCliOptions& o) {
   ro.out_dir = o.out_dir;
   ro.scene3d = !o.no_3d;
   ro.truth_path = o.truth;
+  visualization::DriveLoadOptions load;  // the figures' series, not every estimate
+  load.keep_estimates = false;
+  load.snapshot_since_start_s = o.at_s;
   const auto d = visualization::loadDrive(readRawlogFor("report", o.file, o.salvage), o.file, cfg,
-                                          ro.metrics, o.truth);
+                                          ro.metrics, o.truth, load);
   if (std::isfinite(o.at_s)) ro.at_s = d.t0_s + o.at_s;
   const auto r = visualization::writeReport(d, ro);
   for (const auto& f : r.figures) fmt::print("wrote {}\n", f);

@@ -217,7 +217,9 @@ Trajectory RecordingEstimates::trajectory(const std::string& variant) const {
 }
 
 RecordingEstimates estimateVariants(const io::Recording& raw_rec,
-                                    const config::WheelchairConfig& raw_cfg, bool with_baseline) {
+                                    const config::WheelchairConfig& raw_cfg, bool with_baseline,
+                                    estimation::EstimateSink* ekf_sink,
+                                    estimation::EstimateSink* baseline_sink) {
   // A corrected configuration ([model_extensions] from `wheelchair diagnose`) calibrates the
   // sensors and the drive train for every variant.
   const auto ext = estimation::ModelExtensions::fromConfig(raw_cfg.ini());
@@ -236,9 +238,15 @@ RecordingEstimates estimateVariants(const io::Recording& raw_rec,
     }
     r.errors.emplace_back(name, err);
   };
+  // The filter's estimates stored, or streamed to `sink` when there is one.
+  auto run = [&](estimation::FilterKind kind, estimation::EstimateSink* sink) {
+    const auto opt = ekfOptions(cfg, kind);
+    return sink ? estimation::runEstimator(rec, cfg, opt, *sink)
+                : estimation::runEstimator(rec, cfg, opt);
+  };
   attempt("ekf", [&] {
-    r.ekf = estimation::runEstimator(rec, cfg, ekfOptions(cfg, estimation::FilterKind::Physics));
-    if (r.ekf.estimates.empty()) throw std::runtime_error("the EKF produced no estimate");
+    r.ekf = run(estimation::FilterKind::Physics, ekf_sink);
+    if (r.ekf.n_estimates == 0) throw std::runtime_error("the EKF produced no estimate");
   });
   attempt("encoders", [&] {
     r.encoders =
@@ -252,9 +260,8 @@ RecordingEstimates estimateVariants(const io::Recording& raw_rec,
   });
   if (with_baseline)
     attempt("baseline", [&] {
-      r.baseline =
-          estimation::runEstimator(rec, cfg, ekfOptions(cfg, estimation::FilterKind::Baseline));
-      if (r.baseline.estimates.empty())
+      r.baseline = run(estimation::FilterKind::Baseline, baseline_sink);
+      if (r.baseline.n_estimates == 0)
         throw std::runtime_error("the baseline produced no estimate");
     });
   return r;

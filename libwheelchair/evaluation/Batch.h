@@ -138,8 +138,13 @@ struct RecordingEstimates {
 /// Runs the EKF (and the baseline when `with_baseline`) and both dead reckonings. The
 /// estimator options come from cfg's [estimator] section (filter overridden per variant).
 /// A failing variant is recorded in `errors`, the others are still computed.
+/// With `ekf_sink` / `baseline_sink`, that filter streams its estimates there instead
+/// (its EstimationResult keeps counts, statistics and warnings, no `estimates`: memory does not
+/// grow with the drive; the estimates are bit-identical).
 RecordingEstimates estimateVariants(const io::Recording& rec, const config::WheelchairConfig& cfg,
-                                    bool with_baseline);
+                                    bool with_baseline,
+                                    estimation::EstimateSink* ekf_sink = nullptr,
+                                    estimation::EstimateSink* baseline_sink = nullptr);
 
 /// Both variants of a command-driven recording (see the header comment).
 struct CommandDrivenEstimates {

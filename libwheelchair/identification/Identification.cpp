@@ -467,7 +467,7 @@ LsSolution fitTheta(const Samples& sm, const model::Geometry& g, const LsOptions
       th.block[2 * q + i] = rw.seg;
     }
   }
-  const LsSolution ts = solveLeastSquares(th, lso);
+  const LsSolution ts = solveLeastSquares(std::move(th), lso);
   res.theta_regression = report(ts, {"y_i1", "y_i2", "y_i3", "y_i4", "y_i5"});
   nullDirections(ts, g.gear_ratio, res);
   for (int j = 0; j < 5; ++j) {
@@ -553,7 +553,7 @@ void fitDirect(const Samples& sm, const LsOptions& lso, IdentificationResult& re
       in.time_index[q] = rw.k;
       in.block[q] = rw.seg;
     }
-    const LsSolution sol = solveLeastSquares(in, lso);
+    const LsSolution sol = solveLeastSquares(std::move(in), lso);
     (eq == 0 ? res.direct_v : res.direct_omega) =
         report(sol, eq == 0 ? std::vector<std::string>{"i_R + i_L", "v"}
                             : std::vector<std::string>{"i_R - i_L", "omega"});
@@ -586,7 +586,7 @@ void fitPerSide(const Samples& sm, const model::Geometry& g, const LsOptions& ls
       in.time_index[q] = rw.k;
       in.block[q] = rw.seg;
     }
-    const LsSolution sol = solveLeastSquares(in, lso);
+    const LsSolution sol = solveLeastSquares(std::move(in), lso);
     res.per_side[side] = report(sol, {"vdot", "s_i omegadot", "(r_G/r) u_i"});
     auto& m = res.motor[side];
     Eigen::Vector3d e0(1, 0, 0), e1(0, 1, 0), e2(0, 0, 1);
@@ -684,11 +684,10 @@ void fitQuasiSteady(const PreparedData& data, const config::WheelchairConfig& cf
         o.qs_max_vdot_m_s2, o.qs_max_omegadot_rad_s2, o.qs_min_duration_s));
 }
 
-}  // namespace
-
-IdentificationResult identify(const std::vector<io::Recording>& recs,
-                              const config::WheelchairConfig& cfg, const IdentificationOptions& o,
-                              const std::vector<std::string>& sources) {
+/// identify() on conditioned signals (the recordings may be gone: they are not read again).
+IdentificationResult identifyPrepared(const PreparedData& data, const config::WheelchairConfig& cfg,
+                                      const IdentificationOptions& o,
+                                      const std::vector<std::string>& sources) {
   IdentificationResult res;
   res.options = o;
   res.config_origin = cfg.origin();
@@ -697,7 +696,6 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
   res.z = stats::normalQuantile(0.5 + o.confidence / 2);
   const auto& g = cfg.vehicle.geom;
 
-  const PreparedData data = signals::prepareIntervalMeans(recs, cfg, o.intervalSignalOptions());
   const std::vector<Row> rows = usableRows(data, res);
   measureExcitation(data, rows, o, res);
   const Samples sm{data,
@@ -722,6 +720,23 @@ IdentificationResult identify(const std::vector<io::Recording>& recs,
   if (!sm.ex[0] && !sm.ex[1])
     res.notes.push_back("the chair hardly moves: nothing is identifiable");
   return res;
+}
+
+}  // namespace
+
+IdentificationResult identify(const std::vector<io::Recording>& recs,
+                              const config::WheelchairConfig& cfg, const IdentificationOptions& o,
+                              const std::vector<std::string>& sources) {
+  return identifyPrepared(signals::prepareIntervalMeans(recs, cfg, o.intervalSignalOptions()), cfg,
+                          o, sources);
+}
+
+IdentificationResult identify(std::vector<io::Recording>&& recs,
+                              const config::WheelchairConfig& cfg, const IdentificationOptions& o,
+                              const std::vector<std::string>& sources) {
+  PreparedData data = signals::prepareIntervalMeans(recs, cfg, o.intervalSignalOptions());
+  std::vector<io::Recording>().swap(recs);  // released before the fits (their peak)
+  return identifyPrepared(data, cfg, o, sources);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -149,6 +149,11 @@ struct IdentificationResult {
 IdentificationResult identify(const std::vector<io::Recording>& recordings,
                               const config::WheelchairConfig& cfg, const IdentificationOptions& opt,
                               const std::vector<std::string>& sources = {});
+/// The same, releasing the recordings once their signals are conditioned (before the fits, the
+/// peak of memory: `identify` holds no recording while it fits). Same result.
+IdentificationResult identify(std::vector<io::Recording>&& recordings,
+                              const config::WheelchairConfig& cfg, const IdentificationOptions& opt,
+                              const std::vector<std::string>& sources = {});
 
 /// The input configuration with the identified values written in (docs/identification.md,
 /// "Writing the configuration"): [vehicle] gearbox_efficiency, yaw_inertia_kg_m2,

@@ -189,6 +189,10 @@ LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt) {
   return solve(in.X, in.y, in.time_index, in.block, opt);
 }
 
+LsSolution solveLeastSquares(LsInput&& in, const LsOptions& opt) {
+  return solve(std::move(in.X), in.y, in.time_index, in.block, opt);
+}
+
 Groups singleGroup(int n) {
   return {{0, n}};
 }

@@ -88,6 +88,9 @@ struct LsSolution {
 };
 
 LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt = {});
+/// The same, consuming `in.X` (equilibrated in place instead of copied: the design of a long
+/// drive is ~25 MB per recorded hour and column; same numbers).
+LsSolution solveLeastSquares(LsInput&& in, const LsOptions& opt = {});
 
 /// Newey-West S matrix of per-time-step scores (helper, exposed for tests).
 Eigen::MatrixXd hacScoreCovariance(const Eigen::MatrixXd& X, const Eigen::VectorXd& e,

@@ -2,6 +2,7 @@
 
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/model/Kinematics.h"
+#include "libwheelchair/visualization/Plot.h"
 
 #include <nlohmann/json.hpp>
 
@@ -9,6 +10,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <optional>
 #include <stdexcept>
 
 namespace wheelchair::visualization {
@@ -36,17 +39,27 @@ std::optional<TruthInfo> readTruthJson(const std::string& path) {
   std::ifstream in(path);
   TruthInfo t;
   try {
-    const auto j = nlohmann::json::parse(in);
-    const auto& tr = j.at("trajectory");
-    auto col = [&](const char* name, std::vector<double>& v) {
-      if (tr.contains(name)) v = tr.at(name).get<std::vector<double>>();
+    // The trajectory's columns (~10 numbers per 100 Hz step: a DOM of a one-hour truth file
+    // needs ~1 GB) go straight into the vectors and are discarded from the parsed document;
+    // the rest (anchor, obstacles, effects) is parsed as usual.
+    const std::map<std::string, std::vector<double>*> wanted{
+        {"t_s", &t.t_s},         {"x_m", &t.x_m},     {"y_m", &t.y_m},
+        {"phi_rad", &t.phi_rad}, {"v_m_s", &t.v_m_s}, {"omega_rad_s", &t.omega_rad_s}};
+    std::string top_key, column;
+    const nlohmann::json::parser_callback_t keep = [&](int depth, nlohmann::json::parse_event_t ev,
+                                                       nlohmann::json& parsed) {
+      using E = nlohmann::json::parse_event_t;
+      if (ev == E::key && depth == 1) top_key = parsed.get<std::string>();
+      if (ev == E::key && depth == 2) column = parsed.get<std::string>();
+      if (top_key != "trajectory" || depth < 3) return true;
+      if (ev == E::value && depth == 3) {
+        const auto it = wanted.find(column);
+        if (it != wanted.end()) it->second->push_back(parsed.get<double>());
+      }
+      return false;  // nothing of a trajectory column stays in the document
     };
-    col("t_s", t.t_s);
-    col("x_m", t.x_m);
-    col("y_m", t.y_m);
-    col("phi_rad", t.phi_rad);
-    col("v_m_s", t.v_m_s);
-    col("omega_rad_s", t.omega_rad_s);
+    const auto j = nlohmann::json::parse(in, keep);
+    if (!j.contains("trajectory")) throw std::runtime_error("no \"trajectory\"");
     const std::size_t n = t.t_s.size();
     if (t.x_m.size() != n || t.y_m.size() != n || t.phi_rad.size() != n)
       throw std::runtime_error("trajectory columns of unequal length");
@@ -84,15 +97,146 @@ DriveData loadDrive(const std::string& path, const config::WheelchairConfig& cfg
   return loadDrive(io::readRawlog(path), path, cfg, metric_options, truth_path);
 }
 
+namespace {
+
+EkfTracePoint tracePoint(const DriveData& d, const estimation::EstimateSample& e) {
+  EkfTracePoint p;
+  p.t_s = e.t_s;
+  p.v_m_s = e.x(0);
+  p.omega_rad_s = e.x(1);
+  p.obstacle = predictedSonarRange(d, e, p.range_m, p.range_sd_m);
+  return p;
+}
+
+// Middle of the first run of valid (non-zero) sonar readings (runs separated by > 2 s of
+// dropouts); NaN without any.
+double firstSonarRunMiddle(const io::Recording& rec) {
+  double a = NAN, b = NAN;
+  for (const auto& s : rec.sonar) {
+    if (!(s.range_m > 0)) continue;
+    if (std::isnan(a)) {
+      a = b = s.t_s;
+    } else if (s.t_s - b > 2.0) {
+      break;
+    } else {
+      b = s.t_s;
+    }
+  }
+  return std::isnan(a) ? NAN : a + 0.5 * (b - a);
+}
+
+// The EKF's estimates of a streamed run (DriveLoadOptions::keep_estimates false): the trace,
+// the poses, and the full estimates at the start and at the snapshot time (the last one at or
+// before it; `since_start_s` after the first estimate, or the absolute `at_s`).
+class ReportEkfSink : public estimation::EstimateSink {
+ public:
+  ReportEkfSink(const DriveData& d, double since_start_s, double at_s)
+      : d_(d), since_start_s_(since_start_s), at_s_(at_s) {}
+  void add(const estimation::EstimateSample& e) override {
+    d_trace_.push_back(tracePoint(d_, e));
+    poses_.add(e);
+    if (!first_) {
+      first_ = e;
+      if (std::isfinite(since_start_s_)) at_s_ = e.t_s + since_start_s_;
+    }
+    if (e.t_s <= at_s_) snapshot_ = e;
+  }
+  /// Room for n estimates at once (no doubling slack on a long drive).
+  void reserve(std::size_t n) {
+    d_trace_.reserve(n);
+    poses_.reserve(n);
+  }
+  std::vector<EkfTracePoint> takeTrace() { return std::move(d_trace_); }
+  evaluation::Trajectory takePoses() { return poses_.take(); }
+  /// The first estimate and the snapshot (when later), in time order.
+  estimation::EstimateSeries kept() const {
+    estimation::EstimateSeries v;
+    if (first_) v.push_back(*first_);
+    if (snapshot_ && (!first_ || snapshot_->t_s > first_->t_s)) v.push_back(*snapshot_);
+    return v;
+  }
+
+ private:
+  const DriveData& d_;
+  double since_start_s_, at_s_;
+  std::vector<EkfTracePoint> d_trace_;
+  evaluation::TrajectorySink poses_;
+  std::optional<estimation::EstimateSample> first_, snapshot_;
+};
+
+}  // namespace
+
 DriveData loadDrive(io::Recording rec, const std::string& path, const config::WheelchairConfig& cfg,
-                    const evaluation::MetricOptions& metric_options,
-                    const std::string& truth_path) {
+                    const evaluation::MetricOptions& metric_options, const std::string& truth_path,
+                    const DriveLoadOptions& load) {
   DriveData d;
   d.path = path;
   d.cfg = cfg;
   d.rec = std::move(rec);
-  d.est = evaluation::estimateVariants(d.rec, cfg, true);
+  const bool lean = !load.keep_estimates;
+  // Lean: the snapshot time is known before the run when given or when the sonar saw something
+  // (defaultObstacleTime's first rule); else it is found from the trace afterwards.
+  const double sonar_t = firstSonarRunMiddle(d.rec);
+  ReportEkfSink ekf_sink(d, load.snapshot_since_start_s, sonar_t);
+  evaluation::TrajectorySink baseline_sink;
+  if (lean) {  // the filters estimate once per measurement: sized once, without slack
+    const auto& r = d.rec;
+    const std::size_t n = r.encoders.size() + r.imu.size() + r.sonar.size() + r.pozyx.size() + 2;
+    ekf_sink.reserve(n);
+    baseline_sink.reserve(n);
+  }
+  d.est = evaluation::estimateVariants(d.rec, cfg, true, lean ? &ekf_sink : nullptr,
+                                       lean ? &baseline_sink : nullptr);
+  const bool ekf_failed = !d.est.errors.empty() && !d.est.errors.front().second.empty();
+  if (lean && !ekf_failed) {  // (a failed run keeps nothing, as the stored one)
+    d.ekf_trace = ekf_sink.takeTrace();
+    d.est.ekf.estimates = ekf_sink.kept();
+  } else if (!lean) {
+    d.ekf_trace.reserve(d.est.ekf.estimates.size());
+    for (const auto& e : d.est.ekf.estimates) d.ekf_trace.push_back(tracePoint(d, e));
+  }
+  if (!d.ekf_trace.empty()) {
+    d.t0_s = d.ekf_trace.front().t_s;
+    d.t1_s = d.ekf_trace.back().t_s;
+  } else {
+    d.t0_s = d.rec.startTime();
+    d.t1_s = d.rec.endTime();
+  }
+  if (lean && !std::isfinite(load.snapshot_since_start_s) && std::isnan(sonar_t) &&
+      !d.ekf_trace.empty()) {
+    // No sonar echo: the default time comes from the obstacle estimates' span. Unless it is the
+    // start (kept), the EKF runs once more to keep the estimate there (an obstacle estimate
+    // without any echo: not seen on the bundled drives).
+    const double t_at = defaultObstacleTime(d);
+    if (t_at > d.t0_s) {
+      ReportEkfSink again(d, NAN, t_at);
+      evaluation::estimateVariants(d.rec, cfg, false, &again);
+      d.est.ekf.estimates = again.kept();
+    }
+  }
+
   d.gt = evaluation::groundTruthOf(d.rec, cfg);
+  const auto& r = d.rec;
+  d.counts = {r.encoders.size(), r.imu.size(),   r.motors.size(),
+              r.sonar.size(),    r.pozyx.size(), r.ground_truth.size()};
+  d.gyro.reserve(r.imu.size());
+  for (const auto& s : r.imu) d.gyro.push_back({s.t_s, s.gyro_z_rad_s});
+  d.currents.reserve(r.motors.size());
+  for (const auto& s : r.motors) d.currents.push_back({s.t_s, s.current_right_A, s.current_left_A});
+  if (lean) {  // the figures need only the sonar stream of the recording from here on
+    io::Recording kept;
+    kept.sonar = std::move(d.rec.sonar);
+    d.rec = std::move(kept);
+    d.ekf_trace.shrink_to_fit();  // (sized for one estimate per measurement)
+  }
+  auto speeds = [](const std::vector<estimation::DeadReckoningSample>& dr) {
+    std::vector<SpeedPoint> v;
+    v.reserve(dr.size());
+    for (const auto& s : dr) v.push_back({s.t_s, s.v_m_s, s.omega_rad_s});
+    return v;
+  };
+  d.encoder_speeds = speeds(d.est.encoders);
+  d.phase_speeds = speeds(d.est.encoders_gyro.empty() ? d.est.encoders : d.est.encoders_gyro);
   d.truth = readTruthJson(truth_path.empty() ? path + ".truth.json" : truth_path);
 
   evaluation::MetricOptions mo = metric_options;
@@ -109,9 +253,22 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
     row.error = err;
     if (err.empty()) {
       try {
-        auto t = d.est.trajectory(variant);
+        auto t = lean && variant == "ekf"        ? ekf_sink.takePoses()
+                 : lean && variant == "baseline" ? baseline_sink.take()
+                                                 : d.est.trajectory(variant);
         row.n_estimates = t.size();
         row.metrics = evaluation::computeMetrics(t, d.gt.samples, mo);
+        if (lean) {  // from here on only drawn: the points drawn (Fig. 5)
+          const auto keep = pathPointsToDraw(
+              t.size(), [&](std::size_t i) { return t[i].x_m; },
+              [&](std::size_t i) { return t[i].y_m; });
+          if (keep.size() < t.size()) {
+            evaluation::Trajectory drawn;
+            drawn.reserve(keep.size());
+            for (std::size_t i : keep) drawn.push_back(t[i]);
+            t = std::move(drawn);
+          }
+        }
         d.trajectories[variant] = std::move(t);
       } catch (const std::exception& e) {
         row.error = e.what();
@@ -121,14 +278,10 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
     d.metrics.rows.push_back(std::move(row));
   }
   d.metrics.failed_recordings = failed ? 1 : 0;
-  if (!d.est.ekf.estimates.empty()) {
-    d.t0_s = d.est.ekf.estimates.front().t_s;
-    d.t1_s = d.est.ekf.estimates.back().t_s;
-  } else {
-    d.t0_s = d.rec.startTime();
-    d.t1_s = d.rec.endTime();
+  if (lean) {  // their trajectories and speeds are taken
+    std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders);
+    std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders_gyro);
   }
-
   // Ground truth in the start frame.
   if (!d.gt.samples.empty()) {
     evaluation::SE2 T_inv;  // gt frame -> start frame
@@ -163,22 +316,12 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
 
 double defaultObstacleTime(const DriveData& d) {
   // Middle of the first run of valid (non-zero) sonar readings: the chair approaches the
-  // obstacle and the estimate is in front of it (runs separated by > 2 s of dropouts).
-  double a = NAN, b = NAN;
-  for (const auto& s : d.rec.sonar) {
-    if (!(s.range_m > 0)) continue;
-    if (std::isnan(a)) {
-      a = b = s.t_s;
-    } else if (s.t_s - b > 2.0) {
-      break;
-    } else {
-      b = s.t_s;
-    }
-  }
-  if (!std::isnan(a)) return a + 0.5 * (b - a);
+  // obstacle and the estimate is in front of it.
+  const double t_sonar = firstSonarRunMiddle(d.rec);
+  if (!std::isnan(t_sonar)) return t_sonar;
   double e0 = NAN, e1 = NAN;
-  for (const auto& e : d.est.ekf.estimates)
-    if (e.obstacle_initialised) {
+  for (const auto& e : d.ekf_trace)
+    if (e.obstacle) {
       if (std::isnan(e0)) e0 = e.t_s;
       e1 = e.t_s;
     }

@@ -17,6 +17,7 @@
 #include "libwheelchair/evaluation/Batch.h"
 #include "libwheelchair/io/Recording.h"
 
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -41,6 +42,48 @@ struct TruthInfo {
 /// throws std::runtime_error when it exists but cannot be parsed.
 std::optional<TruthInfo> readTruthJson(const std::string& path);
 
+/// One EKF estimate as the figures draw it (Fig. 6a, 6b, 8 and the default Fig. 7 time): 48 B
+/// instead of the ~0.5 kB estimate with its covariance.
+struct EkfTracePoint {
+  double t_s = 0;
+  double v_m_s = 0, omega_rad_s = 0;   ///< x(0), x(1) of the estimate
+  bool obstacle = false;               ///< obstacle estimate initialised
+  double range_m = 0, range_sd_m = 0;  ///< predictedSonarRange (when `obstacle`), m
+};
+
+/// What the figures draw of the recording's gyro (Fig. 6b) and motor currents (Fig. 6c), and
+/// how many samples of each stream it has (index.md): a 64 B IMU sample becomes 16 B.
+struct GyroPoint {
+  double t_s = 0, gyro_z_rad_s = 0;
+};
+struct CurrentPoint {
+  double t_s = 0, current_right_A = 0, current_left_A = 0;
+};
+/// Speeds of a dead reckoning (Fig. 6a, 6b and the shaded phases): 24 B of its 48 B sample.
+struct SpeedPoint {
+  double t_s = 0, v_m_s = 0, omega_rad_s = 0;
+};
+struct SampleCounts {
+  std::size_t encoders = 0, imu = 0, motors = 0, sonar = 0, pozyx = 0, ground_truth = 0;
+};
+
+/// What loadDrive keeps. `keep_estimates` false (`wheelchair report`; memory bounded by what the
+/// figures draw, not by the filters' full output):
+///   * the filters stream their estimates (evaluation::estimateVariants with sinks) into the
+///     trace and the pose trajectories; of the full estimates only those at the start and at
+///     `snapshot_since_start_s` (s after the first estimate, `report --at`; NaN:
+///     defaultObstacleTime) are kept in `est.ekf.estimates`: ekfAt() is exact at those times;
+///   * `rec` keeps only its sonar stream once the estimates, the ground truth and the figures'
+///     series are made; `est.encoders` / `est.encoders_gyro` are empty once their trajectories
+///     and speeds are taken;
+///   * `trajectories` keep, once their metrics are computed, the points drawn
+///     (pathPointsToDraw, Plot.h: every point up to Plot::kDecimateAbove).
+/// The figures are the same either way.
+struct DriveLoadOptions {
+  bool keep_estimates = true;
+  double snapshot_since_start_s = std::numeric_limits<double>::quiet_NaN();  ///< s
+};
+
 struct DriveData {
   std::string path;
   config::WheelchairConfig cfg;
@@ -51,8 +94,15 @@ struct DriveData {
   std::vector<evaluation::Position2DStamped> gt_start;  ///< ground truth in the start frame
   std::string gt_frame_note;                            ///< how gt_start was obtained
   std::optional<TruthInfo> truth;
-  evaluation::BatchResult metrics;  ///< one row per variant
-  double t0_s = 0, t1_s = 0;        ///< time span of the EKF estimates
+  evaluation::BatchResult metrics;         ///< one row per variant
+  double t0_s = 0, t1_s = 0;               ///< time span of the EKF estimates
+  std::vector<EkfTracePoint> ekf_trace;    ///< every EKF estimate, as the figures draw it
+  std::vector<GyroPoint> gyro;             ///< the recording's IMU yaw rate (time order as read)
+  std::vector<CurrentPoint> currents;      ///< the recording's motor currents (time order as read)
+  SampleCounts counts;                     ///< samples per stream of the recording
+  std::vector<SpeedPoint> encoder_speeds;  ///< of est.encoders (Fig. 6a, 6b)
+  /// Of est.encoders_gyro, or est.encoders without it: the drive's phases (straight, turn).
+  std::vector<SpeedPoint> phase_speeds;
 
   /// EKF estimate at (the last sample at or before) t.
   const estimation::EstimateSample* ekfAt(double t_s) const;
@@ -66,7 +116,7 @@ DriveData loadDrive(const std::string& path, const config::WheelchairConfig& cfg
 /// The same for a recording already in memory (`path` names it and locates the truth file).
 DriveData loadDrive(io::Recording rec, const std::string& path, const config::WheelchairConfig& cfg,
                     const evaluation::MetricOptions& metric_options,
-                    const std::string& truth_path = "");
+                    const std::string& truth_path = "", const DriveLoadOptions& load = {});
 
 /// A default instant for Fig. 7 / the viewer: the middle of the first run of valid (non-zero)
 /// sonar readings; without any, 40 % into the span where the EKF has an obstacle estimate.

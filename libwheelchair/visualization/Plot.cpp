@@ -449,6 +449,42 @@ void drawBackground(Raster& r, const Plot& p, const Frame& f, const std::vector<
 }
 
 // Bands, shapes, series (with markers) and annotations, in that order.
+// A long line series (more than kDecimateAbove points, no markers) is thinned in output
+// pixels before it is drawn (Plot::kDecimateAbove, Plot.h): of each run of consecutive points in
+// one supersampled pixel column (1/3 px) only the first, the lowest, the highest and the last
+// are kept, in their order, so every column spans the same values. Non-finite points (line
+// breaks) are kept and end a run. Shorter series are drawn point for point.
+Pts thinnedForDrawing(Pts pts) {
+  if (pts.size() <= Plot::kDecimateAbove) return pts;
+  Pts out;
+  std::size_t a = 0;                 // start of the current run
+  auto flush = [&](std::size_t b) {  // the run [a, b)
+    if (a >= b) return;
+    std::size_t lo = a, hi = a;
+    for (std::size_t i = a; i < b; ++i) {
+      if (pts[i].second < pts[lo].second) lo = i;
+      if (pts[i].second > pts[hi].second) hi = i;
+    }
+    std::size_t keep[4] = {a, std::min(lo, hi), std::max(lo, hi), b - 1};
+    for (int k = 0; k < 4; ++k)
+      if (k == 0 || keep[k] != keep[k - 1]) out.push_back(pts[keep[k]]);
+  };
+  auto column = [](double x) { return std::floor(x * 3.0); };
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const bool finite = std::isfinite(pts[i].first) && std::isfinite(pts[i].second);
+    if (!finite) {
+      flush(i);
+      out.push_back(pts[i]);
+      a = i + 1;
+    } else if (i > a && column(pts[i].first) != column(pts[a].first)) {
+      flush(i);
+      a = i;
+    }
+  }
+  flush(pts.size());
+  return out;
+}
+
 void drawData(Raster& r, const Plot& p, const Frame& f) {
   for (const auto& b : p.bands)
     // Filled per quad (the envelope may self-intersect where lo and hi cross).
@@ -469,6 +505,7 @@ void drawData(Raster& r, const Plot& p, const Frame& f) {
     const std::size_t n = std::min(s.x.size(), s.y.size());
     pts.reserve(n);
     for (std::size_t i = 0; i < n; ++i) pts.emplace_back(f.X(s.x[i]), f.Y(s.y[i]));
+    if (s.marker == Marker::None) pts = thinnedForDrawing(std::move(pts));
     r.polyline(pts, s.color, s.width_px, s.line);
     if (s.marker != Marker::None)
       for (const auto& [x, y] : pts)
@@ -553,6 +590,33 @@ void drawLegend(Raster& r, const Plot& p, const Frame& f, double legend_w) {
 }
 
 }  // namespace
+
+std::vector<std::size_t> pathPointsToDraw(std::size_t n,
+                                          const std::function<double(std::size_t)>& x,
+                                          const std::function<double(std::size_t)>& y) {
+  std::vector<std::size_t> keep;
+  if (n <= Plot::kDecimateAbove) {
+    keep.resize(n);
+    for (std::size_t i = 0; i < n; ++i) keep[i] = i;
+    return keep;
+  }
+  double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double px = x(i), py = y(i);
+    if (!std::isfinite(px) || !std::isfinite(py)) continue;
+    x0 = std::min(x0, px), x1 = std::max(x1, px), y0 = std::min(y0, py), y1 = std::max(y1, py);
+  }
+  const double cell = std::max(x1 - x0, y1 - y0) / 4000.0;
+  double lx = NAN, ly = NAN;  // the last point kept
+  for (std::size_t i = 0; i < n; ++i) {
+    const double px = x(i), py = y(i);
+    const bool finite = std::isfinite(px) && std::isfinite(py);
+    if (finite && i + 1 < n && std::fabs(px - lx) < cell && std::fabs(py - ly) < cell) continue;
+    keep.push_back(i);
+    lx = px, ly = py;
+  }
+  return keep;
+}
 
 Raster Plot::render(int width, int height) const {
   Raster r(width, height, 3);

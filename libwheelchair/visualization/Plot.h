@@ -11,7 +11,9 @@
 //   p.save("v.png", 1000, 600);
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
@@ -141,6 +143,11 @@ struct Plot {
   bool equal_aspect = false;
   std::optional<std::pair<double, double>> x_range, y_range;  ///< default: data + 5 %
   LegendPosition legend = LegendPosition::TopRight;
+  /// A line series (no markers) of more points than this is thinned before drawing: of each run
+  /// of consecutive points in one supersampled pixel column (1/3 px) the first, lowest, highest
+  /// and last are drawn, so the figure spans the same values in every column; a one-hour drive's
+  /// 560 000 EKF estimates become at most ~4 per column (docs/visualization.md).
+  static constexpr std::size_t kDecimateAbove = 20000;
 
   /// Renders into a new raster of width x height output pixels.
   Raster render(int width, int height) const;
@@ -148,6 +155,15 @@ struct Plot {
   /// The data area of the last render (output pixels): x0, y0, x1, y1.
   mutable double area[4] = {0, 0, 0, 0};
 };
+
+/// The points of a path (x-y plot, e.g. a trajectory: point i is (x(i), y(i)), i < n) that are
+/// drawn: all of them up to Plot::kDecimateAbove; above, a point closer than 1/4000 of the
+/// path's extent (max of its x and y spans) to the last one kept, in x and in y, is skipped (under
+/// 1/3 px in a figure up to 1300 px wide); the last point and non-finite points (breaks) are
+/// always kept. Returns the indices kept, in order.
+std::vector<std::size_t> pathPointsToDraw(std::size_t n,
+                                          const std::function<double(std::size_t)>& x,
+                                          const std::function<double(std::size_t)>& y);
 
 /// "Nice" tick positions covering [lo, hi] (about `target` of them: steps 1, 2, 5 x 10^k).
 std::vector<double> niceTicks(double lo, double hi, int target = 7);

@@ -28,7 +28,7 @@ Color mix(Color c, double a) {  // c over white with opacity a
 /// like the three tasks marked in the paper's Fig. 6.
 std::vector<XSpan> motionPhases(const DriveData& d, double t0) {
   std::vector<XSpan> out;
-  const auto& dr = d.est.encoders_gyro.empty() ? d.est.encoders : d.est.encoders_gyro;
+  const auto& dr = d.phase_speeds;
   if (dr.size() < 2) return out;
   struct Run {
     int kind;
@@ -60,13 +60,24 @@ std::vector<XSpan> motionPhases(const DriveData& d, double t0) {
   return out;
 }
 
+// Appends the points of a path (Fig. 5) that are drawn (pathPointsToDraw, Plot.h) to `s`.
+template <class X, class Y>
+void appendPath(Series& s, std::size_t n, X x, Y y) {
+  const auto keep = pathPointsToDraw(n, x, y);
+  s.x.reserve(s.x.size() + keep.size());
+  s.y.reserve(s.y.size() + keep.size());
+  for (std::size_t i : keep) s.x.push_back(x(i)), s.y.push_back(y(i));
+}
+
 Series trajSeries(const evaluation::Trajectory& t, const std::string& variant) {
   Series s;
   s.label = variantLabel(variant);
   s.color = variantColor(variant);
   s.width_px = variant == "ekf" ? 2.6 : 2.0;
   if (variant == "baseline") s.line = LineStyle::Dashed;
-  for (const auto& p : t) s.x.push_back(p.x_m), s.y.push_back(p.y_m);
+  appendPath(
+      s, t.size(), [&](std::size_t i) { return t[i].x_m; },
+      [&](std::size_t i) { return t[i].y_m; });
   return s;
 }
 
@@ -84,6 +95,8 @@ Plot timePlot(const DriveData& d, const std::string& title, const std::string& y
 // `s` with the samples appended: x = t_s - t0 (s), y = value(sample).
 template <class Samples, class Value>
 Series overTime(Series s, const Samples& samples, double t0, Value value) {
+  s.x.reserve(s.x.size() + samples.size());
+  s.y.reserve(s.y.size() + samples.size());
   for (const auto& x : samples) s.x.push_back(x.t_s - t0), s.y.push_back(value(x));
   return s;
 }
@@ -92,6 +105,8 @@ Series overTime(Series s, const Samples& samples, double t0, Value value) {
 Series truthOverTime(const DriveData& d, const std::string& label,
                      const std::vector<double>& values, LineStyle line) {
   Series s{label, {}, {}, variantColor("truth"), line, 1.6};
+  s.x.reserve(d.truth->t_s.size() / 2 + 1);
+  s.y.reserve(d.truth->t_s.size() / 2 + 1);
   for (std::size_t i = 0; i < d.truth->t_s.size(); i += 2)
     s.x.push_back(d.truth->t_s[i] - d.t0_s), s.y.push_back(values[i]);
   return s;
@@ -134,8 +149,10 @@ void figureTrajectories(const DriveData& d, const std::string& png, int w, int h
     s.color = variantColor("truth");
     s.width_px = 1.6;
     s.line = LineStyle::Dashed;
-    s.x = d.truth->x_m;
-    s.y = d.truth->y_m;
+    const auto& tr = *d.truth;
+    appendPath(
+        s, tr.x_m.size(), [&](std::size_t i) { return tr.x_m[i]; },
+        [&](std::size_t i) { return tr.y_m[i]; });
     p.series.push_back(s);
   }
   if (!d.gt_start.empty()) {
@@ -174,10 +191,10 @@ void figureVelocity(const DriveData& d, const std::string& png, int w, int h) {
   // visible where they agree (which is most of a good drive).
   p.series.push_back(overTime(
       Series{"v from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 3.4},
-      d.est.encoders, t0, [](const auto& s) { return s.v_m_s; }));
+      d.encoder_speeds, t0, [](const auto& s) { return s.v_m_s; }));
   p.series.push_back(
       overTime(Series{"v estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Solid, 1.3},
-               d.est.ekf.estimates, t0, [](const auto& e) { return e.x(0); }));
+               d.ekf_trace, t0, [](const EkfTracePoint& e) { return e.v_m_s; }));
   if (d.truth && !d.truth->v_m_s.empty())
     p.series.push_back(truthOverTime(d, "true v (simulation)", d.truth->v_m_s, LineStyle::Dashed));
   p.save(png, w, h);
@@ -188,13 +205,13 @@ void figureAngularVelocity(const DriveData& d, const std::string& png, int w, in
   Plot p = timePlot(d, "Fig. 6b - angular velocity: gyro vs encoders", "omega (rad/s)");
   p.series.push_back(overTime(
       Series{"omega from the gyro", {}, {}, variantColor("encoders_gyro"), LineStyle::Solid, 1.4},
-      d.rec.imu, t0, [](const auto& s) { return s.gyro_z_rad_s; }));
+      d.gyro, t0, [](const auto& s) { return s.gyro_z_rad_s; }));
   p.series.push_back(overTime(
       Series{"omega from the encoders", {}, {}, variantColor("encoders"), LineStyle::Solid, 1.8},
-      d.est.encoders, t0, [](const auto& s) { return s.omega_rad_s; }));
+      d.encoder_speeds, t0, [](const auto& s) { return s.omega_rad_s; }));
   p.series.push_back(overTime(
       Series{"omega estimated by the EKF", {}, {}, variantColor("ekf"), LineStyle::Dashed, 1.6},
-      d.est.ekf.estimates, t0, [](const auto& e) { return e.x(1); }));
+      d.ekf_trace, t0, [](const EkfTracePoint& e) { return e.omega_rad_s; }));
   if (d.truth && !d.truth->omega_rad_s.empty())
     p.series.push_back(
         truthOverTime(d, "true omega (simulation)", d.truth->omega_rad_s, LineStyle::Dotted));
@@ -205,12 +222,12 @@ void figureCurrents(const DriveData& d, const std::string& png, int w, int h) {
   const double t0 = d.t0_s;
   Plot p = timePlot(d, "Fig. 6c - motor currents", "current (A)");
   p.series.push_back(
-      overTime(Series{"right motor (i_1)", {}, {}, colors::red, LineStyle::Solid, 1.5},
-               d.rec.motors, t0, [](const auto& s) { return s.current_right_A; }));
+      overTime(Series{"right motor (i_1)", {}, {}, colors::red, LineStyle::Solid, 1.5}, d.currents,
+               t0, [](const auto& s) { return s.current_right_A; }));
   p.series.push_back(
-      overTime(Series{"left motor (i_2)", {}, {}, colors::blue, LineStyle::Solid, 1.5},
-               d.rec.motors, t0, [](const auto& s) { return s.current_left_A; }));
-  if (d.rec.motors.empty())
+      overTime(Series{"left motor (i_2)", {}, {}, colors::blue, LineStyle::Solid, 1.5}, d.currents,
+               t0, [](const auto& s) { return s.current_left_A; }));
+  if (d.currents.empty())
     p.annotations.push_back({0, 0, "no motor currents in this recording", colors::red, 0.9});
   p.save(png, w, h);
 }
@@ -335,10 +352,10 @@ void figureDistance(const DriveData& d, const std::string& png, int w, int h) {
   Series hi{"", {}, {}, colors::red, LineStyle::Dotted, 1.6};
   Band band{"", {}, {}, {}, mix(colors::red, 0.15), 1.0};
   bool prev = false;
-  for (const auto& e : d.est.ekf.estimates) {
-    double r, sd;
+  for (const auto& e : d.ekf_trace) {
+    const double r = e.range_m, sd = e.range_sd_m;
     const double x = e.t_s - t0;
-    if (!predictedSonarRange(d, e, r, sd)) {
+    if (!e.obstacle) {
       if (prev) {  // break the lines
         est.x.push_back(x), est.y.push_back(NAN);
         lo.x.push_back(x), lo.y.push_back(NAN);
@@ -399,8 +416,8 @@ std::string indexMarkdown(const DriveData& d, const std::vector<ReportFigure>& f
                     d.t1_s - d.t0_s, d.t0_s, d.t1_s);
   md += fmt::format(
       "* samples: encoders {}, imu {}, motors {}, sonar {}, pozyx {}, ground truth {}\n",
-      d.rec.encoders.size(), d.rec.imu.size(), d.rec.motors.size(), d.rec.sonar.size(),
-      d.rec.pozyx.size(), d.rec.ground_truth.size());
+      d.counts.encoders, d.counts.imu, d.counts.motors, d.counts.sonar, d.counts.pozyx,
+      d.counts.ground_truth);
   md += "* ground truth: " + std::string(evaluation::toString(d.gt.source)) +
         (d.gt_frame_note.empty() ? "" : " (figures: " + d.gt_frame_note + ")") + "\n";
   if (d.truth)
@@ -409,7 +426,7 @@ std::string indexMarkdown(const DriveData& d, const std::vector<ReportFigure>& f
   md += "* configuration: `" + d.cfg.origin() + "` (full text below)\n\n";
   md += "## Metrics\n\n" + evaluation::batchMarkdown(d.metrics, d.cfg, false) + "\n";
   const auto& ekf = d.est.ekf;
-  if (!ekf.estimates.empty()) {
+  if (!d.ekf_trace.empty()) {
     md +=
         "## EKF sensor statistics\n\n| sensor | used | rejected | dropouts | mean NIS "
         "|\n|---|---:|---:|---:|---:|\n";

@@ -2,8 +2,11 @@
 // index.md has the metrics table and the configuration.
 #include "VizTestUtil.h"
 
+#include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/visualization/DriveData.h"
 #include "libwheelchair/visualization/Report.h"
 
+#include <cmath>
 #include <filesystem>
 
 namespace wheelchair::visualization {
@@ -47,6 +50,60 @@ TEST(Report, WritesEveryFigureWithContentAndTheIndex) {
   EXPECT_NE(index.find("```ini"), std::string::npos);
   EXPECT_NE(index.find("[vehicle]"), std::string::npos);
   EXPECT_NE(index.find("fig7_obstacle.png"), std::string::npos);
+}
+
+// `report` loads lean (DriveLoadOptions::keep_estimates false: the filters stream into the
+// trace, the recording keeps only its sonar): what the figures draw must be what the full load
+// (`view`, the diagnosis figures) gives, estimate for estimate.
+TEST(Report, LeanLoadKeepsWhatTheFiguresDraw) {
+  const std::string rawlog = testutil::SimulatedDrive::rawlog();
+  const config::WheelchairConfig cfg;
+  const evaluation::MetricOptions mo;
+  const DriveData full = loadDrive(rawlog, cfg, mo);
+  DriveLoadOptions lo;
+  lo.keep_estimates = false;
+  const DriveData lean = loadDrive(io::readRawlog(rawlog), rawlog, cfg, mo, "", lo);
+  ASSERT_GT(full.ekf_trace.size(), 100u);
+  ASSERT_EQ(lean.ekf_trace.size(), full.ekf_trace.size());
+  for (std::size_t i = 0; i < full.ekf_trace.size(); ++i) {
+    const auto &a = full.ekf_trace[i], &b = lean.ekf_trace[i];
+    ASSERT_EQ(a.t_s, b.t_s);
+    ASSERT_EQ(a.v_m_s, b.v_m_s);
+    ASSERT_EQ(a.omega_rad_s, b.omega_rad_s);
+    ASSERT_EQ(a.obstacle, b.obstacle);
+    ASSERT_EQ(a.range_m, b.range_m);
+    ASSERT_EQ(a.range_sd_m, b.range_sd_m);
+  }
+  EXPECT_TRUE(full.est.ekf.estimates.size() > 2 && lean.est.ekf.estimates.size() <= 2);
+  EXPECT_EQ(lean.rec.imu.size(), 0u);  // only the sonar is kept
+  EXPECT_EQ(lean.rec.sonar.size(), full.rec.sonar.size());
+  EXPECT_EQ(lean.counts.imu, full.rec.imu.size());
+  EXPECT_EQ(lean.gyro.size(), full.rec.imu.size());
+  EXPECT_EQ(lean.t0_s, full.t0_s);
+  EXPECT_EQ(lean.t1_s, full.t1_s);
+  // Fig. 7's estimate: the one at the default time, and at `--at`.
+  const double t_at = defaultObstacleTime(full);
+  EXPECT_EQ(defaultObstacleTime(lean), t_at);
+  ASSERT_NE(lean.ekfAt(t_at), nullptr);
+  EXPECT_EQ(lean.ekfAt(t_at)->t_s, full.ekfAt(t_at)->t_s);
+  EXPECT_EQ(lean.ekfAt(t_at)->P, full.ekfAt(t_at)->P);
+  lo.snapshot_since_start_s = 6;
+  const DriveData at6 = loadDrive(io::readRawlog(rawlog), rawlog, cfg, mo, "", lo);
+  EXPECT_EQ(at6.ekfAt(at6.t0_s + 6)->x, full.ekfAt(full.t0_s + 6)->x);
+  // Same trajectories (a 20 s drive is below the drawing threshold) and metrics.
+  ASSERT_EQ(lean.trajectories.size(), full.trajectories.size());
+  for (const auto& [v, t] : full.trajectories) {
+    ASSERT_EQ(lean.trajectories.at(v).size(), t.size()) << v;
+    EXPECT_EQ(lean.trajectories.at(v).back().x_m, t.back().x_m) << v;
+  }
+  ASSERT_EQ(lean.metrics.rows.size(), full.metrics.rows.size());
+  for (std::size_t i = 0; i < full.metrics.rows.size(); ++i) {
+    const double a = lean.metrics.rows[i].metrics.ate_rmse_m,
+                 b = full.metrics.rows[i].metrics.ate_rmse_m;
+    EXPECT_TRUE(a == b || (std::isnan(a) && std::isnan(b))) << full.metrics.rows[i].variant;
+  }
+  for (int s = 0; s < estimation::kNumSensors; ++s)
+    EXPECT_EQ(lean.est.ekf.sensors[s].used, full.est.ekf.sensors[s].used);
 }
 
 TEST(Report, BadInputExitsWithOne) {
