@@ -370,13 +370,15 @@ namespace {
 // Packed Riccati right-hand side: out = lower triangle (column-major) of F P + P F' + Qs, with
 // P given as its packed lower triangle yP and Qs = (Q + Q') / 2 packed. F is used row-sparse:
 // a kinematic model has a handful of nonzeros per row, so F P costs nnz(F) n instead of n^3.
-// NC > 0: the dimension known at compile time (unrolled loops); NC = 0: n at run time. Work
-// arrays P and FP: n x n.
-template <int NC>
-void riccatiPacked(int n_rt, const double* __restrict yP, const double* __restrict F,
+// NC > 0: the dimension known at compile time (unrolled loops); NC = 0: n at run time. F is
+// column-major with leading dimension LD (0: ld at run time), of which the leading n x n
+// block is used. Work arrays P and FP: n x n.
+template <int NC, int LD = NC>
+void riccatiPacked(int n_rt, int ld_rt, const double* __restrict yP, const double* __restrict F,
                    const double* __restrict Qs, double* __restrict out, double* __restrict P,
                    double* __restrict FP) {
   const int n = NC > 0 ? NC : n_rt;
+  const int ld = LD > 0 ? LD : ld_rt;  // leading dimension of F (>= n: its leading block)
   int k = 0;
   for (int c = 0; c < n; ++c)
     for (int r = c; r < n; ++r) {
@@ -391,19 +393,19 @@ void riccatiPacked(int n_rt, const double* __restrict yP, const double* __restri
   for (int r = 0; r < n; ++r) {
     double* FPr = FP + r * n;
     int j = 0;
-    while (j < n && F[r + j * n] == 0.0) ++j;
+    while (j < n && F[r + j * ld] == 0.0) ++j;
     if (j == n) {
       for (int i = 0; i < n; ++i) FPr[i] = 0.0;
       continue;
     }
     {
-      const double v = F[r + j * n];
+      const double v = F[r + j * ld];
       const double* Pj = P + j * n;
 #pragma GCC unroll 16
       for (int i = 0; i < n; ++i) FPr[i] = 0.0 + v * Pj[i];
     }
     for (++j; j < n; ++j) {
-      const double v = F[r + j * n];
+      const double v = F[r + j * ld];
       if (v == 0.0) continue;
       const double* Pj = P + j * n;
 #pragma GCC unroll 16
@@ -438,17 +440,16 @@ void CdEkf::evalRhs(double tau, const double* y, double* ydot) {
     packSymmetrised(wQ_.topLeftCorner(n, n), qp.data());
   }
   for (int i = 0; i < n; ++i) ydot[i] = wxd_(i);
+  // With a held tail only F's leading n x n block is used (the held rows of P are zero).
   const double* F = wF_.data();
-  if (n < n_) {  // the leading n x n block of F, contiguous (the held rows of P are zero)
-    wFHeld_ = wF_.topLeftCorner(n, n);
-    F = wFHeld_.data();
-  }
-  if (n == 9)  // the wheelchair filter (or its sensor-error states held, all closed)
-    riccatiPacked<9>(n, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
+  if (n == 9 && n_ == 9)  // the wheelchair filter
+    riccatiPacked<9>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
+  else if (n == 9 && n_ == 12)  // its sensor-error states held (all closed)
+    riccatiPacked<9, 12>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
   else if (n == 12)  // the wheelchair filter with its sensor-error states
-    riccatiPacked<12>(n, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
+    riccatiPacked<12>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
   else
-    riccatiPacked<0>(n, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
+    riccatiPacked<0, 0>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
 }
 
 void CdEkf::reset(double t0_s, const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0) {

@@ -205,7 +205,7 @@ class CdEkf {
   const CdInput* u_ = nullptr;
   // Work space of the right-hand side (sized once).
   Eigen::VectorXd wx_, wu_, wxd_;
-  Eigen::MatrixXd wP_, wF_, wQ_, wFP_, wFHeld_;
+  Eigen::MatrixXd wP_, wF_, wQ_, wFP_;
   std::vector<double> ys_, yds_;     // packed scratch
   std::vector<double> qPacked_;      // packed (Q + Q') / 2 when the model's Q is constant
   std::vector<double> qPackedHeld_;  // the same for the leading n - held_tail_ states
