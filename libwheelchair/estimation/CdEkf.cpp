@@ -37,7 +37,11 @@ struct CdEkf::Cvode {
   bool live = false;
   double t_live = 0;
   long nst = 0, nfe = 0, netf = 0, nni = 0;  // CVODE counters at the end of the last call
-  std::vector<double> ycheck;                // packed (x, P) to compare with y
+  int m = 0;                                 ///< integrated states (packed size m + m(m+1)/2)
+  /// Factor on the error weights: sqrt(N_m / N_n) for the held set-up, so that its WRMS norms
+  /// (over N_m components) equal those of the full system, whose extra components are zero.
+  double wscale = 1.0;
+  std::vector<double> ycheck;  // packed (x, P) to compare with y
   /// Adaptive initial step (CvodeOptions::adaptive_initial_step): the hint for the next
   /// restart (s; 0 = let CVODE estimate it) and whether this integration started with a
   /// restart whose first step is still to be scored.
@@ -69,13 +73,14 @@ struct CdEkfAccess {
   /// 1 atol, 1 / that; the same operations) in one pass instead of three vector kernels.
   static int ewt(N_Vector y, N_Vector w, void* user) {
     const auto* self = static_cast<const CdEkf*>(user);
+    const double ws = self->act_->wscale;
     const sunindextype n = NV_LENGTH_S(y);
     const double* yd = NV_DATA_S(y);
-    const double* at = NV_DATA_S(self->cv_->abstol);
+    const double* at = NV_DATA_S(self->act_->abstol);
     double* wd = NV_DATA_S(w);
     const double rtol = self->opt_.rel_tol;
 #pragma GCC ivdep
-    for (sunindextype i = 0; i < n; ++i) wd[i] = 1.0 / (rtol * std::fabs(yd[i]) + 1.0 * at[i]);
+    for (sunindextype i = 0; i < n; ++i) wd[i] = ws / (rtol * std::fabs(yd[i]) + 1.0 * at[i]);
     return 0;
   }
 };
@@ -315,37 +320,45 @@ CdEkf::CdEkf(const CdModel& model, const CvodeOptions& options)
   const int N = n_ + packedSize(n_);
   ys_.resize(N);
   yds_.resize(N);
+  cv_ = newCvode(n_);
+  act_ = cv_.get();
+}
 
-  cv_ = std::make_unique<Cvode>();
-  cv_->ycheck.resize(N);
-  check(SUNContext_Create(nullptr, &cv_->ctx), "SUNContext_Create");
-  cv_->y = N_VNew_Serial(N, cv_->ctx);
-  cv_->abstol = N_VNew_Serial(N, cv_->ctx);
-  if (!cv_->y || !cv_->abstol) throw std::runtime_error("CdEkf: N_VNew_Serial failed");
+std::unique_ptr<CdEkf::Cvode> CdEkf::newCvode(int m) const {
+  const int N = m + packedSize(m);
+  auto cv = std::make_unique<Cvode>();
+  cv->m = m;
+  cv->wscale = std::sqrt(static_cast<double>(N) / (n_ + packedSize(n_)));
+  cv->ycheck.resize(N);
+  check(SUNContext_Create(nullptr, &cv->ctx), "SUNContext_Create");
+  cv->y = N_VNew_Serial(N, cv->ctx);
+  cv->abstol = N_VNew_Serial(N, cv->ctx);
+  if (!cv->y || !cv->abstol) throw std::runtime_error("CdEkf: N_VNew_Serial failed");
   // Before CVodeInit and the solvers clone y: the clones copy the ops table.
-  kern::install(cv_->y);
-  kern::install(cv_->abstol);
-  double* at = N_VGetArrayPointer(cv_->abstol);
-  for (int i = 0; i < N; ++i) at[i] = (i < n_) ? opt_.abs_tol_state : opt_.abs_tol_cov;
+  kern::install(cv->y);
+  kern::install(cv->abstol);
+  double* at = N_VGetArrayPointer(cv->abstol);
+  for (int i = 0; i < N; ++i) at[i] = (i < m) ? opt_.abs_tol_state : opt_.abs_tol_cov;
   const bool bdf = opt_.method == CvodeOptions::Method::Bdf;
-  cv_->mem = CVodeCreate(bdf ? CV_BDF : CV_ADAMS, cv_->ctx);
-  if (!cv_->mem) throw std::runtime_error("CdEkf: CVodeCreate failed");
+  cv->mem = CVodeCreate(bdf ? CV_BDF : CV_ADAMS, cv->ctx);
+  if (!cv->mem) throw std::runtime_error("CdEkf: CVodeCreate failed");
+  return cv;
 }
 
 CdEkf::~CdEkf() = default;
 
-void CdEkf::pack(double* y) const {
-  for (int i = 0; i < n_; ++i) y[i] = x_(i);
-  int k = n_;
-  for (int c = 0; c < n_; ++c)
-    for (int r = c; r < n_; ++r) y[k++] = P_(r, c);
+void CdEkf::pack(double* y, int m) const {
+  for (int i = 0; i < m; ++i) y[i] = x_(i);
+  int k = m;
+  for (int c = 0; c < m; ++c)
+    for (int r = c; r < m; ++r) y[k++] = P_(r, c);
 }
 
-void CdEkf::unpack(const double* y) {
-  for (int i = 0; i < n_; ++i) x_(i) = y[i];
-  int k = n_;
-  for (int c = 0; c < n_; ++c)
-    for (int r = c; r < n_; ++r) {
+void CdEkf::unpack(const double* y, int m) {
+  for (int i = 0; i < m; ++i) x_(i) = y[i];
+  int k = m;
+  for (int c = 0; c < m; ++c)
+    for (int r = c; r < m; ++r) {
       P_(r, c) = y[k];
       P_(c, r) = y[k];
       ++k;
@@ -357,13 +370,15 @@ namespace {
 // Packed Riccati right-hand side: out = lower triangle (column-major) of F P + P F' + Qs, with
 // P given as its packed lower triangle yP and Qs = (Q + Q') / 2 packed. F is used row-sparse:
 // a kinematic model has a handful of nonzeros per row, so F P costs nnz(F) n instead of n^3.
-// NC > 0: the dimension known at compile time (unrolled loops); NC = 0: n at run time. Work
-// arrays P and FP: n x n.
-template <int NC>
-void riccatiPacked(int n_rt, const double* __restrict yP, const double* __restrict F,
+// NC > 0: the dimension known at compile time (unrolled loops); NC = 0: n at run time. F is
+// column-major with leading dimension LD (0: ld at run time), of which the leading n x n
+// block is used. Work arrays P and FP: n x n.
+template <int NC, int LD = NC>
+void riccatiPacked(int n_rt, int ld_rt, const double* __restrict yP, const double* __restrict F,
                    const double* __restrict Qs, double* __restrict out, double* __restrict P,
                    double* __restrict FP) {
   const int n = NC > 0 ? NC : n_rt;
+  const int ld = LD > 0 ? LD : ld_rt;  // leading dimension of F (>= n: its leading block)
   int k = 0;
   for (int c = 0; c < n; ++c)
     for (int r = c; r < n; ++r) {
@@ -378,19 +393,19 @@ void riccatiPacked(int n_rt, const double* __restrict yP, const double* __restri
   for (int r = 0; r < n; ++r) {
     double* FPr = FP + r * n;
     int j = 0;
-    while (j < n && F[r + j * n] == 0.0) ++j;
+    while (j < n && F[r + j * ld] == 0.0) ++j;
     if (j == n) {
       for (int i = 0; i < n; ++i) FPr[i] = 0.0;
       continue;
     }
     {
-      const double v = F[r + j * n];
+      const double v = F[r + j * ld];
       const double* Pj = P + j * n;
 #pragma GCC unroll 16
       for (int i = 0; i < n; ++i) FPr[i] = 0.0 + v * Pj[i];
     }
     for (++j; j < n; ++j) {
-      const double v = F[r + j * n];
+      const double v = F[r + j * ld];
       if (v == 0.0) continue;
       const double* Pj = P + j * n;
 #pragma GCC unroll 16
@@ -402,7 +417,8 @@ void riccatiPacked(int n_rt, const double* __restrict yP, const double* __restri
     for (int r = c; r < n; ++r, ++k) out[k] = FP[r + c * n] + FP[c + r * n] + Qs[k];
 }
 
-void packSymmetrised(const Eigen::MatrixXd& Q, double* out) {
+template <class Mat>
+void packSymmetrised(const Mat& Q, double* out) {
   const int n = static_cast<int>(Q.rows());
   int k = 0;
   for (int c = 0; c < n; ++c)
@@ -412,22 +428,28 @@ void packSymmetrised(const Eigen::MatrixXd& Q, double* out) {
 }  // namespace
 
 void CdEkf::evalRhs(double tau, const double* y, double* ydot) {
-  const int n = n_;
+  const int n = m_;  // the integrated states; [m_, n_) are held at x_ (see setHeldTail())
   for (int i = 0; i < n; ++i) wx_(i) = y[i];
+  for (int i = n; i < n_; ++i) wx_(i) = x_(i);
   u_->eval(t_ref_ + tau, wu_);  // CVODE's time is relative to t_ref_ (see integrate())
   model_.fAndF(wx_, wu_, wxd_, wF_);
-  if (qPacked_.empty() || !model_.constantQ()) {
+  std::vector<double>& qp = n == n_ ? qPacked_ : qPackedHeld_;
+  if (qp.empty() || !model_.constantQ()) {
     model_.Q(wx_, wu_, wQ_);
-    qPacked_.resize(packedSize(n));
-    packSymmetrised(wQ_, qPacked_.data());
+    qp.resize(packedSize(n));
+    packSymmetrised(wQ_.topLeftCorner(n, n), qp.data());
   }
   for (int i = 0; i < n; ++i) ydot[i] = wxd_(i);
-  if (n == 9)  // the wheelchair filter
-    riccatiPacked<9>(n, y + n, wF_.data(), qPacked_.data(), ydot + n, wP_.data(), wFP_.data());
+  // With a held tail only F's leading n x n block is used (the held rows of P are zero).
+  const double* F = wF_.data();
+  if (n == 9 && n_ == 9)  // the wheelchair filter
+    riccatiPacked<9>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
+  else if (n == 9 && n_ == 12)  // its sensor-error states held (all closed)
+    riccatiPacked<9, 12>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
   else if (n == 12)  // the wheelchair filter with its sensor-error states
-    riccatiPacked<12>(n, y + n, wF_.data(), qPacked_.data(), ydot + n, wP_.data(), wFP_.data());
+    riccatiPacked<12>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
   else
-    riccatiPacked<0>(n, y + n, wF_.data(), qPacked_.data(), ydot + n, wP_.data(), wFP_.data());
+    riccatiPacked<0, 0>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
 }
 
 void CdEkf::reset(double t0_s, const Eigen::VectorXd& x0, const Eigen::MatrixXd& P0) {
@@ -444,6 +466,17 @@ void CdEkf::setCovariance(const Eigen::MatrixXd& P) {
   P_ = 0.5 * (P + P.transpose());
 }
 
+void CdEkf::setHeldTail(int count) {
+  if (count < 0 || count >= n_) throw std::invalid_argument("CdEkf::setHeldTail: bad count");
+  held_tail_ = count;
+}
+
+bool CdEkf::heldTailIsZero() const {
+  if (held_tail_ == 0) return false;
+  return (P_.bottomRows(held_tail_).array() == 0.0).all() &&
+         (P_.rightCols(held_tail_).array() == 0.0).all();
+}
+
 void CdEkf::zeroCovarianceRowsCols(int i, int count) {
   P_.middleRows(i, count).setZero();
   P_.middleCols(i, count).setZero();
@@ -458,9 +491,10 @@ void CdEkf::propagate(double t1_s, const CdInput& u, bool continuous) {
   integrate(t1_s, u, continuous);
 }
 
-void CdEkf::initCvode(double tau0) {
-  // The first integration: CVODE's memory, tolerances, solver and limits (once per filter).
-  const int N = n_ + packedSize(n_);
+void CdEkf::initCvode(Cvode& cv, double tau0) {
+  // The first integration: CVODE's memory, tolerances, solver and limits (once per setup).
+  const int N = cv.m + packedSize(cv.m);
+  Cvode* const cv_ = &cv;  // (the set-up being initialised)
   void* mem = cv_->mem;
   check(CVodeInit(mem, &CdEkfAccess::rhs, tau0, cv_->y), "CVodeInit");
   if (opt_.rel_tol >= 0 && std::all_of(NV_DATA_S(cv_->abstol), NV_DATA_S(cv_->abstol) + N,
@@ -510,29 +544,39 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   if (dt < 1e-9 * scale) {
     // Too short for CVODE's first step heuristics: one explicit Euler step (exact to O(dt^2)).
     const int N = n_ + packedSize(n_);
-    pack(ys_.data());
+    m_ = n_;
+    pack(ys_.data(), n_);
     evalRhs(tau0, ys_.data(), yds_.data());
     for (int i = 0; i < N; ++i) ys_[i] += dt * yds_[i];
-    unpack(ys_.data());
+    unpack(ys_.data(), n_);
     t_ = t1_s;
     ++stats_.short_intervals;
     cv_->live = false;
+    if (cvHeld_) cvHeld_->live = false;
     return;
   }
-  const int N = n_ + packedSize(n_);
+  // The held tail (setHeldTail()) while its rows of P are exactly zero: integrate only the
+  // leading m states (same equations: the held rows of F, Q and P are zero).
+  const int m = n_ - (heldTailIsZero() ? held_tail_ : 0);
+  if (m < n_ && !cvHeld_) cvHeld_ = newCvode(m);
+  Cvode* const other = m < n_ ? cv_.get() : cvHeld_.get();
+  if (other) other->live = false;  // a mode switch restarts
+  act_ = m < n_ ? cvHeld_.get() : cv_.get();
+  m_ = m;
+  Cvode* const cv_ = act_;  // (the set-up used for this interval)
   double* y = N_VGetArrayPointer(cv_->y);
   void* mem = cv_->mem;
   // Continue the running integration when nothing jumped since it stopped at t_.
   bool resume = false;
   if (continuous && cv_->live && cv_->t_live == tau0) {
-    pack(cv_->ycheck.data());
+    pack(cv_->ycheck.data(), m);
     resume = std::equal(cv_->ycheck.begin(), cv_->ycheck.end(), y);
   }
   cv_->live = false;
   if (!resume) {
-    pack(y);
+    pack(y, m);
     if (!cv_->initialised) {
-      initCvode(tau0);
+      initCvode(*cv_, tau0);
       cv_->initialised = true;
     } else {
       check(CVodeReInit(mem, tau0, cv_->y), "CVodeReInit");
@@ -582,7 +626,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   cv_->netf = netf;
   cv_->nni = nni;
   ++stats_.intervals;
-  unpack(y);
+  unpack(y, m);
   t_ = t1_s;
   cv_->live = true;
   cv_->t_live = tau1;

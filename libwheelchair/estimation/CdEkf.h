@@ -167,6 +167,14 @@ class CdEkf {
   void setState(const Eigen::VectorXd& x) { x_ = x; }
   /// Zeroes rows and columns [i, i + count) of P (exactly symmetric, no reallocation).
   void zeroCovarianceRowsCols(int i, int count);
+  /// Declares the last `count` states held (0: none): the model guarantees that their rates,
+  /// their rows of F and their rows and columns of Q are zero. While their rows and columns of
+  /// P are also exactly zero (e.g. sensor-error states closed at their prior mean), propagate()
+  /// integrates only the leading n - count states and their covariance (a second CVODE set-up
+  /// of that size, made on first use): the same equations, since the held rows of
+  /// F P + P F' + Q stay zero; the held means stay constant. Example: the 12-state wheelchair
+  /// filter with all sensor-error groups closed integrates 9 + 45 = 54 components, not 90.
+  void setHeldTail(int count);
   void setCovariance(const Eigen::MatrixXd& P);
   const CvodeStats& stats() const { return stats_; }
   const CvodeOptions& options() const { return opt_; }
@@ -176,11 +184,16 @@ class CdEkf {
   friend struct CdEkfAccess;
   /// Right-hand side at CVODE's time tau = t - t_ref_ (s).
   void evalRhs(double tau, const double* y, double* ydot);
-  void pack(double* y) const;
-  void unpack(const double* y);
+  /// (x, P) of the leading m states packed as (x, lower triangle of P column-major).
+  void pack(double* y, int m) const;
+  void unpack(const double* y, int m);
   void integrate(double t1_s, const CdInput& u, bool continuous);
+  /// A CVODE set-up for the leading m states (vectors, tolerances, memory).
+  std::unique_ptr<Cvode> newCvode(int m) const;
   /// CVodeInit and the solver set-up of the first integration, at CVODE time tau0 (s).
-  void initCvode(double tau0);
+  void initCvode(Cvode& cv, double tau0);
+  /// The held tail is declared and its rows and columns of P are exactly zero.
+  bool heldTailIsZero() const;
 
   const CdModel& model_;
   CvodeOptions opt_;
@@ -193,9 +206,14 @@ class CdEkf {
   // Work space of the right-hand side (sized once).
   Eigen::VectorXd wx_, wu_, wxd_;
   Eigen::MatrixXd wP_, wF_, wQ_, wFP_;
-  std::vector<double> ys_, yds_;  // packed scratch
-  std::vector<double> qPacked_;   // packed (Q + Q') / 2 when the model's Q is constant
-  std::unique_ptr<Cvode> cv_;
+  std::vector<double> ys_, yds_;     // packed scratch
+  std::vector<double> qPacked_;      // packed (Q + Q') / 2 when the model's Q is constant
+  std::vector<double> qPackedHeld_;  // the same for the leading n - held_tail_ states
+  int held_tail_ = 0;                // states held constant while their P rows are zero
+  int m_ = 0;                        // states integrated in the current interval
+  std::unique_ptr<Cvode> cv_;        // all n states
+  std::unique_ptr<Cvode> cvHeld_;    // the leading n - held_tail_ (made on first use)
+  Cvode* act_ = nullptr;             // the set-up of the current interval
   CvodeStats stats_;
 };
 

@@ -209,6 +209,11 @@ void WheelchairEkf::start(double t0) {
   P(model::kIdxY, model::kIdxY) = opt_.initial_sigma_xy_m * opt_.initial_sigma_xy_m;
   P(model::kIdxPhi, model::kIdxPhi) = opt_.initial_sigma_phi_rad * opt_.initial_sigma_phi_rad;
   ekf_.reset(t0, x, P);
+  // open_sensor_errors_on_alarm: the sensor-error states have no rate, no F rows and no Q
+  // (errorStateNoise), so while every group is closed (zero rows of P) CVODE integrates only
+  // the 9 physics states; an opened group's variance switches to all 12 (CdEkf::setHeldTail).
+  ekf_.setHeldTail(n > kPhysicsStateDim && opt_.open_sensor_errors_on_alarm ? n - kPhysicsStateDim
+                                                                            : 0);
   health_ = HealthMonitor(t0);
   fault_prior_applied_ = false;
   encoders_standstill_ = false;

@@ -232,3 +232,62 @@ TEST(CdEkfLinear, ResultIsIndependentOfTheClockOffset) {
                                                       << exact.transpose();
   EXPECT_LT((Pb - exactCov(m, P0, T)).cwiseAbs().maxCoeff(), 1e-6);
 }
+
+// setHeldTail: two random-walk states (zero rows of A and Q) that feed the others (a bias on
+// x0, a scale-like term on x2). While their rows of P are zero the filter integrates only the
+// leading 4 states: their means stay exactly constant, their rows of P exactly zero, and the
+// rest matches the full 6-state integration and the closed form. Once their variance is
+// non-zero (a group opened) the full system runs and the coupling shows in P.
+TEST(CdEkfLinear, HeldTailIntegratesTheLeadingStatesOnlyWhileItsCovarianceIsZero) {
+  const LinearModel core = makeModel();
+  LinearModel m;
+  m.A = Eigen::MatrixXd::Zero(6, 6);
+  m.A.topLeftCorner(4, 4) = core.A;
+  m.A(0, 4) = 1.0;   // x0dot += b
+  m.A(2, 5) = -0.4;  // x2dot -= 0.4 k
+  m.B = Eigen::MatrixXd::Zero(6, 2);
+  m.B.topRows(4) = core.B;
+  m.Qc = Eigen::MatrixXd::Zero(6, 6);
+  m.Qc.topLeftCorner(4, 4) = core.Qc;
+  CvodeOptions o;
+  o.rel_tol = 1e-10;
+  o.abs_tol_state = 1e-12;
+  o.abs_tol_cov = 1e-12;
+  Eigen::VectorXd x0(6);
+  x0 << 1.0, -0.5, 0.2, 0.0, 0.03, 1.05;
+  Eigen::MatrixXd P0 = Eigen::MatrixXd::Zero(6, 6);
+  P0.topLeftCorner(4, 4) = 0.1 * Eigen::MatrixXd::Identity(4, 4);
+  P0(0, 2) = P0(2, 0) = 0.02;
+  Eigen::VectorXd u(2);
+  u << 0.4, -0.2;
+  const auto input = [&](double) { return u; };
+  CdEkf held(m, o), full(m, o);
+  held.setHeldTail(2);
+  held.reset(0.0, x0, P0);
+  full.reset(0.0, x0, P0);
+  double t = 0;
+  for (int k = 1; k <= 50; ++k) {
+    t = 0.02 * k;
+    held.propagate(t, input);
+    full.propagate(t, input);
+  }
+  EXPECT_EQ(held.x().tail(2), x0.tail(2));
+  EXPECT_EQ(held.P().bottomRows(2).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(held.P().rightCols(2).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_LT((held.x() - full.x()).cwiseAbs().maxCoeff(), 1e-8);
+  EXPECT_LT((held.P() - full.P()).cwiseAbs().maxCoeff(), 1e-8);
+  EXPECT_LT((held.x() - exactState(m, x0, u, u, t)).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_LT((held.P() - exactCov(m, P0, t)).cwiseAbs().maxCoeff(), 1e-6);
+  // The tail opens: the full system (the bias variance flows into x0's covariance).
+  Eigen::MatrixXd P1 = held.P();
+  P1(4, 4) = 1e-4;
+  P1(5, 5) = 4e-4;
+  const Eigen::VectorXd x1 = held.x();
+  held.setCovariance(P1);
+  held.propagate(t + 1.0, input);
+  EXPECT_GT(std::fabs(held.P()(0, 4)), 1e-6);
+  EXPECT_GT(std::fabs(held.P()(2, 5)), 1e-6);
+  EXPECT_LT((held.x() - exactState(m, x1, u, u, 1.0)).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_LT((held.P() - exactCov(m, P1, 1.0)).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_THROW(held.setHeldTail(6), std::invalid_argument);
+}
