@@ -164,6 +164,39 @@ class ReportEkfSink : public estimation::EstimateSink {
   std::optional<estimation::EstimateSample> first_, snapshot_;
 };
 
+/// d.gt_start: the ground truth mapped into the start frame (the simulator's anchor frame for
+/// Pozyx, the start frame itself for a simulated ground-truth stream, else the least-squares
+/// SE(2) alignment to the EKF trajectory), with d.gt_frame_note saying which.
+void groundTruthInStartFrame(DriveData& d, const evaluation::MetricOptions& mo) {
+  if (d.gt.samples.empty()) return;
+  evaluation::SE2 T_inv;  // gt frame -> start frame
+  bool have = false;
+  if (d.truth && d.gt.source == evaluation::GroundTruthSource::Pozyx) {
+    evaluation::SE2 A{d.truth->anchor_x_m, d.truth->anchor_y_m, d.truth->anchor_yaw_rad};
+    T_inv = A.inverse();
+    have = true;
+    d.gt_frame_note = "mapped into the start frame with the simulator's known anchor frame";
+  } else if (d.truth && d.gt.source == evaluation::GroundTruthSource::GroundTruthStream) {
+    have = true;
+    d.gt_frame_note = "simulated ground-truth stream (start frame)";
+  } else if (d.trajectories.count("ekf")) {
+    evaluation::MetricOptions se2 = mo;
+    se2.alignment = evaluation::Alignment::SE2;
+    const auto m = evaluation::computeMetrics(d.trajectories.at("ekf"), d.gt.samples, se2);
+    if (m.n_matched > 0) {
+      T_inv = m.alignment.inverse();
+      have = true;
+      d.gt_frame_note = "aligned to the EKF trajectory (least-squares SE(2))";
+    }
+  }
+  if (have)
+    for (const auto& s : d.gt.samples) {
+      const Eigen::Vector2d p = T_inv.apply({s.x_m, s.y_m});
+      d.gt_start.push_back(
+          {s.t_s, p.x(), p.y(), s.hasHeading() ? T_inv.applyHeading(s.phi_rad) : s.phi_rad});
+    }
+}
+
 }  // namespace
 
 DriveData loadDrive(io::Recording rec, const std::string& path, const config::WheelchairConfig& cfg,
@@ -282,35 +315,7 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
     std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders);
     std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders_gyro);
   }
-  // Ground truth in the start frame.
-  if (!d.gt.samples.empty()) {
-    evaluation::SE2 T_inv;  // gt frame -> start frame
-    bool have = false;
-    if (d.truth && d.gt.source == evaluation::GroundTruthSource::Pozyx) {
-      evaluation::SE2 A{d.truth->anchor_x_m, d.truth->anchor_y_m, d.truth->anchor_yaw_rad};
-      T_inv = A.inverse();
-      have = true;
-      d.gt_frame_note = "mapped into the start frame with the simulator's known anchor frame";
-    } else if (d.truth && d.gt.source == evaluation::GroundTruthSource::GroundTruthStream) {
-      have = true;
-      d.gt_frame_note = "simulated ground-truth stream (start frame)";
-    } else if (d.trajectories.count("ekf")) {
-      evaluation::MetricOptions se2 = mo;
-      se2.alignment = evaluation::Alignment::SE2;
-      const auto m = evaluation::computeMetrics(d.trajectories.at("ekf"), d.gt.samples, se2);
-      if (m.n_matched > 0) {
-        T_inv = m.alignment.inverse();
-        have = true;
-        d.gt_frame_note = "aligned to the EKF trajectory (least-squares SE(2))";
-      }
-    }
-    if (have)
-      for (const auto& s : d.gt.samples) {
-        const Eigen::Vector2d p = T_inv.apply({s.x_m, s.y_m});
-        d.gt_start.push_back(
-            {s.t_s, p.x(), p.y(), s.hasHeading() ? T_inv.applyHeading(s.phi_rad) : s.phi_rad});
-      }
-  }
+  groundTruthInStartFrame(d, mo);
   return d;
 }
 
