@@ -463,10 +463,9 @@ std::vector<std::pair<int, double>> belowMisspecification(
     const Library& L, const Eigen::VectorXd& y, const Library& Lv, const Eigen::VectorXd& yv,
     const std::vector<int>& terms, double noise_var, const std::function<int(int)>& partner,
     double& sigma_m) {
+  const Predictor heldOut = heldOutPredictor(L, y, Lv);
   auto valPrediction = [&](const std::vector<int>& t) {
-    if (t.empty()) return Eigen::VectorXd(Eigen::VectorXd::Zero(yv.size()));
-    const Eigen::VectorXd b = L.design(t).colPivHouseholderQr().solve(y);
-    return Eigen::VectorXd(Lv.design(t) * b);
+    return t.empty() ? Eigen::VectorXd(Eigen::VectorXd::Zero(yv.size())) : heldOut(t);
   };
   const double nv = std::max<double>(1, yv.size());
   const Eigen::VectorXd p_full = valPrediction(terms);
