@@ -2,8 +2,8 @@
 // average NEES (7 canonical states) and NIS (per sensor) inside their 95 % chi-square bands.
 #include "SyntheticDrive.h"
 
-#include "libwheelchair/stats/Distributions.h"
 #include "libwheelchair/estimation/Estimator.h"
+#include "libwheelchair/stats/Distributions.h"
 
 #include <gtest/gtest.h>
 
@@ -36,14 +36,7 @@ EkfOptions consistencyOptions(ObstacleFormOption form) {
   o.q_obstacle_m2_s = 1e-9;
   o.q_obstacle_bearing_rad2_s = 1e-9;
   o.encoder_extra_noise_m_s = 0.005;
-  o.initial_obstacle = ObstacleInit::Config;
-  o.initial_obstacle_x_m = 1.5;
-  o.initial_obstacle_y_m = 2.5;
-  o.initial_obstacle_range_sigma_m = 0.1;
-  o.initial_obstacle_bearing_sigma_deg = 2.0;
-  // The start frame IS the initial pose: no uncertainty there (1e-6 keeps P invertible).
-  o.initial_sigma_xy_m = 1e-6;
-  o.initial_sigma_phi_rad = 1e-6;
+  setPriorsOfTheTruth(o, {1.5, 2.5});
   return o;
 }
 
@@ -145,7 +138,8 @@ McResult monteCarlo(const McConfig& mc) {
     if (!nis_n[s]) continue;
     const int dof = (s == int(Sensor::Encoders) || s == int(Sensor::Pozyx)) ? 2 : 1;
     r.mean_nis[s] = nis_sum[s] / nis_n[s];
-    r.nis_band[s] = stats::chi2MeanBand(0.95, dof, double(nis_n[s]) / mc.runs);  // per-run mean band
+    r.nis_band[s] =
+        stats::chi2MeanBand(0.95, dof, double(nis_n[s]) / mc.runs);  // per-run mean band
     r.nis_inside95[s] = double(nis_in[s]) / nis_n[s];
   }
   return r;

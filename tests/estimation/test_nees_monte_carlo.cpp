@@ -37,13 +37,7 @@ EkfOptions shippedOptions() {
   EkfOptions o;
   o.loadFromConfig(cfg.ini());
   o.output_rate_hz = 5;
-  o.initial_obstacle = ObstacleInit::Config;
-  o.initial_obstacle_x_m = 1.5;
-  o.initial_obstacle_y_m = 2.5;
-  o.initial_obstacle_range_sigma_m = 0.1;
-  o.initial_obstacle_bearing_sigma_deg = 2.0;
-  // The truth starts exactly at the start frame's origin (the frame IS the initial pose).
-  o.initial_sigma_xy_m = o.initial_sigma_phi_rad = 1e-6;
+  setPriorsOfTheTruth(o, {1.5, 2.5});
   return o;
 }
 
