@@ -1,5 +1,7 @@
 #include "libwheelchair/estimation/EstimateWriters.h"
 
+#include "libwheelchair/util/NumberFormat.h"
+
 #include <fmt/compile.h>
 #include <fmt/format.h>
 
@@ -13,12 +15,15 @@ namespace {
 // Rows between checks of the stream: a full disk stops a long run within ~1 MB of output.
 constexpr std::size_t kCheckEvery = 4096;
 
+void put(std::ostream& os, const char* data, std::size_t size) {
+  os.write(data, static_cast<std::streamsize>(size));
+}
 void put(std::ostream& os, const fmt::memory_buffer& buf) {
-  os.write(buf.data(), static_cast<std::streamsize>(buf.size()));
+  put(os, buf.data(), buf.size());
 }
 }  // namespace
 
-EstimatesCsvWriter::EstimatesCsvWriter(const std::string& path) : file_(path) {
+EstimatesCsvWriter::EstimatesCsvWriter(const std::string& path) : file_(path), buf_(kBufferBytes) {
   file_.stream()
       << "t_s,v_m_s,omega_rad_s,x_m,y_m,phi_rad,obstacle_x_m,obstacle_y_m,obstacle_distance_m,"
          "sd_v_m_s,sd_omega_rad_s,sd_x_m,sd_y_m,sd_phi_rad,sd_obstacle_x_m,sd_obstacle_y_m,"
@@ -27,20 +32,33 @@ EstimatesCsvWriter::EstimatesCsvWriter(const std::string& path) : file_(path) {
 }
 
 void EstimatesCsvWriter::add(const EstimateSample& e) {
-  const auto& x = e.x;
-  const auto& sd = e.sd;
-  // A compiled format (no parsing per row) into a stack buffer: the row costs the 17 number
-  // conversions and one write into the file's buffer.
-  fmt::memory_buffer buf;
-  fmt::format_to(std::back_inserter(buf),
-                 FMT_COMPILE("{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n"), e.t_s,
-                 x(0), x(1), x(2), x(3), x(4), x(5), x(6), e.obstacle_distance_m, sd(0), sd(1),
-                 sd(2), sd(3), sd(4), sd(5), sd(6), e.obstacle_distance_sd_m);
-  put(file_.stream(), buf);
-  if (++rows_ % kCheckEvery == 0) file_.check();
+  // The row is built in the writer's own buffer with util::writeFixed6 / writeShortest (the
+  // characters of fmt's "{:.6f}" and "{}", a third of fmt's time) and goes to the file's
+  // stream in blocks of ~64 kB.
+  if (kBufferBytes - used_ < kMaxRowChars) flushBuffer();
+  char* const start = buf_.data() + used_;
+  char* p = util::writeFixed6(start, e.t_s);
+  const auto num = [&p](double v) {
+    *p++ = ',';
+    p = util::writeShortest(p, v);
+  };
+  for (int i = 0; i < 7; ++i) num(e.x(i));
+  num(e.obstacle_distance_m);
+  for (int i = 0; i < 7; ++i) num(e.sd(i));
+  num(e.obstacle_distance_sd_m);
+  *p++ = '\n';
+  used_ += static_cast<std::size_t>(p - start);
+  ++rows_;
+}
+
+void EstimatesCsvWriter::flushBuffer() {
+  put(file_.stream(), buf_.data(), used_);
+  used_ = 0;
+  file_.check();  // a full disk stops a long run within one block of output
 }
 
 void EstimatesCsvWriter::commit() {
+  flushBuffer();
   file_.commit();
 }
 

@@ -7,7 +7,8 @@
 //   t_s,v_m_s,omega_rad_s,x_m,y_m,phi_rad,obstacle_x_m,obstacle_y_m,obstacle_distance_m,
 //   sd_v_m_s,...,sd_obstacle_distance_m
 // t with 6 decimals, every other number in the shortest form that reads back to the same
-// double. Frames: pose in the start frame, obstacle in the body frame (m, rad, m/s, rad/s).
+// double (fmt's "{:.6f}" and "{}" characters, written by util/NumberFormat.h). Frames: pose in the
+// start frame, obstacle in the body frame (m, rad, m/s, rad/s).
 //
 // Command-driven EKF CSV (map frame): t_s,x_m,y_m,phi_rad,v_m_s,omega_rad_s,sd_x_m,sd_y_m,
 // sd_phi_rad,sd_v_m_s,sd_omega_rad_s,cov_xy_m2.
@@ -21,6 +22,7 @@
 #include "libwheelchair/estimation/CommandDrivenEkf.h"
 #include "libwheelchair/estimation/EstimationTypes.h"
 #include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/NumberFormat.h"
 
 #include <cstddef>
 #include <string>
@@ -39,7 +41,15 @@ class EstimatesCsvWriter : public EstimateSink {
   std::size_t rows() const { return rows_; }
 
  private:
+  static constexpr std::size_t kBufferBytes = 64 * 1024;
+  // One row: t (util::kMaxFixed6Chars), 16 numbers, 17 separators.
+  static constexpr std::size_t kMaxRowChars =
+      util::kMaxFixed6Chars + 16 * util::kMaxDoubleChars + 17;
+  void flushBuffer();
+
   util::AtomicFile file_;
+  std::vector<char> buf_;  // rows not yet given to file_'s stream
+  std::size_t used_ = 0;
   std::size_t rows_ = 0;
 };
 

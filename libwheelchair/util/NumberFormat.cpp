@@ -1,0 +1,159 @@
+#include "libwheelchair/util/NumberFormat.h"
+
+#include <fmt/compile.h>
+#include <fmt/format.h>
+
+#include <cstdint>
+#include <cstring>
+
+// The fast path reproduces fmt 9's float writer (format.h: write(out, T value) and
+// do_write_float for a Dragonbox decimal with default specs); other fmt versions use fmt itself.
+#if FMT_VERSION >= 90000 && FMT_VERSION < 100000
+#define WHEELCHAIR_FAST_DOUBLE_TEXT 1
+#else
+#define WHEELCHAIR_FAST_DOUBLE_TEXT 0
+#endif
+
+namespace wheelchair::util {
+
+namespace {
+
+constexpr std::uint64_t kExponentMask = 0x7ff0000000000000ULL;
+
+// "00" "01" ... "99".
+struct Digits2 {
+  char d[200];
+  constexpr Digits2() : d() {
+    for (int i = 0; i < 100; ++i) {
+      d[2 * i] = static_cast<char>('0' + i / 10);
+      d[2 * i + 1] = static_cast<char>('0' + i % 10);
+    }
+  }
+};
+constexpr Digits2 kDigits2{};
+
+/// The `n` decimal digits of `v` at p[0, n) (n >= number of digits of v; leading zeros).
+inline void writeDigits(char* p, std::uint64_t v, int n) {
+  char* end = p + n;
+  while (end - p >= 2) {
+    end -= 2;
+    std::memcpy(end, &kDigits2.d[(v % 100) * 2], 2);
+    v /= 100;
+  }
+  if (end != p) *--end = static_cast<char>('0' + v % 10);
+}
+
+inline int countDigits(std::uint64_t v) {
+  int n = 1;
+  for (; v >= 10000; v /= 10000) n += 4;
+  if (v >= 1000) return n + 3;
+  if (v >= 100) return n + 2;
+  if (v >= 10) return n + 1;
+  return n;
+}
+
+char* viaFmt(char* p, double x) {
+  return fmt::format_to(p, FMT_COMPILE("{}"), x);
+}
+
+}  // namespace
+
+char* writeShortest(char* p, double x) {
+#if WHEELCHAIR_FAST_DOUBLE_TEXT
+  std::uint64_t bits;
+  std::memcpy(&bits, &x, sizeof bits);
+  if ((bits & kExponentMask) == kExponentMask) return viaFmt(p, x);  // nan, inf
+  if (bits >> 63) {
+    *p++ = '-';
+    x = -x;
+  }
+  const auto dec = fmt::detail::dragonbox::to_decimal(x);
+  const std::uint64_t sig = dec.significand;
+  const int n = countDigits(sig);
+  const int exp10 = dec.exponent;       // x = sig * 10^exp10
+  const int out_exp = exp10 + n - 1;    // exponent of the first digit
+  if (out_exp < -4 || out_exp >= 16) {  // d[.ddd]e+XX
+    char digits[24];
+    writeDigits(digits, sig, n);
+    *p++ = digits[0];
+    if (n > 1) {
+      *p++ = '.';
+      std::memcpy(p, digits + 1, static_cast<std::size_t>(n - 1));
+      p += n - 1;
+    }
+    *p++ = 'e';
+    int e = out_exp;
+    if (e < 0) {
+      *p++ = '-';
+      e = -e;
+    } else {
+      *p++ = '+';
+    }
+    if (e >= 100) {  // |e| <= 324 for a double
+      *p++ = static_cast<char>('0' + e / 100);
+      e %= 100;
+    }
+    std::memcpy(p, &kDigits2.d[e * 2], 2);
+    return p + 2;
+  }
+  if (exp10 >= 0) {  // ddd000
+    writeDigits(p, sig, n);
+    p += n;
+    std::memset(p, '0', static_cast<std::size_t>(exp10));
+    return p + exp10;
+  }
+  const int int_digits = n + exp10;
+  if (int_digits > 0) {  // dd.ddd
+    char digits[24];
+    writeDigits(digits, sig, n);
+    std::memcpy(p, digits, static_cast<std::size_t>(int_digits));
+    p += int_digits;
+    *p++ = '.';
+    std::memcpy(p, digits + int_digits, static_cast<std::size_t>(n - int_digits));
+    return p + (n - int_digits);
+  }
+  *p++ = '0';  // 0.000ddd
+  *p++ = '.';
+  std::memset(p, '0', static_cast<std::size_t>(-int_digits));
+  p += -int_digits;
+  writeDigits(p, sig, n);
+  return p + n;
+#else
+  return viaFmt(p, x);
+#endif
+}
+
+char* writeFixed6(char* p, double x) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &x, sizeof bits);
+  const int biased = static_cast<int>((bits >> 52) & 0x7ff);
+  // Exact for |x| < 2^40 (the integer part and the 6 decimals fit 64 bits); larger values,
+  // nan and inf go to fmt.
+  if (biased >= 1023 + 40) return fmt::format_to(p, FMT_COMPILE("{:.6f}"), x);
+  // |x| = m 2^-s exactly; |x| 10^6 = m 10^6 2^-s, rounded to the nearest integer q.
+  const std::uint64_t m = (bits & 0x000fffffffffffffULL) | (biased ? (1ULL << 52) : 0);
+  const int s = 1075 - (biased ? biased : 1);  // >= 1075 - 1062 = 13
+  std::uint64_t q = 0;
+  if (s < 100) {  // otherwise |x| 10^6 < 2^(53 + 20 - 100): q = 0, no tie
+    using u128 = unsigned __int128;
+    const u128 scaled = static_cast<u128>(m) * 1000000u;
+    const u128 rest = scaled & ((static_cast<u128>(1) << s) - 1);
+    const u128 half = static_cast<u128>(1) << (s - 1);
+    q = static_cast<std::uint64_t>(scaled >> s);
+    if (rest > half) {
+      ++q;
+    } else if (rest == half) {  // exactly halfway: fmt's own rounding decides
+      return fmt::format_to(p, FMT_COMPILE("{:.6f}"), x);
+    }
+  }
+  if (bits >> 63) *p++ = '-';
+  const std::uint64_t ip = q / 1000000, frac = q % 1000000;
+  const int n = countDigits(ip);
+  writeDigits(p, ip, n);
+  p += n;
+  *p++ = '.';
+  writeDigits(p, frac, 6);
+  return p + 6;
+}
+
+}  // namespace wheelchair::util

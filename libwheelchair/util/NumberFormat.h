@@ -1,0 +1,36 @@
+// Fast text forms of doubles for the large CSV writers (docs/benchmarks.md, "Fifth round").
+//
+// writeShortest(p, x) writes exactly the characters fmt's "{}" writes for a double: the
+// shortest decimal that reads back (strtod, std::from_chars) to the same double (fmt's
+// Dragonbox digits), in fixed notation when the decimal exponent e of the first digit is in
+// [-4, 16) and as d.ddde+XX otherwise; "-" for a set sign bit (also "-0"), "nan"/"inf" as fmt.
+// writeFixed6(p, x) writes what fmt's "{:.6f}" writes: x rounded to 6 decimals (exactly, from
+// the double's binary value), e.g. 12.5 -> "12.500000".
+// Both write into a caller's buffer with room for kMaxDoubleChars characters and return the
+// end; no allocation, no locale. They exist because the estimates CSV writes ~10 M numbers per
+// recorded hour and fmt's generic float path cost twice its digit generation there; the
+// characters are identical (tests/util/test_number_format.cpp compares them with fmt on
+// random bit patterns and on the values a filter writes).
+//
+// Example:
+//   char buf[2 * kMaxDoubleChars];
+//   char* p = writeFixed6(buf, 1.25);  *p++ = ',';  p = writeShortest(p, 0.1);   // "1.250000,0.1"
+#pragma once
+
+#include <cstddef>
+
+namespace wheelchair::util {
+
+/// Longest output of writeShortest / writeFixed6 for |x| < 1e300 (writeFixed6 of a larger
+/// value falls back to fmt and may write up to ~310 characters: size buffers for
+/// kMaxFixed6Chars there).
+constexpr std::size_t kMaxDoubleChars = 32;
+constexpr std::size_t kMaxFixed6Chars = 320;
+
+/// fmt's "{}" of `x` (shortest round-trip form) at `p`; returns the end.
+char* writeShortest(char* p, double x);
+
+/// fmt's "{:.6f}" of `x` at `p`; returns the end (up to kMaxFixed6Chars characters).
+char* writeFixed6(char* p, double x);
+
+}  // namespace wheelchair::util
