@@ -14,6 +14,11 @@
 //   BM_StreamMerge         the streamed read without the filter: decode + window merge
 //   BM_FilterStatesOn      BM_FilterPhysics with the sensor-error states (k_R, k_L, b_g)
 //   BM_WriteEstimatesCsv   the estimates CSV of the run (EstimatesCsvWriter), write only
+//   BM_FormatRowsFmt       the CSV rows formatted in memory as up to the fourth round (fmt,
+//                          compiled "{:.6f},{},...": the reference for the next one)
+//   BM_FormatRows          the CSV rows formatted in memory as the writer does now
+//                          (estimation::writeEstimateRow: util/NumberFormat.h)
+//   BM_ShortestFmt / BM_Shortest   one number of a row, fmt's "{}" / util::writeShortest
 //   BM_EndToEnd            the file read once (runEstimatorOnePass: streamed filter, summary
 //                          made while reading) + CSV written and committed, states off
 //   BM_EndToEndStatesOn    the same with the sensor-error states
@@ -32,11 +37,16 @@
 #include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/simulation/Simulator.h"
 
+#include "libwheelchair/util/NumberFormat.h"
+
 #include <benchmark/benchmark.h>
+#include <fmt/compile.h>
+#include <fmt/format.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <optional>
+#include <vector>
 
 using namespace wheelchair;
 
@@ -195,6 +205,98 @@ void BM_WriteEstimatesCsv(benchmark::State& state) {
   setCounters(state, f);
 }
 
+/// The run's estimates (computed once; input of the formatting benchmarks).
+const std::vector<estimation::EstimateSample>& keptEstimates() {
+  static const std::vector<estimation::EstimateSample> all = [] {
+    auto& f = fixture();
+    KeepingSink keep;
+    estimation::runEstimator(f.rec, f.cfg, options(f, estimation::FilterKind::Physics), keep);
+    return keep.all;
+  }();
+  return all;
+}
+
+/// Per-row counters of the formatting benchmarks (rows and characters per CPU second).
+void setRowCounters(benchmark::State& state, std::size_t rows, std::size_t chars) {
+  const double n = static_cast<double>(state.iterations());
+  state.counters["rows_per_s"] = benchmark::Counter(n * rows, benchmark::Counter::kIsRate);
+  state.counters["ns_per_row"] =
+      benchmark::Counter(n * rows, benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["MB_per_s"] = benchmark::Counter(n * chars * 1e-6, benchmark::Counter::kIsRate);
+}
+
+/// Formats every row of the run into a reused 1 MB block with `row(p, e) -> end`.
+template <typename Row>
+void formatRows(benchmark::State& state, Row row) {
+  const auto& all = keptEstimates();
+  std::vector<char> block(1 << 20);
+  std::size_t chars = 0;
+  for (auto _ : state) {
+    std::size_t used = 0;
+    chars = 0;
+    for (const auto& e : all) {
+      if (block.size() - used < estimation::kMaxEstimateRowChars) {
+        chars += used;
+        used = 0;
+      }
+      char* const start = block.data() + used;
+      used += static_cast<std::size_t>(row(start, e) - start);
+    }
+    chars += used;
+    benchmark::DoNotOptimize(block.data());
+    benchmark::ClobberMemory();
+  }
+  setRowCounters(state, all.size(), chars);
+}
+
+void BM_FormatRowsFmt(benchmark::State& state) {
+  formatRows(state, [](char* p, const estimation::EstimateSample& e) {
+    const auto& x = e.x;
+    const auto& sd = e.sd;
+    return fmt::format_to(
+        p, FMT_COMPILE("{:.6f},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n"), e.t_s, x(0),
+        x(1), x(2), x(3), x(4), x(5), x(6), e.obstacle_distance_m, sd(0), sd(1), sd(2), sd(3),
+        sd(4), sd(5), sd(6), e.obstacle_distance_sd_m);
+  });
+}
+
+void BM_FormatRows(benchmark::State& state) {
+  formatRows(state, [](char* p, const estimation::EstimateSample& e) {
+    return estimation::writeEstimateRow(p, e);
+  });
+}
+
+/// The 16 shortest-form numbers of every row, one call per number.
+template <typename Num>
+void formatNumbers(benchmark::State& state, Num num) {
+  const auto& all = keptEstimates();
+  std::vector<double> v;
+  for (const auto& e : all) {
+    for (int i = 0; i < 7; ++i) v.push_back(e.x(i));
+    v.push_back(e.obstacle_distance_m);
+    for (int i = 0; i < 7; ++i) v.push_back(e.sd(i));
+    v.push_back(e.obstacle_distance_sd_m);
+  }
+  char buf[64];
+  for (auto _ : state) {
+    for (double x : v) {
+      benchmark::DoNotOptimize(num(buf, x));
+      benchmark::ClobberMemory();
+    }
+  }
+  const double n = static_cast<double>(state.iterations());
+  state.counters["ns_per_number"] =
+      benchmark::Counter(n * v.size(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+
+void BM_ShortestFmt(benchmark::State& state) {
+  formatNumbers(state, [](char* p, double x) { return fmt::format_to(p, FMT_COMPILE("{}"), x); });
+}
+
+void BM_Shortest(benchmark::State& state) {
+  formatNumbers(state, [](char* p, double x) { return util::writeShortest(p, x); });
+}
+
 /// `wheelchair filter PATH [--estimates CSV]`: the file read once (or `two_pass`: scanned,
 /// then streamed), the streamed filter, the CSV written and committed (the command's own
 /// printing aside).
@@ -255,6 +357,10 @@ BENCHMARK(BM_ScanRawlog)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_StreamMerge)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FilterStatesOn)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_WriteEstimatesCsv)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FormatRowsFmt)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FormatRows)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ShortestFmt)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Shortest)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EndToEnd)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EndToEndStatesOn)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_EndToEndNoOutput)->Unit(benchmark::kMillisecond);

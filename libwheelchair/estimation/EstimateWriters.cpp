@@ -31,13 +31,10 @@ EstimatesCsvWriter::EstimatesCsvWriter(const std::string& path) : file_(path), b
   file_.check();
 }
 
-void EstimatesCsvWriter::add(const EstimateSample& e) {
-  // The row is built in the writer's own buffer with util::writeFixed6 / writeShortest (the
-  // characters of fmt's "{:.6f}" and "{}", a third of fmt's time) and goes to the file's
-  // stream in blocks of ~64 kB.
-  if (kBufferBytes - used_ < kMaxRowChars) flushBuffer();
-  char* const start = buf_.data() + used_;
-  char* p = util::writeFixed6(start, e.t_s);
+char* writeEstimateRow(char* p, const EstimateSample& e) {
+  // util::writeFixed6 / writeShortest: the characters of fmt's "{:.6f}" and "{}", a third of
+  // fmt's time (docs/benchmarks.md, "Fifth round").
+  p = util::writeFixed6(p, e.t_s);
   const auto num = [&p](double v) {
     *p++ = ',';
     p = util::writeShortest(p, v);
@@ -47,7 +44,14 @@ void EstimatesCsvWriter::add(const EstimateSample& e) {
   for (int i = 0; i < 7; ++i) num(e.sd(i));
   num(e.obstacle_distance_sd_m);
   *p++ = '\n';
-  used_ += static_cast<std::size_t>(p - start);
+  return p;
+}
+
+void EstimatesCsvWriter::add(const EstimateSample& e) {
+  // Rows go to the file's stream in blocks of ~64 kB.
+  if (kBufferBytes - used_ < kMaxEstimateRowChars) flushBuffer();
+  char* const start = buf_.data() + used_;
+  used_ += static_cast<std::size_t>(writeEstimateRow(start, e) - start);
   ++rows_;
 }
 

@@ -30,6 +30,14 @@
 
 namespace wheelchair::estimation {
 
+/// Longest row of the estimates CSV: t, 16 numbers, 16 commas and the newline.
+constexpr std::size_t kMaxEstimateRowChars =
+    util::kMaxFixed6Chars + 16 * util::kMaxDoubleChars + 17;
+
+/// One row of the estimates CSV (with its newline) at `p`, which has room for
+/// kMaxEstimateRowChars characters; returns the end.
+char* writeEstimateRow(char* p, const EstimateSample& e);
+
 /// Estimates CSV (see the header comment), one row per add().
 class EstimatesCsvWriter : public EstimateSink {
  public:
@@ -42,9 +50,6 @@ class EstimatesCsvWriter : public EstimateSink {
 
  private:
   static constexpr std::size_t kBufferBytes = 64 * 1024;
-  // One row: t (util::kMaxFixed6Chars), 16 numbers, 17 separators.
-  static constexpr std::size_t kMaxRowChars =
-      util::kMaxFixed6Chars + 16 * util::kMaxDoubleChars + 17;
   void flushBuffer();
 
   util::AtomicFile file_;

@@ -32,15 +32,29 @@ struct Digits2 {
 };
 constexpr Digits2 kDigits2{};
 
+/// The 8 decimal digits of `x` < 10^8 at p[0, 8) (leading zeros), in 32-bit arithmetic.
+inline void writeDigits8(char* p, std::uint32_t x) {
+  const std::uint32_t hi = x / 10000, lo = x % 10000;
+  std::memcpy(p, &kDigits2.d[(hi / 100) * 2], 2);
+  std::memcpy(p + 2, &kDigits2.d[(hi % 100) * 2], 2);
+  std::memcpy(p + 4, &kDigits2.d[(lo / 100) * 2], 2);
+  std::memcpy(p + 6, &kDigits2.d[(lo % 100) * 2], 2);
+}
+
 /// The `n` decimal digits of `v` at p[0, n) (n >= number of digits of v; leading zeros).
 inline void writeDigits(char* p, std::uint64_t v, int n) {
+  for (; n > 8; n -= 8) {  // the last 8 digits, from a 64-bit division by 10^8
+    writeDigits8(p + n - 8, static_cast<std::uint32_t>(v % 100000000));
+    v /= 100000000;
+  }
+  auto x = static_cast<std::uint32_t>(v);  // n <= 8 digits left
   char* end = p + n;
   while (end - p >= 2) {
     end -= 2;
-    std::memcpy(end, &kDigits2.d[(v % 100) * 2], 2);
-    v /= 100;
+    std::memcpy(end, &kDigits2.d[(x % 100) * 2], 2);
+    x /= 100;
   }
-  if (end != p) *--end = static_cast<char>('0' + v % 10);
+  if (end != p) *--end = static_cast<char>('0' + x % 10);
 }
 
 inline int countDigits(std::uint64_t v) {
