@@ -10,6 +10,11 @@
 
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <sstream>
 #include <stdexcept>
@@ -97,6 +102,59 @@ TEST(EstimateStreaming, CsvWriterWritesOneRowPerEstimateThatReadsBackExactly) {
     EXPECT_EQ(v[9 + i], f.sd(i)) << i;
   }
   EXPECT_EQ(filesIn(dir.path()), 1u);  // no temporary left
+}
+
+// Every row and column of a filter's CSV reads back to the filter's doubles (t to its 6
+// decimals), and rows of extreme values (signed zero, subnormals, 1e300, exponent forms) to
+// the same bits: the documented "shortest form that reads back to the same double".
+TEST(EstimateStreaming, EveryCsvRowReadsBackToTheSameDoubles) {
+  const SynthRun sr = drive();
+  wheelchair::test::TempDir dir;
+  Collect keep;
+  EstimatesCsvWriter csv(dir / "est.csv");
+  EstimateFanOut both({&keep, &csv});
+  runEstimator(sr.rec, nominal(), EkfOptions{}, both);
+  // Extreme values after the filter's rows (the writer does not require increasing time).
+  for (double v : {0.0, -0.0, 5e-324, -2.2250738585072014e-308, 1e-5, 9.999999999999999e15, 1e16,
+                   -1.7976931348623157e308, 0.1, 1.0 / 3.0}) {
+    EstimateSample e;
+    e.t_s = 1e9 + 1.0 / 128;  // 1000000000.0078125: halfway at the 7th decimal
+    e.x.setConstant(v);
+    e.sd.setConstant(-v / 3);
+    e.obstacle_distance_m = v * 7;
+    e.obstacle_distance_sd_m = std::nextafter(v, 1.0);
+    keep.add(e);
+    csv.add(e);
+  }
+  csv.commit();
+  const auto lines = linesOf(wheelchair::test::readFile(dir / "est.csv"));
+  ASSERT_EQ(lines.size(), keep.v.size() + 1);
+  ASSERT_GT(keep.v.size(), 1000u);
+  for (std::size_t k = 0; k < keep.v.size(); ++k) {
+    const EstimateSample& e = keep.v[k];
+    const std::string& line = lines[k + 1];
+    std::vector<double> v;
+    const char* p = line.c_str();
+    for (char* end = nullptr;; p = end + 1) {
+      v.push_back(std::strtod(p, &end));
+      ASSERT_NE(end, p) << "row " << k + 1 << ": " << line;
+      if (*end != ',') {
+        ASSERT_EQ(*end, '\0') << line;
+        break;
+      }
+    }
+    ASSERT_EQ(v.size(), 17u) << line;
+    ASSERT_NEAR(v[0], e.t_s, 5e-7) << line;
+    const double expected[16] = {
+        e.x(0),  e.x(1),  e.x(2),  e.x(3),  e.x(4),  e.x(5),  e.x(6),  e.obstacle_distance_m,
+        e.sd(0), e.sd(1), e.sd(2), e.sd(3), e.sd(4), e.sd(5), e.sd(6), e.obstacle_distance_sd_m};
+    for (int i = 0; i < 16; ++i) {
+      ASSERT_EQ(std::memcmp(&v[1 + i], &expected[i], sizeof(double)), 0)
+          << "row " << k + 1 << " column " << i + 2 << ": " << line;
+    }
+  }
+  // t keeps 6 decimals; the exact halfway case rounds as fmt's "{:.6f}" does.
+  EXPECT_EQ(lines.back().substr(0, lines.back().find(',')), fmt::format("{:.6f}", 1e9 + 1.0 / 128));
 }
 
 TEST(EstimateStreaming, AFailingSinkStopsTheRunAndAnUncommittedWriterLeavesNothing) {
