@@ -48,7 +48,7 @@ char* writeEstimateRow(char* p, const EstimateSample& e) {
 }
 
 void EstimatesCsvWriter::add(const EstimateSample& e) {
-  // Rows go to the file's stream in blocks of ~64 kB.
+  // Rows go to the file's stream in blocks of ~256 kB (written without a copy: AtomicFile).
   if (kBufferBytes - used_ < kMaxEstimateRowChars) flushBuffer();
   char* const start = buf_.data() + used_;
   used_ += static_cast<std::size_t>(writeEstimateRow(start, e) - start);

@@ -49,7 +49,7 @@ class EstimatesCsvWriter : public EstimateSink {
   std::size_t rows() const { return rows_; }
 
  private:
-  static constexpr std::size_t kBufferBytes = 64 * 1024;
+  static constexpr std::size_t kBufferBytes = 256 * 1024;
   void flushBuffer();
 
   util::AtomicFile file_;

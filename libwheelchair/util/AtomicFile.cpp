@@ -49,9 +49,8 @@ struct AtomicFile::Buf : std::streambuf {
   int err = 0;
   std::vector<char> data;
 
-  bool drain() {
-    const char* p = pbase();
-    std::size_t left = static_cast<std::size_t>(pptr() - pbase());
+  // Writes [p, p + left) to the file (false and `err` set on a failure).
+  bool writeAll(const char* p, std::size_t left) {
     while (left > 0 && err == 0) {
       const ssize_t n = ::write(fd, p, left);
       if (n < 0) {
@@ -62,8 +61,19 @@ struct AtomicFile::Buf : std::streambuf {
         left -= static_cast<std::size_t>(n);
       }
     }
+    return err == 0;
+  }
+  bool drain() {
+    writeAll(pbase(), static_cast<std::size_t>(pptr() - pbase()));
     setp(data.data(), data.data() + data.size());
     return err == 0;
+  }
+  // A block at least as large as the buffer goes to the file without being copied into it
+  // (the estimates CSV writes its rows in 256 kB blocks).
+  std::streamsize xsputn(const char* s, std::streamsize n) override {
+    if (n < static_cast<std::streamsize>(data.size())) return std::streambuf::xsputn(s, n);
+    if (!drain() || !writeAll(s, static_cast<std::size_t>(n))) return 0;
+    return n;
   }
   int_type overflow(int_type ch) override {
     if (!drain()) return traits_type::eof();

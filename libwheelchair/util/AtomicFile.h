@@ -15,7 +15,8 @@
 //
 // Two ways to fill the file:
 //   - through stream(): an std::ostream over the temporary's descriptor (64 kB buffer; a
-//     failed write(2) puts the stream in bad state and keeps errno for the message);
+//     write of 64 kB or more goes to the file directly; a failed write(2) puts the stream
+//     in bad state and keeps errno for the message);
 //   - by name, for libraries that open files themselves (MRPT's gzip stream, OpenCV's
 //     imwrite): write tempPath(), close it, check that library's own result, then commit().
 //
