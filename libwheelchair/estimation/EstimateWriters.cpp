@@ -32,8 +32,8 @@ EstimatesCsvWriter::EstimatesCsvWriter(const std::string& path) : file_(path), b
 }
 
 char* writeEstimateRow(char* p, const EstimateSample& e) {
-  // util::writeFixed6 / writeShortest: the characters of fmt's "{:.6f}" and "{}", a third of
-  // fmt's time (docs/benchmarks.md, "Fifth round").
+  // util::writeFixed6 / writeShortest: the characters of fmt's "{:.6f}" and "{}" in ~15 % less
+  // time per row (bench_playback BM_FormatRows; docs/benchmarks.md, "Fifth round").
   p = util::writeFixed6(p, e.t_s);
   const auto num = [&p](double v) {
     *p++ = ',';
