@@ -6,14 +6,14 @@
 // [-4, 16) and as d.ddde+XX otherwise; "-" for a set sign bit (also "-0"), "nan"/"inf" as fmt.
 // writeFixed6(p, x) writes what fmt's "{:.6f}" writes: x rounded to 6 decimals (exactly, from
 // the double's binary value), e.g. 12.5 -> "12.500000".
-// Both write into a caller's buffer with room for kMaxDoubleChars characters and return the
-// end; no allocation, no locale. They exist because the estimates CSV writes ~10 M numbers per
-// recorded hour (26 ns a number against fmt's 30, of which ~20 ns are Dragonbox's digits); the
-// characters are identical (tests/util/test_number_format.cpp compares them with fmt on
-// random bit patterns and on the values a filter writes).
+// Both write into a caller's buffer (room for kMaxDoubleChars / kMaxFixed6Chars characters)
+// and return the end; no allocation, no locale. They exist because the estimates CSV writes ~10 M
+// numbers per recorded hour (26 ns a number against fmt's 30, of which ~20 ns are Dragonbox's
+// digits); the characters are identical (tests/util/test_number_format.cpp compares them with fmt
+// on random bit patterns and on the values a filter writes).
 //
 // Example:
-//   char buf[2 * kMaxDoubleChars];
+//   char buf[kMaxFixed6Chars + 1 + kMaxDoubleChars];
 //   char* p = writeFixed6(buf, 1.25);  *p++ = ',';  p = writeShortest(p, 0.1);   // "1.250000,0.1"
 #pragma once
 
