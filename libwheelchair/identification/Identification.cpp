@@ -3,8 +3,8 @@
 #include "libwheelchair/signals/IntervalStream.h"
 #include "libwheelchair/stats/BlockedLeastSquares.h"
 #include "libwheelchair/stats/Distributions.h"
-#include "libwheelchair/util/ScratchRecords.h"
 #include "libwheelchair/stats/LeastSquares.h"
+#include "libwheelchair/util/ScratchRecords.h"
 
 #include "libwheelchair/model/VehicleParams.h"
 
@@ -240,8 +240,7 @@ struct SteadyRun {
 /// rows (util::ScratchRecords: memory bounded whatever the drive's length).
 class RowCollector {
  public:
-  explicit RowCollector(const IdentificationOptions& o)
-      : o_(o) {}
+  explicit RowCollector(const IdentificationOptions& o) : o_(o) {}
 
   void add(const signals::IntervalRow& r) {
     ++n_grid;
@@ -284,7 +283,6 @@ class RowCollector {
   int run_seg_ = -1;
   std::size_t run_begin_ = 0, run_len_ = 0;
 };
-
 
 std::string nullDescription(const Eigen::VectorXd& vs, const std::vector<Excitation>& ex) {
   std::vector<int> part;
@@ -527,12 +525,10 @@ void nullDirections(const LsSolution& ts, double rG, IdentificationResult& res) 
   }
 }
 
-
 /// theta: the 5-column form (2), right and left rows stacked; theta_j, D1, D2 in `res`.
 LsSolution fitTheta(const Samples& sm, const model::Geometry& g, const LsOptions& lso,
                     IdentificationResult& res) {
-  const auto fill = [&sm, &g](const UsedRow& rw, Eigen::MatrixXd& X, Eigen::VectorXd& y,
-                              long r) {
+  const auto fill = [&sm, &g](const UsedRow& rw, Eigen::MatrixXd& X, Eigen::VectorXd& y, long r) {
     const auto Y = model::regressor(g, sm.val(rw, 0), sm.val(rw, 2), sm.val(rw, 1), sm.val(rw, 3));
     for (int i = 0; i < 2; ++i) {
       X.row(r + i) = Y.row(i);
@@ -556,7 +552,6 @@ LsSolution fitTheta(const Samples& sm, const model::Geometry& g, const LsOptions
   guardPrecision(res.D2, "D2");
   return ts;
 }
-
 
 /// a1..a4 from theta (Appendix VI) with delta-method standard errors.
 void aFromTheta(const LsSolution& ts, const model::Geometry& g, IdentificationResult& res) {
@@ -602,7 +597,6 @@ void aFromTheta(const LsSolution& ts, const model::Geometry& g, IdentificationRe
                                  (D2.identifiable ? t5.reason : D2.reason);
 }
 
-
 /// Moves a segment out of its vector (freed when the holder goes).
 struct IntervalSegmentHolder {
   explicit IntervalSegmentHolder(PreparedSegment& from) : s(std::move(from)) {}
@@ -621,8 +615,7 @@ void fitDirect(const Samples& sm, const LsOptions& lso, IdentificationResult& re
       res.a_direct[ia].reason = res.a_direct[ib].reason = why;
       continue;
     }
-    const auto fill = [&sm, eq](const UsedRow& rw, Eigen::MatrixXd& X, Eigen::VectorXd& y,
-                                long r) {
+    const auto fill = [&sm, eq](const UsedRow& rw, Eigen::MatrixXd& X, Eigen::VectorXd& y, long r) {
       X(r, 0) = eq == 0 ? rw.i_r + rw.i_l : rw.i_r - rw.i_l;
       X(r, 1) = eq == 0 ? sm.val(rw, 0) : sm.val(rw, 1);
       y(r) = eq == 0 ? rw.vdot : rw.omegadot;
@@ -823,7 +816,6 @@ IdentificationResult identifyStreamed(const std::vector<std::string>& paths,
   const PreparedData summary = cond.finish();
   return identifyRows(rc, summary, cfg, o, sources);
 }
-
 
 // ---------------------------------------------------------------------------------------
 

@@ -160,11 +160,11 @@ struct IntegralStream {
     std::array<double, 4> x, F;
   };
   int channels = 0;
-  std::deque<Sample> s;       ///< finalised samples (values and integrals known)
-  std::deque<double> times;   ///< sanitised times, for the coverage test (grid)
+  std::deque<Sample> s;      ///< finalised samples (values and integrals known)
+  std::deque<double> times;  ///< sanitised times, for the coverage test (grid)
   std::optional<Sample> front;
   bool ended = false;
-  std::size_t count = 0;      ///< sanitised samples so far
+  std::size_t count = 0;  ///< sanitised samples so far
 
   void finalise(double t, const std::array<double, 4>& x) {
     Sample n{t, x, {}};
@@ -184,8 +184,8 @@ struct IntegralStream {
     if (t <= front->t) return front->x[c] * (t - front->t);
     const Sample& b = s.back();
     if (t >= b.t) return b.F[c] + b.x[c] * (t - b.t);  // only when ended
-    const auto it = std::upper_bound(s.begin(), s.end(), t,
-                                     [](double v, const Sample& q) { return v < q.t; });
+    const auto it =
+        std::upper_bound(s.begin(), s.end(), t, [](double v, const Sample& q) { return v < q.t; });
     const Sample &lo = *(it - 1), &hi = *it;
     const double h = t - lo.t, slope = (hi.x[c] - lo.x[c]) / (hi.t - lo.t);
     return lo.F[c] + lo.x[c] * h + 0.5 * slope * h * h;
@@ -212,8 +212,8 @@ double timeOf(const EncInterval& e) {
 // covered() of IntervalSignals.cpp on the part of a stream kept (its last time <= t onwards).
 template <typename T>
 bool coveredIn(const std::deque<T>& ts, double t, double max_gap) {
-  auto it = std::upper_bound(ts.begin(), ts.end(), t,
-                             [](double v, const T& q) { return v < timeOf(q); });
+  auto it =
+      std::upper_bound(ts.begin(), ts.end(), t, [](double v, const T& q) { return v < timeOf(q); });
   if (it == ts.begin()) return t == timeOf(ts.front());
   if (it == ts.end()) return t == timeOf(ts.back());
   return (timeOf(*it) - timeOf(*(it - 1))) <= max_gap;
@@ -242,7 +242,7 @@ struct IntervalConditioner::Impl {
   bool enc_ended = false;
   double enc_last_t1 = -INFINITY, enc_first_t = NAN;
   IntegralStream mot, imu;
-  std::deque<io::MotorSample> mot_wait;  ///< sanitised, U not yet known (the next is needed)
+  std::deque<io::MotorSample> mot_wait;     ///< sanitised, U not yet known (the next is needed)
   std::optional<io::MotorSample> mot_prev;  ///< the sample before mot_wait's first
   double mot_last_t = NAN, imu_last_t = NAN;
   bool any_voltage = false;
@@ -363,8 +363,7 @@ struct IntervalConditioner::Impl {
       if (!mot.ready(e.t1) || (o.gyro_omega && !imu.ready(e.t1))) return;
       for (int c = 0; c < 4; ++c)
         e.mean[c] = (mot.integral(c, e.t1) - mot.integral(c, e.t0)) / (e.t1 - e.t0);
-      if (o.gyro_omega)
-        e.mean[4] = (imu.integral(0, e.t1) - imu.integral(0, e.t0)) / (e.t1 - e.t0);
+      if (o.gyro_omega) e.mean[4] = (imu.integral(0, e.t1) - imu.integral(0, e.t0)) / (e.t1 - e.t0);
       mot.dropBefore(e.t1);
       imu.dropBefore(e.t1);
       ++enc_done;
@@ -398,8 +397,7 @@ struct IntervalConditioner::Impl {
     for (; kg < n_grid; ++kg) {
       const double t = t_lo + kg * dt;
       if (!gridPointReady(t)) return;
-      const bool ok = coveredIn(enc, t, o.max_gap_s) &&
-                      coveredIn(mot.times, t, o.max_gap_s) &&
+      const bool ok = coveredIn(enc, t, o.max_gap_s) && coveredIn(mot.times, t, o.max_gap_s) &&
                       (!o.gyro_omega || coveredIn(imu.times, t, o.max_gap_s));
       if (ok) {
         std::array<double, 7> x{};

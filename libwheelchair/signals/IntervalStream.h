@@ -71,9 +71,9 @@ class StreamingFiltfilt {
   sensors::Biquad f_;
   long pad_, block_, run_in_, first_;
   Emit emit_;
-  long n_ = 0;           ///< pushed
-  long e0_ = 0;          ///< first sample not emitted
-  bool started_ = false;  ///< forward pass running (else samples wait in raw_)
+  long n_ = 0;                    ///< pushed
+  long e0_ = 0;                   ///< first sample not emitted
+  bool started_ = false;          ///< forward pass running (else samples wait in raw_)
   std::deque<double> raw_, fwd_;  ///< samples e0_.. (C interleaved)
   std::vector<double> z1_, z2_;   ///< forward state per channel
 };

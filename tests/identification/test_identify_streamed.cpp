@@ -147,10 +147,10 @@ TEST(IdentifyStreamed, EqualsTheInMemoryPath) {
         ASSERT_EQ(b.t, a.t);
         ASSERT_EQ(b.interior, a.interior);
         ASSERT_EQ(b.moving, a.moving);
-        const double va[10] = {a.u_r, a.u_l, a.v, a.omega, a.vdot, a.omegadot,
-                               a.i_r, a.i_l, a.U_r, a.U_l};
-        const double vb[10] = {b.u_r, b.u_l, b.v, b.omega, b.vdot, b.omegadot,
-                               b.i_r, b.i_l, b.U_r, b.U_l};
+        const double va[10] = {a.u_r,      a.u_l, a.v,   a.omega, a.vdot,
+                               a.omegadot, a.i_r, a.i_l, a.U_r,   a.U_l};
+        const double vb[10] = {b.u_r,      b.u_l, b.v,   b.omega, b.vdot,
+                               b.omegadot, b.i_r, b.i_l, b.U_r,   b.U_l};
         bool same = true;
         for (int j = 0; j < 10; ++j) {
           same = same && va[j] == vb[j];
