@@ -2,6 +2,7 @@
 // identify` runs on time-ordered files; docs/benchmarks.md "Memory"): the conditioned rows and
 // the result against the in-memory path on the same files, and the blocked zero-phase filter
 // against the whole-series one.
+#include "../common/TestUtil.h"
 #include "DriveGenerator.h"
 
 #include "libwheelchair/identification/Identification.h"
@@ -13,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 #include <random>
 
 using namespace wheelchair;
@@ -197,4 +199,43 @@ TEST(IdentifyStreamed, RefusesAStreamOutOfTimeOrder) {
   c.add(m);
   m.t_s = 0.5;
   EXPECT_THROW(c.add(m), std::invalid_argument);
+}
+
+// Through the CLI: a time-ordered rawlog is streamed, the same drive written out of time order
+// (every 7th motor sample 0.3 s late: lateness 0.3 s) is loaded whole; both give the same JSON
+// (the same collector and solver after the conditioning, which is bit-identical).
+TEST(IdentifyStreamed, CliStreamsOrderedFilesAndLoadsOthersWithTheSameResult) {
+  if (!fs::exists(WHEELCHAIR_CLI)) GTEST_SKIP() << WHEELCHAIR_CLI << " not built";
+  const auto& d = drives();
+  const io::Recording rec = io::readRawlog(d.paths[1]);
+  // Both files written the same way (the stored stamps are relative to the header's time).
+  const auto write = [&](const std::string& path, double late_s) {
+    std::vector<std::pair<double, io::AnySample>> v;
+    std::size_t mot = 0;
+    io::forEachInTimeOrder(rec, [&](const io::AnySample& s) {
+      double at = io::timeOf(s);
+      if (io::kindOf(s) == io::StreamKind::Motors && mot++ % 7 == 3) at += late_s;
+      v.emplace_back(at, s);
+    });
+    std::stable_sort(v.begin(), v.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    io::RawlogWriter w(path);
+    w.writeHeader(rec.meta, config::WheelchairConfig(), rec.startTime());
+    for (const auto& [t, s] : v) w.write(s, config::WheelchairConfig());
+    w.commit();
+  };
+  const std::string ordered = (d.dir / "ordered.rawlog").string();
+  const std::string late = (d.dir / "late.rawlog").string();
+  write(ordered, 0.0);
+  write(late, 0.3);
+  EXPECT_EQ(io::scanRawlog(ordered).lateness_s, 0.0);
+  EXPECT_GT(io::scanRawlog(late).lateness_s, 0.29);
+  const std::string ja = (d.dir / "a.json").string(), jb = (d.dir / "b.json").string();
+  ASSERT_EQ(test::cli("identify " + ordered + " --json " + ja).exit_code, 0);
+  ASSERT_EQ(test::cli("identify " + late + " --json " + jb).exit_code, 0);
+  auto a = nlohmann::json::parse(std::ifstream(ja)), b = nlohmann::json::parse(std::ifstream(jb));
+  EXPECT_EQ(a["recordings"][0], ordered);
+  a.erase("recordings");
+  b.erase("recordings");
+  EXPECT_TRUE(a == b) << a.dump() << "\n" << b.dump();
 }
