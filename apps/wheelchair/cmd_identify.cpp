@@ -10,6 +10,7 @@
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/identification/Identification.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 
 #include <fmt/core.h>
 
@@ -44,11 +45,24 @@ int runIdentify(const IdentifyOptions& o) {
   if (std::isfinite(o.cutoff_hz)) opt.cutoff_hz = o.cutoff_hz;
   if (!o.omega_source.empty()) opt.omega_source = o.omega_source;
   opt.validate("command line / [identification]");
-  std::vector<io::Recording> recs;
-  for (const auto& p : o.inputs) recs.push_back(readRawlogFor("identify", p, o.salvage));
-
-  const std::size_t n_recordings = recs.size();
-  const auto res = identification::identify(std::move(recs), cfg, opt, o.inputs);
+  // Files in time order (what import, simulate and capture write) are read as a stream: memory
+  // does not grow with the drive (docs/benchmarks.md "Memory"); others are loaded whole.
+  bool in_order = true;
+  for (const auto& p : o.inputs) {
+    std::string warning;
+    const io::RecordingSummary sum = io::scanRawlogSalvaging(p, o.salvage, &warning);
+    if (!warning.empty()) std::cerr << "wheelchair identify: warning: " << warning << "\n";
+    in_order = in_order && sum.lateness_s == 0;
+  }
+  const std::size_t n_recordings = o.inputs.size();
+  identification::IdentificationResult res;
+  if (in_order) {
+    res = identification::identifyStreamed(o.inputs, cfg, opt, o.inputs);
+  } else {
+    std::vector<io::Recording> recs;
+    for (const auto& p : o.inputs) recs.push_back(io::readRawlogSalvaging(p, true, nullptr));
+    res = identification::identify(std::move(recs), cfg, opt, o.inputs);
+  }
   auto j = res.toJson();
   j["config"] = o.config_path.empty() ? "<nominal>" : o.config_path;
   std::vector<std::string> changes;

@@ -1,6 +1,10 @@
 #include "libwheelchair/identification/Identification.h"
+#include "libwheelchair/io/RawlogStream.h"
+#include "libwheelchair/signals/IntervalStream.h"
+#include "libwheelchair/stats/BlockedLeastSquares.h"
 #include "libwheelchair/stats/Distributions.h"
 #include "libwheelchair/stats/LeastSquares.h"
+#include "libwheelchair/util/ScratchRecords.h"
 
 #include "libwheelchair/model/VehicleParams.h"
 
@@ -14,11 +18,9 @@
 
 namespace wheelchair::identification {
 
-using stats::LsInput;
 using stats::LsOptions;
 using stats::LsSolution;
 using stats::ResidualStats;
-using stats::solveLeastSquares;
 
 namespace {
 
@@ -215,9 +217,71 @@ Eigen::Matrix<double, 5, 1> d2Weights(const model::Geometry& g) {
 
 namespace {
 
-struct Row {
-  int seg;
+/// A used sample (moving, away from segment edges) as the fits read it.
+struct UsedRow {
+  int recording, seg;
   long k;
+  double t, u_r, u_l, v, omega, vdot, omegadot, i_r, i_l, U_r, U_l;
+};
+
+/// Used rows held in memory (~100 B each) before the rest go to a scratch file.
+constexpr std::size_t kRowsInMemory = 1 << 15;
+/// Rows per block of the blocked least squares.
+constexpr std::size_t kFitRows = 2048;
+
+/// A quasi-steady stretch: the used rows [begin, end) (consecutive samples of one segment).
+struct SteadyRun {
+  std::size_t begin = 0, end = 0;
+  double dur_s = 0;
+};
+
+/// What the fits need of the conditioned samples, collected sample by sample in order (the
+/// conditioning may be streamed): counts, excitation sums, quasi-steady stretches, and the used
+/// rows (util::ScratchRecords: memory bounded whatever the drive's length).
+class RowCollector {
+ public:
+  explicit RowCollector(const IdentificationOptions& o) : o_(o) {}
+
+  void add(const signals::IntervalRow& r) {
+    ++n_grid;
+    if (!r.interior)
+      ++n_edge;
+    else if (!r.moving)
+      ++n_standstill;
+    const bool use = r.interior && r.moving;
+    const bool steady = use && std::abs(r.vdot) < o_.qs_max_vdot_m_s2 &&
+                        std::abs(r.omegadot) < o_.qs_max_omegadot_rad_s2;
+    if (!steady || r.segment != run_seg_) closeRun();
+    if (!use) return;
+    if (steady && run_len_ == 0) run_seg_ = r.segment, run_begin_ = used.size();
+    if (steady) ++run_len_;
+    used.add(UsedRow{r.recording, r.segment, r.k, r.t, r.u_r, r.u_l, r.v, r.omega, r.vdot,
+                     r.omegadot, r.i_r, r.i_l, r.U_r, r.U_l});
+    ss[0] += std::pow(r.v, 2);
+    ss[1] += std::pow(r.omega, 2);
+    ss[2] += std::pow(r.vdot, 2);
+    ss[3] += std::pow(r.omegadot, 2);
+  }
+  /// Closes the last quasi-steady stretch (call once all samples are in).
+  void finish() { closeRun(); }
+
+  std::size_t n_grid = 0, n_edge = 0, n_standstill = 0;
+  double ss[4] = {0, 0, 0, 0};  ///< sums of squares of v, omega, vdot, omegadot (used rows)
+  std::vector<SteadyRun> runs;  ///< quasi-steady stretches of at least qs_min_duration_s
+  util::ScratchRecords<UsedRow> used{"identify: the conditioned samples", kRowsInMemory};
+
+ private:
+  void closeRun() {
+    if (run_len_ > 0) {
+      const double dur = double(run_len_) / o_.rate_hz;
+      if (dur >= o_.qs_min_duration_s) runs.push_back({run_begin_, run_begin_ + run_len_, dur});
+    }
+    run_len_ = 0;
+    run_seg_ = -1;
+  }
+  const IdentificationOptions& o_;
+  int run_seg_ = -1;
+  std::size_t run_begin_ = 0, run_len_ = 0;
 };
 
 std::string nullDescription(const Eigen::VectorXd& vs, const std::vector<Excitation>& ex) {
@@ -315,54 +379,34 @@ Estimate ratioThroughOrigin(const std::vector<double>& x, const std::vector<doub
   return e;
 }
 
-/// The samples the regressions use (moving, away from segment edges); counts in `res`.
-std::vector<Row> usableRows(const PreparedData& data, IdentificationResult& res) {
-  std::vector<Row> rows;
-  for (std::size_t si = 0; si < data.segments.size(); ++si) {
-    const auto& s = data.segments[si];
-    res.n_grid += s.t.size();
-    for (std::size_t k = 0; k < s.t.size(); ++k) {
-      if (!s.interior[k]) {
-        ++res.n_edge;
-        continue;
-      }
-      if (!s.moving[k]) {
-        ++res.n_standstill;
-        continue;
-      }
-      rows.push_back({static_cast<int>(si), static_cast<long>(k)});
-    }
-  }
-  res.n_used = rows.size();
-  if (rows.size() < 50)
+/// The counts of the samples (res.n_*); throws when too few are usable.
+void countRows(const RowCollector& rc, IdentificationResult& res) {
+  res.n_grid = rc.n_grid;
+  res.n_edge = rc.n_edge;
+  res.n_standstill = rc.n_standstill;
+  res.n_used = rc.used.size();
+  if (res.n_used < 50)
     throw std::runtime_error(fmt::format(
         "identify: only {} usable samples (moving, away from segment edges and gaps); need a "
         "recording with encoders and motor currents while the chair moves",
-        rows.size()));
-  return rows;
+        res.n_used));
 }
 
 /// Excitation of v, omega, vdot, omegadot over the used samples (res.excitation, notes).
-void measureExcitation(const PreparedData& data, const std::vector<Row>& rows,
+void measureExcitation(const RowCollector& rc, const PreparedData& noise,
                        const IdentificationOptions& o, IdentificationResult& res) {
-  auto rms = [&](auto member) {
-    double ss = 0;
-    for (const auto& rw : rows) ss += std::pow((data.segments[rw.seg].*member)[rw.k], 2);
-    return std::sqrt(ss / rows.size());
-  };
   const struct {
     const char* name;
-    std::vector<double> PreparedSegment::*m;
     double noise;
-  } sig[4] = {{"v", &PreparedSegment::v, data.noise_v},
-              {"omega", &PreparedSegment::omega, data.noise_omega},
-              {"vdot", &PreparedSegment::vdot, data.noise_vdot},
-              {"omegadot", &PreparedSegment::omegadot, data.noise_omegadot}};
-  for (const auto& sg : sig) {
+  } sig[4] = {{"v", noise.noise_v},
+              {"omega", noise.noise_omega},
+              {"vdot", noise.noise_vdot},
+              {"omegadot", noise.noise_omegadot}};
+  for (int j = 0; j < 4; ++j) {
     Excitation e;
-    e.signal = sg.name;
-    e.rms = rms(sg.m);
-    e.noise = std::max(sg.noise, 1e-12);
+    e.signal = sig[j].name;
+    e.rms = std::sqrt(rc.ss[j] / double(rc.used.size()));
+    e.noise = std::max(sig[j].noise, 1e-12);
     e.snr = e.rms / e.noise;
     e.excited = e.snr >= o.min_excitation_snr;
     res.excitation.push_back(e);
@@ -382,32 +426,56 @@ void measureExcitation(const PreparedData& data, const std::vector<Row>& rows,
 /// regressors: their measured values are noise, and regressing on noise would produce a
 /// confident, attenuated (wrong) coefficient.
 struct Samples {
-  const PreparedData& data;
-  const std::vector<Row>& rows;
+  util::ScratchRecords<UsedRow>& rows;
   bool ex[4];  ///< v, omega, vdot, omegadot excited
-  const PreparedSegment& seg(const Row& rw) const { return data.segments[rw.seg]; }
   /// 0 v, 1 omega, 2 vdot, 3 omegadot (0 when not excited).
-  double val(const Row& rw, int which) const {
-    const auto& s = seg(rw);
+  double val(const UsedRow& rw, int which) const {
     switch (which) {
       case 0:
-        return ex[0] ? s.v[rw.k] : 0.0;
+        return ex[0] ? rw.v : 0.0;
       case 1:
-        return ex[1] ? s.omega[rw.k] : 0.0;
+        return ex[1] ? rw.omega : 0.0;
       case 2:
-        return ex[2] ? s.vdot[rw.k] : 0.0;
+        return ex[2] ? rw.vdot : 0.0;
       default:
-        return ex[3] ? s.omegadot[rw.k] : 0.0;
+        return ex[3] ? rw.omegadot : 0.0;
     }
   }
-  /// A least-squares problem of `cols` columns over the rows (time index and block set).
-  LsInput input(std::size_t n_rows, int cols) const {
-    LsInput in;
-    in.X.resize(n_rows, cols);
-    in.y.resize(n_rows);
-    in.time_index.resize(n_rows);
-    in.block.resize(n_rows);
-    return in;
+  /// A least-squares problem of `cols` columns, `per_sample` rows per used sample (time step
+  /// k, block = segment), made block by block from the rows: fill(row, X, y, r) writes the
+  /// rows r .. r + per_sample - 1 of the block.
+  template <typename Fill>
+  stats::LsRowSource source(int cols, int per_sample, Fill fill) const {
+    return [this, cols, per_sample, fill](const stats::LsBlockVisitor& visit) {
+      std::vector<UsedRow> chunk;
+      chunk.reserve(kFitRows);
+      Eigen::MatrixXd X;
+      Eigen::VectorXd y;
+      std::vector<long> ti;
+      std::vector<int> blk;
+      const auto flush = [&] {
+        const long m = long(chunk.size()) * per_sample;
+        X.resize(m, cols);
+        y.resize(m);
+        ti.resize(std::size_t(m));
+        blk.resize(std::size_t(m));
+        for (std::size_t q = 0; q < chunk.size(); ++q) {
+          const long r = long(q) * per_sample;
+          fill(chunk[q], X, y, r);
+          for (int i = 0; i < per_sample; ++i) {
+            ti[std::size_t(r + i)] = chunk[q].k;
+            blk[std::size_t(r + i)] = chunk[q].seg;
+          }
+        }
+        visit(X, y, ti, blk);
+        chunk.clear();
+      };
+      rows.replay(0, rows.size(), [&](const UsedRow& rw) {
+        chunk.push_back(rw);
+        if (chunk.size() == kFitRows) flush();
+      });
+      if (!chunk.empty()) flush();
+    };
   }
 };
 
@@ -437,7 +505,13 @@ void nullDirections(const LsSolution& ts, double rG, IdentificationResult& res) 
     const int keep = static_cast<int>(Nb.cols()) - 1;
     Nb = sv.matrixU().leftCols(keep);
   }
-  for (int k = 0; k < Nb.cols(); ++k) basis.push_back(Nb.col(k));
+  for (int k = 0; k < Nb.cols(); ++k) {  // the SVD's sign is arbitrary: largest entry > 0
+    Eigen::VectorXd b = Nb.col(k);
+    Eigen::Index imax = 0;
+    b.cwiseQuotient(ts.column_scale).cwiseAbs().maxCoeff(&imax);
+    if (b(imax) < 0) b = -b;
+    basis.push_back(b);
+  }
   for (const auto& vs : basis) {
     NullDirection nd;
     Eigen::VectorXd d = vs.cwiseQuotient(ts.column_scale);
@@ -454,20 +528,14 @@ void nullDirections(const LsSolution& ts, double rG, IdentificationResult& res) 
 /// theta: the 5-column form (2), right and left rows stacked; theta_j, D1, D2 in `res`.
 LsSolution fitTheta(const Samples& sm, const model::Geometry& g, const LsOptions& lso,
                     IdentificationResult& res) {
-  const std::size_t n = sm.rows.size();
-  LsInput th = sm.input(2 * n, 5);
-  for (std::size_t q = 0; q < n; ++q) {
-    const auto& rw = sm.rows[q];
-    const auto& s = sm.seg(rw);
+  const auto fill = [&sm, &g](const UsedRow& rw, Eigen::MatrixXd& X, Eigen::VectorXd& y, long r) {
     const auto Y = model::regressor(g, sm.val(rw, 0), sm.val(rw, 2), sm.val(rw, 1), sm.val(rw, 3));
     for (int i = 0; i < 2; ++i) {
-      th.X.row(2 * q + i) = Y.row(i);
-      th.y(2 * q + i) = i == 0 ? s.i_r[rw.k] : s.i_l[rw.k];
-      th.time_index[2 * q + i] = rw.k;
-      th.block[2 * q + i] = rw.seg;
+      X.row(r + i) = Y.row(i);
+      y(r + i) = i == 0 ? rw.i_r : rw.i_l;
     }
-  }
-  const LsSolution ts = solveLeastSquares(std::move(th), lso);
+  };
+  const LsSolution ts = stats::solveLeastSquaresBlocked(sm.source(5, 2, fill), 5, lso);
   res.theta_regression = report(ts, {"y_i1", "y_i2", "y_i3", "y_i4", "y_i5"});
   nullDirections(ts, g.gear_ratio, res);
   for (int j = 0; j < 5; ++j) {
@@ -529,9 +597,14 @@ void aFromTheta(const LsSolution& ts, const model::Geometry& g, IdentificationRe
                                  (D2.identifiable ? t5.reason : D2.reason);
 }
 
+/// Moves a segment out of its vector (freed when the holder goes).
+struct IntervalSegmentHolder {
+  explicit IntervalSegmentHolder(PreparedSegment& from) : s(std::move(from)) {}
+  PreparedSegment s;
+};
+
 /// a1..a4 directly from the ODE form (6).
 void fitDirect(const Samples& sm, const LsOptions& lso, IdentificationResult& res) {
-  const std::size_t n = sm.rows.size();
   for (int eq = 0; eq < 2; ++eq) {
     const bool excited = eq == 0 ? sm.ex[2] : sm.ex[3];
     const int ia = eq == 0 ? 0 : 1, ib = eq == 0 ? 2 : 3;  // current gain, damping
@@ -542,18 +615,12 @@ void fitDirect(const Samples& sm, const LsOptions& lso, IdentificationResult& re
       res.a_direct[ia].reason = res.a_direct[ib].reason = why;
       continue;
     }
-    LsInput in = sm.input(n, 2);
-    for (std::size_t q = 0; q < n; ++q) {
-      const auto& rw = sm.rows[q];
-      const auto& s = sm.seg(rw);
-      const double isum = eq == 0 ? s.i_r[rw.k] + s.i_l[rw.k] : s.i_r[rw.k] - s.i_l[rw.k];
-      in.X(q, 0) = isum;
-      in.X(q, 1) = eq == 0 ? sm.val(rw, 0) : sm.val(rw, 1);
-      in.y(q) = eq == 0 ? s.vdot[rw.k] : s.omegadot[rw.k];
-      in.time_index[q] = rw.k;
-      in.block[q] = rw.seg;
-    }
-    const LsSolution sol = solveLeastSquares(std::move(in), lso);
+    const auto fill = [&sm, eq](const UsedRow& rw, Eigen::MatrixXd& X, Eigen::VectorXd& y, long r) {
+      X(r, 0) = eq == 0 ? rw.i_r + rw.i_l : rw.i_r - rw.i_l;
+      X(r, 1) = eq == 0 ? sm.val(rw, 0) : sm.val(rw, 1);
+      y(r) = eq == 0 ? rw.vdot : rw.omegadot;
+    };
+    const LsSolution sol = stats::solveLeastSquaresBlocked(sm.source(2, 1, fill), 2, lso);
     (eq == 0 ? res.direct_v : res.direct_omega) =
         report(sol, eq == 0 ? std::vector<std::string>{"i_R + i_L", "v"}
                             : std::vector<std::string>{"i_R - i_L", "omega"});
@@ -572,21 +639,16 @@ void fitDirect(const Samples& sm, const LsOptions& lso, IdentificationResult& re
 void fitPerSide(const Samples& sm, const model::Geometry& g, const LsOptions& lso,
                 IdentificationResult& res) {
   const double r = g.wheel_radius_m, rG = g.gear_ratio, lw = g.track_width_m;
-  const std::size_t n = sm.rows.size();
   for (int side = 0; side < 2; ++side) {
     const double sgn = side == 0 ? 1.0 : -1.0;
-    LsInput in = sm.input(n, 3);
-    for (std::size_t q = 0; q < n; ++q) {
-      const auto& rw = sm.rows[q];
-      const auto& s = sm.seg(rw);
-      in.X(q, 0) = sm.val(rw, 2);
-      in.X(q, 1) = sgn * sm.val(rw, 3);
-      in.X(q, 2) = rG / r * (sm.val(rw, 0) + sgn * lw / 2 * sm.val(rw, 1));
-      in.y(q) = side == 0 ? s.i_r[rw.k] : s.i_l[rw.k];
-      in.time_index[q] = rw.k;
-      in.block[q] = rw.seg;
-    }
-    const LsSolution sol = solveLeastSquares(std::move(in), lso);
+    const auto fill = [&sm, side, sgn, r, rG, lw](const UsedRow& rw, Eigen::MatrixXd& X,
+                                                  Eigen::VectorXd& y, long q) {
+      X(q, 0) = sm.val(rw, 2);
+      X(q, 1) = sgn * sm.val(rw, 3);
+      X(q, 2) = rG / r * (sm.val(rw, 0) + sgn * lw / 2 * sm.val(rw, 1));
+      y(q) = side == 0 ? rw.i_r : rw.i_l;
+    };
+    const LsSolution sol = stats::solveLeastSquaresBlocked(sm.source(3, 1, fill), 3, lso);
     res.per_side[side] = report(sol, {"vdot", "s_i omegadot", "(r_G/r) u_i"});
     auto& m = res.motor[side];
     Eigen::Vector3d e0(1, 0, 0), e1(0, 1, 0), e2(0, 0, 1);
@@ -604,24 +666,24 @@ struct QuasiSteadyData {
   std::array<std::vector<double>, 2> xs, y_ratio, y_emf, wts;
 };
 
-/// One quasi-steady stretch [k0, k1) of a segment: its means (and the data of each used side).
-QuasiSteadySegment quasiSteadySegment(const PreparedSegment& s, std::size_t k0, std::size_t k1,
-                                      double dur, bool has_voltage,
-                                      const config::WheelchairConfig& cfg,
+/// One quasi-steady stretch (used rows [run.begin, run.end)): its means (and the data of each
+/// used side).
+QuasiSteadySegment quasiSteadySegment(util::ScratchRecords<UsedRow>& rows, const SteadyRun& run,
+                                      bool has_voltage, const config::WheelchairConfig& cfg,
                                       const IdentificationOptions& o, QuasiSteadyData& d) {
   const double r = cfg.vehicle.geom.wheel_radius_m, rG = cfg.vehicle.geom.gear_ratio;
   QuasiSteadySegment q;
-  q.recording = s.recording;
-  q.t_start_s = s.t[k0];
-  q.t_end_s = s.t[k1 - 1];
-  const double m = double(k1 - k0);
+  const double m = double(run.end - run.begin);
   std::array<double, 2> umin{1e300, 1e300}, umax{-1e300, -1e300};
-  for (std::size_t k = k0; k < k1; ++k) {
-    q.v_m_s += s.v[k] / m;
-    q.omega_rad_s += s.omega[k] / m;
-    const double u[2] = {s.u_r[k], s.u_l[k]};
-    const double cur[2] = {s.i_r[k], s.i_l[k]};
-    const double U[2] = {s.U_r[k], s.U_l[k]};
+  bool first = true;
+  rows.replay(run.begin, run.end, [&](const UsedRow& s) {
+    if (first) q.recording = s.recording, q.t_start_s = s.t, first = false;
+    q.t_end_s = s.t;
+    q.v_m_s += s.v / m;
+    q.omega_rad_s += s.omega / m;
+    const double u[2] = {s.u_r, s.u_l};
+    const double cur[2] = {s.i_r, s.i_l};
+    const double U[2] = {s.U_r, s.U_l};
     for (int i = 0; i < 2; ++i) {
       q.current_A[i] += cur[i] / m;
       q.voltage_V[i] += U[i] / m;
@@ -629,7 +691,7 @@ QuasiSteadySegment quasiSteadySegment(const PreparedSegment& s, std::size_t k0, 
       umin[i] = std::min(umin[i], u[i]);
       umax[i] = std::max(umax[i], u[i]);
     }
-  }
+  });
   for (int i = 0; i < 2; ++i) {
     q.used[i] = has_voltage &&
                 (umin[i] >= o.qs_min_wheel_speed_m_s || umax[i] <= -o.qs_min_wheel_speed_m_s);
@@ -637,39 +699,21 @@ QuasiSteadySegment quasiSteadySegment(const PreparedSegment& s, std::size_t k0, 
     d.xs[i].push_back(q.motor_speed_rad_s[i]);
     d.y_ratio[i].push_back(q.voltage_V[i]);
     d.y_emf[i].push_back(q.voltage_V[i] - cfg.vehicle.armature_resistance_ohm * q.current_A[i]);
-    d.wts[i].push_back(dur);
+    d.wts[i].push_back(run.dur_s);
   }
   return q;
 }
 
 /// Quasi-steady segments: per-motor k/eta (eq. 4) and back-EMF constant.
-void fitQuasiSteady(const PreparedData& data, const config::WheelchairConfig& cfg,
+void fitQuasiSteady(RowCollector& rc, bool has_voltage, const config::WheelchairConfig& cfg,
                     const IdentificationOptions& o, IdentificationResult& res) {
   QuasiSteadyData d;
-  for (std::size_t si = 0; si < data.segments.size(); ++si) {
-    const auto& s = data.segments[si];
-    const std::size_t N = s.t.size();
-    auto steady = [&](std::size_t k) {
-      return s.interior[k] && s.moving[k] && std::abs(s.vdot[k]) < o.qs_max_vdot_m_s2 &&
-             std::abs(s.omegadot[k]) < o.qs_max_omegadot_rad_s2;
-    };
-    for (std::size_t k0 = 0; k0 < N;) {
-      if (!steady(k0)) {
-        ++k0;
-        continue;
-      }
-      std::size_t k1 = k0;
-      while (k1 < N && steady(k1)) ++k1;
-      const double dur = (k1 - k0) / o.rate_hz;
-      if (dur >= o.qs_min_duration_s)
-        res.segments.push_back(quasiSteadySegment(s, k0, k1, dur, data.has_voltage, cfg, o, d));
-      k0 = k1;
-    }
-  }
+  for (const auto& run : rc.runs)
+    res.segments.push_back(quasiSteadySegment(rc.used, run, has_voltage, cfg, o, d));
   for (int i = 0; i < 2; ++i) {
     auto& m = res.motor[i];
     m.n_segments = static_cast<int>(d.xs[i].size());
-    if (!data.has_voltage) {
+    if (!has_voltage) {
       m.k_over_eta.reason = m.back_emf_k.reason =
           "the recordings hold no V_RC voltage (all zero): motor constants need it";
       continue;
@@ -684,10 +728,13 @@ void fitQuasiSteady(const PreparedData& data, const config::WheelchairConfig& cf
         o.qs_max_vdot_m_s2, o.qs_max_omegadot_rad_s2, o.qs_min_duration_s));
 }
 
-/// identify() on conditioned signals (the recordings may be gone: they are not read again).
-IdentificationResult identifyPrepared(const PreparedData& data, const config::WheelchairConfig& cfg,
-                                      const IdentificationOptions& o,
-                                      const std::vector<std::string>& sources) {
+/// identify() on the collected samples; `conditioned` gives the noise floors and whether any
+/// voltage was recorded (its segments are not read).
+IdentificationResult identifyRows(RowCollector& rc, const PreparedData& conditioned,
+                                  const config::WheelchairConfig& cfg,
+                                  const IdentificationOptions& o,
+                                  const std::vector<std::string>& sources) {
+  rc.finish();
   IdentificationResult res;
   res.options = o;
   res.config_origin = cfg.origin();
@@ -696,10 +743,9 @@ IdentificationResult identifyPrepared(const PreparedData& data, const config::Wh
   res.z = stats::normalQuantile(0.5 + o.confidence / 2);
   const auto& g = cfg.vehicle.geom;
 
-  const std::vector<Row> rows = usableRows(data, res);
-  measureExcitation(data, rows, o, res);
-  const Samples sm{data,
-                   rows,
+  countRows(rc, res);
+  measureExcitation(rc, conditioned, o, res);
+  const Samples sm{rc.used,
                    {res.excitation[0].excited, res.excitation[1].excited, res.excitation[2].excited,
                     res.excitation[3].excited}};
   LsOptions lso;
@@ -709,7 +755,7 @@ IdentificationResult identifyPrepared(const PreparedData& data, const config::Wh
   aFromTheta(ts, g, res);
   fitDirect(sm, lso, res);
   fitPerSide(sm, g, lso, res);
-  fitQuasiSteady(data, cfg, o, res);
+  fitQuasiSteady(rc, conditioned.has_voltage, cfg, o, res);
 
   res.notes.push_back(fmt::format(
       "standard errors: Newey-West HAC (Bartlett kernel, {} lags = {} x rate/cutoff) over "
@@ -722,13 +768,24 @@ IdentificationResult identifyPrepared(const PreparedData& data, const config::Wh
   return res;
 }
 
+/// The rows of conditioned segments into `rc`, each segment released once read.
+void collectSegments(PreparedData& data, RowCollector& rc) {
+  for (std::size_t si = 0; si < data.segments.size(); ++si) {
+    IntervalSegmentHolder seg(data.segments[si]);
+    for (std::size_t k = 0; k < seg.s.t.size(); ++k)
+      rc.add(signals::intervalRow(seg.s, static_cast<int>(si), k));
+  }
+}
+
 }  // namespace
 
 IdentificationResult identify(const std::vector<io::Recording>& recs,
                               const config::WheelchairConfig& cfg, const IdentificationOptions& o,
                               const std::vector<std::string>& sources) {
-  return identifyPrepared(signals::prepareIntervalMeans(recs, cfg, o.intervalSignalOptions()), cfg,
-                          o, sources);
+  PreparedData data = signals::prepareIntervalMeans(recs, cfg, o.intervalSignalOptions());
+  RowCollector rc(o);
+  collectSegments(data, rc);
+  return identifyRows(rc, data, cfg, o, sources);
 }
 
 IdentificationResult identify(std::vector<io::Recording>&& recs,
@@ -736,7 +793,28 @@ IdentificationResult identify(std::vector<io::Recording>&& recs,
                               const std::vector<std::string>& sources) {
   PreparedData data = signals::prepareIntervalMeans(recs, cfg, o.intervalSignalOptions());
   std::vector<io::Recording>().swap(recs);  // released before the fits (their peak)
-  return identifyPrepared(data, cfg, o, sources);
+  RowCollector rc(o);
+  collectSegments(data, rc);
+  return identifyRows(rc, data, cfg, o, sources);
+}
+
+IdentificationResult identifyStreamed(const std::vector<std::string>& paths,
+                                      const config::WheelchairConfig& cfg,
+                                      const IdentificationOptions& o,
+                                      const std::vector<std::string>& sources) {
+  RowCollector rc(o);
+  signals::IntervalConditioner cond(cfg, o.intervalSignalOptions(),
+                                    [&rc](const signals::IntervalRow& r) { rc.add(r); });
+  for (std::size_t ri = 0; ri < paths.size(); ++ri) {
+    io::RawlogSampleReader in(paths[ri]);
+    cond.beginRecording(static_cast<int>(ri));
+    io::AnySample s;
+    std::size_t k = 0;
+    while (in.next(s, k)) cond.add(s);
+    cond.endRecording();
+  }
+  const PreparedData summary = cond.finish();
+  return identifyRows(rc, summary, cfg, o, sources);
 }
 
 // ---------------------------------------------------------------------------------------

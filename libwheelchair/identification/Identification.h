@@ -155,6 +155,18 @@ IdentificationResult identify(std::vector<io::Recording>&& recordings,
                               const config::WheelchairConfig& cfg, const IdentificationOptions& opt,
                               const std::vector<std::string>& sources = {});
 
+/// The same from rawlog files read as a stream (`identify` on long drives: memory does not grow
+/// with the drive, docs/benchmarks.md "Memory"): the conditioning runs as the samples come
+/// (signals::IntervalConditioner) and the used samples wait in a scratch file for the fits
+/// (~100 B each: ~35 MB of temporary disk per recorded hour at 100 Hz). The same result as
+/// identify() on the files' recordings (tests/identification) when every file is in time order
+/// (io::RecordingSummary::lateness_s == 0; the caller checks); a damaged file is read up to its
+/// break (the caller applies the salvage rule first).
+IdentificationResult identifyStreamed(const std::vector<std::string>& paths,
+                                      const config::WheelchairConfig& cfg,
+                                      const IdentificationOptions& opt,
+                                      const std::vector<std::string>& sources = {});
+
 /// The input configuration with the identified values written in (docs/identification.md,
 /// "Writing the configuration"): [vehicle] gearbox_efficiency, yaw_inertia_kg_m2,
 /// motor_viscous_Nm_s_rad, torque_constant_Nm_A change; a new [identified] section records

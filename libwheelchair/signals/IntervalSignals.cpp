@@ -217,6 +217,51 @@ IntervalSegment conditionSegment(const RecordingStreams& r, int recording, doubl
 
 }  // namespace
 
+void noiseFloors(double ss_v, double ss_w, std::size_t n_noise, const IntervalSignalOptions& o,
+                 IntervalSignals& out) {
+  const double dt = 1.0 / o.rate_hz;
+  // Noise floors: raw-minus-filtered rms (the noise above the cut-off) times the noise gain
+  // of the filter (and of filter + central difference) for white noise.
+  if (n_noise > 0) {
+    const long half = static_cast<long>(std::ceil(20 * o.rate_hz / o.cutoff_hz));
+    std::vector<double> imp(2 * half + 1, 0.0);
+    imp[half] = 1.0;
+    const auto h = filt(imp, o);
+    const auto hd = centralDiff(h, dt);
+    double g0 = 0, gd = 0;
+    for (std::size_t k = 0; k < h.size(); ++k) g0 += h[k] * h[k], gd += hd[k] * hd[k];
+    g0 = std::sqrt(g0), gd = std::sqrt(gd);
+    // raw - filtered keeps the fraction (1 - g0^2) of white noise variance (approximately).
+    const double keep = std::max(1e-3, 1.0 - 2 * h[half] + g0 * g0);
+    const double sv = std::sqrt(ss_v / n_noise / keep), sw = std::sqrt(ss_w / n_noise / keep);
+    out.noise_v = sv * g0;
+    out.noise_omega = sw * g0;
+    out.noise_vdot = sv * gd;
+    out.noise_omegadot = sw * gd;
+  }
+}
+
+IntervalRow intervalRow(const IntervalSegment& s, int segment, std::size_t k) {
+  IntervalRow r;
+  r.recording = s.recording;
+  r.segment = segment;
+  r.k = static_cast<long>(k);
+  r.t = s.t[k];
+  r.u_r = s.u_r[k];
+  r.u_l = s.u_l[k];
+  r.v = s.v[k];
+  r.omega = s.omega[k];
+  r.vdot = s.vdot[k];
+  r.omegadot = s.omegadot[k];
+  r.i_r = s.i_r[k];
+  r.i_l = s.i_l[k];
+  r.U_r = s.U_r[k];
+  r.U_l = s.U_l[k];
+  r.interior = s.interior[k] != 0;
+  r.moving = s.moving[k] != 0;
+  return r;
+}
+
 IntervalSignals prepareIntervalMeans(const std::vector<io::Recording>& recs,
                                      const config::WheelchairConfig& cfg,
                                      const IntervalSignalOptions& o) {
@@ -255,27 +300,7 @@ IntervalSignals prepareIntervalMeans(const std::vector<io::Recording>& recs,
       k0 = k1;
     }
   }
-  double ss_v = noise.ss_v, ss_w = noise.ss_w;
-  std::size_t n_noise = noise.n;
-  // Noise floors: raw-minus-filtered rms (the noise above the cut-off) times the noise gain
-  // of the filter (and of filter + central difference) for white noise.
-  if (n_noise > 0) {
-    const long half = static_cast<long>(std::ceil(20 * o.rate_hz / o.cutoff_hz));
-    std::vector<double> imp(2 * half + 1, 0.0);
-    imp[half] = 1.0;
-    const auto h = filt(imp, o);
-    const auto hd = centralDiff(h, dt);
-    double g0 = 0, gd = 0;
-    for (std::size_t k = 0; k < h.size(); ++k) g0 += h[k] * h[k], gd += hd[k] * hd[k];
-    g0 = std::sqrt(g0), gd = std::sqrt(gd);
-    // raw - filtered keeps the fraction (1 - g0^2) of white noise variance (approximately).
-    const double keep = std::max(1e-3, 1.0 - 2 * h[half] + g0 * g0);
-    const double sv = std::sqrt(ss_v / n_noise / keep), sw = std::sqrt(ss_w / n_noise / keep);
-    out.noise_v = sv * g0;
-    out.noise_omega = sw * g0;
-    out.noise_vdot = sv * gd;
-    out.noise_omegadot = sw * gd;
-  }
+  noiseFloors(noise.ss_v, noise.ss_w, noise.n, o, out);
   return out;
 }
 

@@ -68,6 +68,26 @@ struct IntervalSignals {
   bool has_voltage = false;                   ///< some V_RC sample is not zero
 };
 
+/// One grid sample of a segment: what an IntervalSegment holds at index k (the streaming
+/// conditioning, IntervalStream.h, produces these instead of whole segments).
+struct IntervalRow {
+  int recording = 0;
+  int segment = 0;  ///< index of the segment over all recordings, in order
+  long k = 0;       ///< index within the segment
+  double t = 0;     ///< (s)
+  double u_r = 0, u_l = 0, v = 0, omega = 0, vdot = 0, omegadot = 0;  ///< filtered
+  double i_r = 0, i_l = 0, U_r = 0, U_l = 0;                          ///< filtered (A, V)
+  bool interior = false, moving = false;
+};
+
+/// Row k of segment s (its index `segment` over all recordings).
+IntervalRow intervalRow(const IntervalSegment& s, int segment, std::size_t k);
+
+/// Step 4's noise floors into `out` from the raw-minus-filtered sums of squares of v and omega
+/// over the n interior rows (nothing when n = 0).
+void noiseFloors(double ss_v, double ss_w, std::size_t n, const IntervalSignalOptions& o,
+                 IntervalSignals& out);
+
 /// Steps 1-4 over the recordings (segments of all of them, in order).
 IntervalSignals prepareIntervalMeans(const std::vector<io::Recording>& recordings,
                                      const config::WheelchairConfig& cfg,

@@ -2,6 +2,7 @@
 // regressor, estimability of linear functionals, HAC standard errors that cover the truth
 // under strongly autocorrelated residuals where the iid ones do not, and the sandwich itself
 // against an independent closed-form computation.
+#include "libwheelchair/stats/BlockedLeastSquares.h"
 #include "libwheelchair/stats/LeastSquares.h"
 
 #include <Eigen/Dense>
@@ -202,4 +203,88 @@ TEST(LeastSquares, FitLinearBlockedEqualsTheUnblockedSolver) {
   EXPECT_FALSE(d.ok);
   EXPECT_EQ(d.rank, p);
   EXPECT_EQ(d.residual, y);
+}
+
+// solveLeastSquaresBlocked (identify on long drives): the LsSolution of solveLeastSquares up to
+// rounding, on a rank-deficient design with two rows per time step (as identify's theta
+// regression), time steps without rows, several blocks (one longer than the HAC window of 2048
+// steps), fed in uneven row blocks.
+TEST(LeastSquares, BlockedSolverEqualsTheInMemorySolver) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> N(0, 1);
+  const int p = 4;
+  LsInput in;
+  std::vector<int> lens{5000, 300, 2600};
+  std::vector<Eigen::RowVectorXd> xs;
+  std::vector<double> ys;
+  double e = 0;
+  for (int b = 0; b < 3; ++b)
+    for (long t = 0; t < lens[b]; ++t) {
+      if (t % 97 < 5) continue;  // steps without rows (standstill)
+      const double a = N(rng), c = N(rng), d = std::sin(0.003 * t);
+      for (int side = 0; side < 2; ++side) {
+        const double s = side == 0 ? 1 : -1;
+        Eigen::RowVectorXd x(p);
+        x << a, 1e3 * a, s * c, d;  // column 1 = 1e3 column 0: rank 3
+        e = 0.95 * e + N(rng);
+        xs.push_back(x);
+        ys.push_back(2 * a + 3 * s * c - d + 0.1 * e);
+        in.time_index.push_back(t);
+        in.block.push_back(b);
+      }
+    }
+  in.X.resize(long(xs.size()), p);
+  in.y.resize(long(xs.size()));
+  for (std::size_t r = 0; r < xs.size(); ++r) in.X.row(long(r)) = xs[r], in.y(long(r)) = ys[r];
+  stats::LsOptions lo;
+  lo.hac_lags = 60;
+  const auto ref = solveLeastSquares(in, lo);
+  const long n = in.X.rows();
+  const stats::LsRowSource rows = [&](const stats::LsBlockVisitor& visit) {
+    for (long r0 = 0, nb = 1; r0 < n; r0 += nb, nb = nb * 3 % 1999 + 1) {
+      nb = std::min(nb, n - r0);
+      visit(in.X.middleRows(r0, nb), in.y.segment(r0, nb),
+            std::vector<long>(in.time_index.begin() + r0, in.time_index.begin() + r0 + nb),
+            std::vector<int>(in.block.begin() + r0, in.block.begin() + r0 + nb));
+    }
+  };
+  const auto s = stats::solveLeastSquaresBlocked(rows, p, lo);
+  ASSERT_EQ(s.rank, 3);
+  EXPECT_EQ(ref.rank, 3);
+  EXPECT_TRUE(s.residuals.size() == 0);
+  for (int k = 0; k < p; ++k) {
+    EXPECT_NEAR(s.column_scale(k), ref.column_scale(k), 1e-13 * ref.column_scale(k));
+    EXPECT_NEAR(s.beta(k), ref.beta(k), 1e-10 * ref.beta.norm()) << k;
+    for (int j = 0; j < p; ++j) {
+      const double sc = std::sqrt(ref.cov(k, k) * ref.cov(j, j)) + 1e-300;
+      EXPECT_NEAR(s.cov(k, j), ref.cov(k, j), 1e-9 * sc) << k << "," << j;
+      const double scn = std::sqrt(ref.cov_naive(k, k) * ref.cov_naive(j, j)) + 1e-300;
+      EXPECT_NEAR(s.cov_naive(k, j), ref.cov_naive(k, j), 1e-9 * scn);
+    }
+  }
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(s.singular_values(k), ref.singular_values(k), 1e-12 * ref.singular_values(0));
+  EXPECT_LT(s.singular_values(3), 1e-12 * s.singular_values(0));
+  EXPECT_NEAR(s.condition_number_identifiable, ref.condition_number_identifiable,
+              1e-10 * ref.condition_number_identifiable);
+  const Eigen::Vector4d w(1, 1e3, 0, 0), w2(0, 0, 1, 0);
+  EXPECT_TRUE(s.isEstimable(w));
+  EXPECT_FALSE(s.isEstimable(Eigen::Vector4d(1, 0, 0, 0)));
+  EXPECT_NEAR(s.standardError(w2), ref.standardError(w2), 1e-9 * ref.standardError(w2));
+  const auto &a = s.residual, &b = ref.residual;
+  EXPECT_EQ(a.n_rows, b.n_rows);
+  EXPECT_EQ(a.dof, b.dof);
+  EXPECT_NEAR(a.rms, b.rms, 1e-12 * b.rms);
+  EXPECT_NEAR(a.mean, b.mean, 1e-10 * b.rms);
+  EXPECT_NEAR(a.max_abs, b.max_abs, 1e-10 * b.max_abs);
+  EXPECT_NEAR(a.rms_y, b.rms_y, 1e-13 * b.rms_y);
+  EXPECT_NEAR(a.r_squared, b.r_squared, 1e-12);
+  EXPECT_NEAR(a.lag1_autocorr, b.lag1_autocorr, 1e-12);
+  EXPECT_NEAR(a.n_effective, b.n_effective, 1e-9 * b.n_effective);
+  // rows of a block that come back after another block are refused
+  const stats::LsRowSource bad = [&](const stats::LsBlockVisitor& visit) {
+    for (int b : {0, 1, 0})
+      visit(in.X.topRows(10), in.y.head(10), std::vector<long>(10, 0), std::vector<int>(10, b));
+  };
+  EXPECT_THROW(stats::solveLeastSquaresBlocked(bad, p, lo), std::invalid_argument);
 }
