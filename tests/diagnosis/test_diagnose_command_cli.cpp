@@ -103,6 +103,16 @@ TEST(DiagnoseCommandCli, BundledMrclamSliceSchema) {
   expectHeldOutRule(j);
   EXPECT_EQ(j["config_written"], ini.string());
   EXPECT_EQ(j["info"]["analyser"], "command_response");
+  // What could and could not be tested (issue 16 item 1): commands vs motion only; the others
+  // name the missing streams (MRCLAM: no encoders, no gyro, no motor currents).
+  for (const auto& c : j["info"]["comparisons"]) {
+    const bool cmd = c["comparison"] == "commands vs motion";
+    EXPECT_EQ(c["tested"].get<bool>(), cmd) << c.dump();
+    if (!cmd) {
+      EXPECT_NE(c["why"].get<std::string>().find("no "), std::string::npos) << c.dump();
+    }
+  }
+  EXPECT_EQ(j["info"]["comparisons"].size(), 6u);
   // The corrected model is what the command-driven EKF reads (nominal when nothing passed).
   const auto eo = wheelchair::estimation::loadCommandDrivenEkfOptions(ini.string());
   EXPECT_EQ(eo.response.isNominal(), !lag);
