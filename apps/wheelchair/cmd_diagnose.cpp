@@ -101,7 +101,7 @@ diagnosis::DiagnosisReport analyse(Inputs& in, const config::WheelchairConfig& c
     rep.info["command_response_validation"] = how;
     if (!any_encoders) rep.info["validation"] = how;
   }
-  diagnosis::enforceHeldOutRule(rep);  // every analyser: held-out prediction never worse
+  diagnosis::enforceHeldOutRule(rep);       // every analyser: held-out prediction never worse
   diagnosis::addComparisons(streams, rep);  // what could and could not be tested (issue 16)
   return rep;
 }

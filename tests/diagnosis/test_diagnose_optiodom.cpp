@@ -63,15 +63,21 @@ TEST(DiagnoseOptiodom, NamesWheelGeometryAndCorrectedConfigPredictsHeldOutRunBet
   EXPECT_EQ(j["config"], "recorded in " + cw);
   // Held-out rule (issue 16): no reported finding -- wheel_geometry or any command-response
   // term (the excerpt has the robot's commands too) -- predicts its held-out data worse.
-  for (const auto& x : j["findings"])
+  // Every finding carries its held-out prediction (with and without it).
+  for (const auto& x : j["findings"]) {
+    int carried = 0;
     for (const char* k :
          {"odometry_mean_position_error_m", "odometry_end_position_error_m",
           "odometry_end_heading_error_deg", "drift_10s_m", "drift_60s_m", "heading_drift_10s_deg",
           "heading_drift_60s_deg", "validation_rms_m_s", "validation_rms_rad_s"})
       if (x["fit_before"].contains(k) && x["fit_before"][k].is_number() &&
-          x["fit_after"].contains(k) && x["fit_after"][k].is_number())
+          x["fit_after"].contains(k) && x["fit_after"][k].is_number()) {
+        ++carried;
         EXPECT_LE(x["fit_after"][k].get<double>(), x["fit_before"][k].get<double>() + 1e-12)
             << x["effect"] << " " << k;
+      }
+    EXPECT_GE(carried, 2) << "no held-out prediction carried by " << x.dump();
+  }
   // what the command-response analyser proposed and the held-out rule rejected is listed
   // with its numbers and said in the summary
   for (const auto& r : j["info"].value("command_response_rejected", nlohmann::json::array())) {
@@ -188,10 +194,10 @@ TEST(DiagnoseOptiodom, SaysWhatCouldAndCouldNotBeTested) {
     run(cli + " import " + dir.string() + " -o " + (d / (std::string(r) + "_nogt.rawlog")).string(),
         d / "import2.log");
   }
-  const std::string out2 = run(cli + " diagnose " + (d / "r1_nogt.rawlog").string() +
-                                   " --validate " + (d / "r4_nogt.rawlog").string() + " --json " +
-                                   (d / "b.json").string(),
-                               d / "b.log");
+  const std::string out2 =
+      run(cli + " diagnose " + (d / "r1_nogt.rawlog").string() + " --validate " +
+              (d / "r4_nogt.rawlog").string() + " --json " + (d / "b.json").string(),
+          d / "b.log");
   j = nlohmann::json::parse(std::ifstream(d / "b.json"));
   EXPECT_TRUE(j["findings"].empty());
   EXPECT_FALSE(j["mismatch"].get<bool>());
