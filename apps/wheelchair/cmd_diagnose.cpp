@@ -10,6 +10,7 @@
 #include "Progress.h"
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/CommandResponse.h"
+#include "libwheelchair/diagnosis/Comparisons.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/diagnosis/HeldOut.h"
 #include "libwheelchair/io/RawlogIO.h"
@@ -78,6 +79,7 @@ diagnosis::DiagnosisReport analyse(Inputs& in, const config::WheelchairConfig& c
   }
   for (const auto& r : val) command_driven &= diagnosis::hasCommandResponseData(r);
   command_driven &= !any_motors;
+  const auto streams = diagnosis::sensorStreams(fit);  // before diagnose() releases them
   diagnosis::DiagnosisReport rep;
   if (!command_driven)
     rep = diagnosis::diagnose(std::move(in.fit), std::move(in.val), cfg, opt);
@@ -99,7 +101,8 @@ diagnosis::DiagnosisReport analyse(Inputs& in, const config::WheelchairConfig& c
     rep.info["command_response_validation"] = how;
     if (!any_encoders) rep.info["validation"] = how;
   }
-  diagnosis::enforceHeldOutRule(rep);  // every analyser: held-out prediction never worse
+  diagnosis::enforceHeldOutRule(rep);       // every analyser: held-out prediction never worse
+  diagnosis::addComparisons(streams, rep);  // what could and could not be tested (issue 16)
   return rep;
 }
 
@@ -128,9 +131,10 @@ std::string findingsText(const diagnosis::DiagnosisReport& rep) {
       text += fmt::format("insufficient data: {}\n", why.get<std::string>());
   if (rep.info.contains("kinematic_calibration")) {
     const auto& k = rep.info["kinematic_calibration"];
-    if (!k.value("tested", false))
-      text += "  not tested: " + k.value("not_tested", std::string()) + "\n";
-    else if (!k.value("accepted", false))
+    if (!k.value("tested", false)) {
+      if (!rep.info.contains("comparisons"))
+        text += "  not tested: " + k.value("not_tested", std::string()) + "\n";
+    } else if (!k.value("accepted", false))
       text += "  kinematic calibration: " +
               k.value("rejected",
                       std::string("no wheel-geometry correction predicts left-out fit data 5 % "
@@ -145,7 +149,9 @@ std::string findingsText(const diagnosis::DiagnosisReport& rep) {
             "  not reported ({}): {}{} -- its held-out prediction is not better\n",
             r.value("rejected_by", std::string("held-out rule")), r.value("effect", std::string()),
             r.contains("channel") ? " (" + r["channel"].get<std::string>() + ")" : std::string());
-  if (rep.info.contains("skipped"))
+  if (rep.info.contains("comparisons"))  // every comparison, tested or not and why
+    text += diagnosis::comparisonsText(rep);
+  else if (rep.info.contains("skipped"))
     for (auto it = rep.info["skipped"].begin(); it != rep.info["skipped"].end(); ++it)
       if (it->is_string()) text += "  not tested: " + it->get<std::string>() + "\n";
   return text;
@@ -198,7 +204,10 @@ std::string validationText(diagnosis::DiagnosisReport& rep,
   if (rep.validation.contains("trajectory_full_recordings")) {
     auto& t = rep.validation["trajectory_full_recordings"];
     const bool gyro = rep.info.contains("streams") && rep.info["streams"].value("gyro", false);
-    for (size_t k = 0; k < t["before"].size(); ++k) {
+    // The lines show what the sensor corrections of stages 1-2 change; without a gyro or motor
+    // currents there are none (the kinematic calibration reports its own held-out errors).
+    const bool motors = rep.info.contains("streams") && rep.info["streams"].value("motors", false);
+    for (size_t k = 0; (gyro || motors) && k < t["before"].size(); ++k) {
       text += fmt::format("  recording {}: odometry terminal error {:.3f} m -> {:.3f} m", k,
                           t["before"][k]["odometry_terminal_m"].get<double>(),
                           t["after"][k]["odometry_terminal_m"].get<double>());

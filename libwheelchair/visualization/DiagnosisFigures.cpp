@@ -929,9 +929,23 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
     md += "* corrected configuration written to: `" + report["config_written"].get<std::string>() +
           "`\n";
   if (!ext.empty()) md += "* model extensions applied in the figures: " + ext.summary() + "\n";
-  if (report.contains("info") && report["info"].contains("skipped"))
+  if (report.contains("info") && report["info"].contains("comparisons")) {
+    // what could and could not be tested (diagnosis/Comparisons.h), one line each
+    std::string tested;
+    for (const auto& c : report["info"]["comparisons"])
+      if (c.value("tested", false))
+        tested += (tested.empty() ? "" : "; ") + c.value("comparison", std::string());
+    md += "* tested: " + (tested.empty() ? std::string("nothing") : tested) + "\n";
+    for (const auto& c : report["info"]["comparisons"])
+      if (!c.value("tested", false))
+        md += "* not tested: " + c.value("comparison", std::string()) + ": " +
+              cell(c.value("why", nlohmann::json(""))) + "\n";
+  } else if (report.contains("info") && report["info"].contains("skipped"))
     for (const auto& [k, v] : report["info"]["skipped"].items())
       md += "* skipped " + k + ": " + cell(v) + "\n";
+  if (report.contains("info") && report["info"].contains("insufficient_data"))
+    for (const auto& why : report["info"]["insufficient_data"])
+      md += "* insufficient data: " + cell(why) + "\n";
   md += "\n## Findings\n\n" + findingsMarkdown(report);
   md += channelsMarkdown(report);
   const std::string val = validationMarkdown(report);

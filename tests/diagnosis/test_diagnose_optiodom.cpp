@@ -63,15 +63,21 @@ TEST(DiagnoseOptiodom, NamesWheelGeometryAndCorrectedConfigPredictsHeldOutRunBet
   EXPECT_EQ(j["config"], "recorded in " + cw);
   // Held-out rule (issue 16): no reported finding -- wheel_geometry or any command-response
   // term (the excerpt has the robot's commands too) -- predicts its held-out data worse.
-  for (const auto& x : j["findings"])
+  // Every finding carries its held-out prediction (with and without it).
+  for (const auto& x : j["findings"]) {
+    int carried = 0;
     for (const char* k :
          {"odometry_mean_position_error_m", "odometry_end_position_error_m",
           "odometry_end_heading_error_deg", "drift_10s_m", "drift_60s_m", "heading_drift_10s_deg",
           "heading_drift_60s_deg", "validation_rms_m_s", "validation_rms_rad_s"})
       if (x["fit_before"].contains(k) && x["fit_before"][k].is_number() &&
-          x["fit_after"].contains(k) && x["fit_after"][k].is_number())
+          x["fit_after"].contains(k) && x["fit_after"][k].is_number()) {
+        ++carried;
         EXPECT_LE(x["fit_after"][k].get<double>(), x["fit_before"][k].get<double>() + 1e-12)
             << x["effect"] << " " << k;
+      }
+    EXPECT_GE(carried, 2) << "no held-out prediction carried by " << x.dump();
+  }
   // what the command-response analyser proposed and the held-out rule rejected is listed
   // with its numbers and said in the summary
   for (const auto& r : j["info"].value("command_response_rejected", nlohmann::json::array())) {
@@ -141,6 +147,72 @@ TEST(DiagnoseOptiodom, NamesWheelGeometryAndCorrectedConfigPredictsHeldOutRunBet
             (*f2)["fit_before"]["odometry_mean_position_error_m"].get<double>());
   EXPECT_LE((*f2)["fit_after"]["odometry_end_heading_error_deg"].get<double>(),
             (*f2)["fit_before"]["odometry_end_heading_error_deg"].get<double>());
+}
+
+/// The entry of rep.info["comparisons"] named `what` (null when absent).
+nlohmann::json comparison(const nlohmann::json& j, const std::string& what) {
+  for (const auto& c : j["info"].value("comparisons", nlohmann::json::array()))
+    if (c["comparison"].get<std::string>().rfind(what, 0) == 0) return c;
+  return nullptr;
+}
+
+TEST(DiagnoseOptiodom, SaysWhatCouldAndCouldNotBeTested) {
+  // Issue 16 item 1: every comparison the recording allows is made, and the others are named
+  // with what is missing. The real robot without a gyro (encoders, OptiTrack, commands), then
+  // the same square with its ground truth removed (written out with `export`, groundtruth.csv
+  // emptied, imported back): encoders and commands alone can be checked against nothing, and
+  // the summary says so instead of "mismatch: no" (item 5).
+  const test::TempDir tmp;
+  const fs::path& d = tmp.path();
+  const std::string cli = WHEELCHAIR_CLI;
+  for (int n : {1, 4})
+    run(cli + " import --format optiodom " + kExcerpt + " --run " + std::to_string(n) + " -o " +
+            (d / ("r" + std::to_string(n) + ".rawlog")).string(),
+        d / "import.log");
+  const std::string r1 = (d / "r1.rawlog").string(), r4 = (d / "r4.rawlog").string();
+  const std::string out =
+      run(cli + " diagnose " + r1 + " --validate " + r4 + " --json " + (d / "a.json").string(),
+          d / "a.log");
+  nlohmann::json j = nlohmann::json::parse(std::ifstream(d / "a.json"));
+  ASSERT_TRUE(j["info"].contains("comparisons")) << j["info"].dump();
+  EXPECT_TRUE(comparison(j, "encoders vs ground truth")["tested"].get<bool>());
+  EXPECT_TRUE(comparison(j, "commands vs motion")["tested"].get<bool>());
+  const auto gyro = comparison(j, "gyro vs encoders");
+  EXPECT_FALSE(gyro["tested"].get<bool>());
+  EXPECT_NE(gyro["why"].get<std::string>().find("no gyro"), std::string::npos) << gyro.dump();
+  EXPECT_FALSE(comparison(j, "dynamics vs motor currents")["tested"].get<bool>());
+  EXPECT_NE(out.find("tested: encoders vs ground truth"), std::string::npos) << out;
+  EXPECT_NE(out.find("not tested: gyro vs encoders: no gyro"), std::string::npos) << out;
+  EXPECT_FALSE(j["info"].contains("insufficient_data"));
+
+  // the same recordings without ground truth
+  for (const auto* r : {"r1", "r4"}) {
+    const fs::path dir = d / (std::string(r) + "_csv");
+    run(cli + " export " + (d / (std::string(r) + ".rawlog")).string() + " -o " + dir.string(),
+        d / "export.log");
+    std::ofstream(dir / "groundtruth.csv") << "t,x,y,phi\n";
+    run(cli + " import " + dir.string() + " -o " + (d / (std::string(r) + "_nogt.rawlog")).string(),
+        d / "import2.log");
+  }
+  const std::string out2 =
+      run(cli + " diagnose " + (d / "r1_nogt.rawlog").string() + " --validate " +
+              (d / "r4_nogt.rawlog").string() + " --json " + (d / "b.json").string(),
+          d / "b.log");
+  j = nlohmann::json::parse(std::ifstream(d / "b.json"));
+  EXPECT_TRUE(j["findings"].empty());
+  EXPECT_FALSE(j["mismatch"].get<bool>());
+  for (const auto& c : j["info"]["comparisons"]) {
+    EXPECT_FALSE(c["tested"].get<bool>()) << c.dump();
+    EXPECT_FALSE(c["why"].get<std::string>().empty()) << c.dump();
+  }
+  const auto cmd = comparison(j, "commands vs motion");
+  EXPECT_NE(cmd["why"].get<std::string>().find("no ground-truth poses"), std::string::npos)
+      << cmd.dump();
+  ASSERT_TRUE(j["info"].contains("insufficient_data")) << j["info"].dump();
+  EXPECT_NE(out2.find("mismatch: none found"), std::string::npos) << out2;
+  EXPECT_NE(out2.find("tested: nothing"), std::string::npos) << out2;
+  EXPECT_NE(out2.find("no comparison could be made"), std::string::npos) << out2;
+  EXPECT_EQ(out2.find("mismatch: no\n"), std::string::npos) << out2;
 }
 
 /// A drive of `seconds` on smooth arcs (20 Hz ticks), ground truth from the true metres per

@@ -142,6 +142,9 @@ TEST(DiagnosisReport, CleanDriveReportsNoFinding) {
   const std::string index = test::readFile(out + "/index.md");
   EXPECT_NE(index.find("mismatch: **no**"), std::string::npos) << index.substr(0, 600);
   EXPECT_NE(index.find("No finding"), std::string::npos);
+  // what was compared (issue 16 item 1): the chair's drive has gyro, encoders and currents
+  EXPECT_NE(index.find("* tested: gyro vs encoders; dynamics vs motor currents"), std::string::npos)
+      << index.substr(0, 1500);
   // Held-out mode: the figures are still drawn (nominal and corrected coincide).
   expectFigure(out + "/residual_gyro_omega.png", {kBlue});
 }
