@@ -450,6 +450,50 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
   return terms;
 }
 
+/// The same structure in fewer terms (issue 16): the library is not a basis (u^2 = v^2 +- l_w v
+/// omega + l_w^2 omega^2 / 4 per motor, and v*|v| = v^2 while the chair drives forward), so a
+/// sequential thresholding can end with a set such as {u^2, v*|v|, omega^2} (+3.56 u^2 -3.48
+/// v*|v|: two large opposite coefficients of nearly collinear columns) where {v*omega, omega^2}
+/// says the same with one term less: its members' t values are deflated alike by the
+/// collinearity, so which one is dropped first is arbitrary. Every pair of `terms` is tried
+/// replaced by one library column not in `terms` (not `excluded`); the best replacement (least
+/// held-out RSS) is taken unless it predicts the judged rows yv worse both significantly
+/// (n_eff log(RSS ratio) >= chi2_1(1 - alpha)) and relevantly (prediction change >=
+/// min_contribution_rms): the rule heldOutPrune applies to leaving a term out. Returns `terms`
+/// unchanged, or the set one term smaller (the caller refits and calls again).
+std::vector<int> sparserEquivalent(const Predictor& valPrediction, const Eigen::VectorXd& yv,
+                                   const Groups& gv, const Library& L, int excluded, int lags,
+                                   const DiagnosisOptions& opt, double min_contribution_rms,
+                                   const std::vector<int>& terms) {
+  if (terms.size() < 2) return terms;
+  const double crit = stats::chi2Quantile(1 - opt.alpha, 1);
+  const double nv = std::max<double>(1, yv.size());
+  const Eigen::VectorXd p_full = valPrediction(terms);
+  const Eigen::VectorXd r_full = yv - p_full;
+  const double nev = effectiveSampleSize(r_full, gv, lags);
+  double best = std::numeric_limits<double>::infinity(), change_rms = 0;
+  std::vector<int> best_set;
+  for (int j = 0; j < L.cols; ++j) {
+    if (j == excluded || std::find(terms.begin(), terms.end(), j) != terms.end() ||
+        !(L.col(j).norm() > 0))
+      continue;
+    for (size_t a = 0; a < terms.size(); ++a)
+      for (size_t b = a + 1; b < terms.size(); ++b) {
+        std::vector<int> t;
+        for (size_t k = 0; k < terms.size(); ++k)
+          if (k != a && k != b) t.push_back(terms[k]);
+        t.push_back(j);
+        const Eigen::VectorXd p = valPrediction(t);
+        const double rss = (yv - p).squaredNorm();
+        if (rss < best)
+          best = rss, best_set = t, change_rms = (p - p_full).norm() / std::sqrt(nv);
+      }
+  }
+  if (best_set.empty()) return terms;
+  const bool significant = nev * std::log(best / std::max(1e-300, r_full.squaredNorm())) >= crit;
+  return significant && change_rms >= min_contribution_rms ? terms : best_set;
+}
+
 /// The terms of `terms` whose held-out contribution is below the structure the model leaves
 /// unexplained on the validation rows (indices into `terms`). A regressor correlated with an
 /// omitted term takes up to |omitted| of it (Cauchy-Schwarz on the omitted-variable bias), so a
@@ -539,6 +583,13 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
             heldOutPrune(predict, yj, gj, L, y, Lv, yv, lags, opt, min_contribution_rms, act);
         if (kept.size() < act.size()) {  // refit the kept terms (and their covariance)
           act = kept;
+          pruned = true;
+          continue;
+        }
+        if (std::vector<int> fewer = sparserEquivalent(predict, yj, gj, L, excluded, lags, opt,
+                                                       min_contribution_rms, act);
+            fewer.size() < act.size()) {  // the same structure in fewer terms: refit those
+          act = std::move(fewer);
           pruned = true;
           continue;
         }
