@@ -189,9 +189,10 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
       // to first order): the gyro's mean over +-h (h = one window) around each end, not one
       // sample each. With single samples the regressor carries the gyro's sample noise (errors
       // in variables): on stretches without turns (the held-out last 30 % of a `square` drive)
-      // that noise alone made a delay's predicted held-out gain look testable (LR 23 > 9)
-      // while the realised gain was negative, so real 40-95 ms gyro delays were rejected.
-      // Averaged, the noise is ~6x smaller and such stretches are seen as not testing the term.
+      // that noise alone made a delay's predicted held-out gain look testable (even averaged
+      // over +-50 ms: LR 23 > 9) while the realised gain was negative, so real 40-95 ms gyro
+      // delays were rejected. Averaged over +-one window such stretches are seen as not
+      // testing the term (LR 5 < 9).
       const double h = std::max(opt.window_s, dtg);
       auto meanRate = [&](double tc) { return G.integral(tc - h, tc + h) / (2 * h); };
       const effects::KinematicWindow w{t1 - t0, dR, dL, lw, meanRate(t1) - meanRate(t0)};
