@@ -409,12 +409,21 @@ Predictor crossValidationPredictor(const Library& L, const Eigen::VectorXd& y, i
 /// (blockedCvTerm: block-bootstrap held-out gain and delete-one-block jackknife of its
 /// coefficient); the weakest failing one is dropped (one per call: the caller refits the rest and
 /// calls again). (L, y) fit rows and (Lv, yv_all) held-out rows: the blocked cross-validation's
-/// data.
+/// data. partner(j) >= 0: the column that is one physical term with j (cos/sin of one angle: a
+/// heading-dependent term A sin(h - phi) has an amplitude and a phase; keeping one of the two
+/// would fix its phase to the world frame's x axis), left out together with j.
 std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::VectorXd& yv,
                               const Groups& gv, const Library& L, const Eigen::VectorXd& y,
                               const Library& Lv, const Eigen::VectorXd& yv_all, int lags,
                               const DiagnosisOptions& opt, double min_contribution_rms,
-                              std::vector<int> terms) {
+                              std::vector<int> terms, const std::function<int(int)>& partner = {}) {
+  auto without = [&](const std::vector<int>& t0, int j) {
+    const int mate = partner ? partner(j) : -1;
+    std::vector<int> t;
+    for (int i : t0)
+      if (i != j && i != mate) t.push_back(i);
+    return t;
+  };
   const double crit = stats::chi2Quantile(1 - opt.alpha, 1);
   const double nv = std::max<double>(1, yv.size());
   while (terms.size() > 1) {
@@ -422,17 +431,22 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
     const Eigen::VectorXd r_full = yv - p_full;
     const double nev = effectiveSampleSize(r_full, gv, lags);
     double best = std::numeric_limits<double>::infinity(), change_rms = 0;
-    size_t best_k = 0;
+    std::vector<int> best_t;
     for (size_t k = 0; k < terms.size(); ++k) {
-      std::vector<int> t = terms;
-      t.erase(t.begin() + static_cast<long>(k));
+      std::vector<int> t = without(terms, terms[k]);
+      if (t.empty()) continue;
       const Eigen::VectorXd p = valPrediction(t);
       const double rss = (yv - p).squaredNorm();
-      if (rss < best) best = rss, best_k = k, change_rms = (p - p_full).norm() / std::sqrt(nv);
+      if (rss < best) best = rss, best_t = t, change_rms = (p - p_full).norm() / std::sqrt(nv);
     }
-    const bool significant = nev * std::log(best / std::max(1e-300, r_full.squaredNorm())) >= crit;
+    if (best_t.empty()) break;
+    // One term (or a cos/sin pair: chi2 with 2 degrees of freedom) less.
+    const double crit_k =
+        terms.size() - best_t.size() == 1 ? crit : stats::chi2Quantile(1 - opt.alpha, 2);
+    const bool significant =
+        nev * std::log(best / std::max(1e-300, r_full.squaredNorm())) >= crit_k;
     if (significant && change_rms >= min_contribution_rms) break;
-    terms.erase(terms.begin() + static_cast<long>(best_k));
+    terms = best_t;
   }
   // Blocked cross-validation over all rows (fit and validation, time blocks): a term that does
   // not predict the blocks it was not fitted on better, or whose coefficient is within its
@@ -448,6 +462,49 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
   }
   if (worst >= 0) terms.erase(terms.begin() + worst);
   return terms;
+}
+
+/// The same structure in fewer terms (issue 16): the library is not a basis (u^2 = v^2 +- l_w v
+/// omega + l_w^2 omega^2 / 4 per motor, and v*|v| = v^2 while the chair drives forward), so a
+/// sequential thresholding can end with a set such as {u^2, v*|v|, omega^2} (+3.56 u^2 -3.48
+/// v*|v|: two large opposite coefficients of nearly collinear columns) where {v*omega, omega^2}
+/// says the same with one term less: its members' t values are deflated alike by the
+/// collinearity, so which one is dropped first is arbitrary. Every pair of `terms` is tried
+/// replaced by one library column not in `terms` (not `excluded`); the best replacement (least
+/// held-out RSS) is taken unless it predicts the judged rows yv worse both significantly
+/// (n_eff log(RSS ratio) >= chi2_1(1 - alpha)) and relevantly (prediction change >=
+/// min_contribution_rms): the rule heldOutPrune applies to leaving a term out. Returns `terms`
+/// unchanged, or the set one term smaller (the caller refits and calls again).
+std::vector<int> sparserEquivalent(const Predictor& valPrediction, const Eigen::VectorXd& yv,
+                                   const Groups& gv, const Library& L, int excluded, int lags,
+                                   const DiagnosisOptions& opt, double min_contribution_rms,
+                                   const std::vector<int>& terms) {
+  if (terms.size() < 2) return terms;
+  const double crit = stats::chi2Quantile(1 - opt.alpha, 1);
+  const double nv = std::max<double>(1, yv.size());
+  const Eigen::VectorXd p_full = valPrediction(terms);
+  const Eigen::VectorXd r_full = yv - p_full;
+  const double nev = effectiveSampleSize(r_full, gv, lags);
+  double best = std::numeric_limits<double>::infinity(), change_rms = 0;
+  std::vector<int> best_set;
+  for (int j = 0; j < L.cols; ++j) {
+    if (j == excluded || std::find(terms.begin(), terms.end(), j) != terms.end() ||
+        !(L.col(j).norm() > 0))
+      continue;
+    for (size_t a = 0; a < terms.size(); ++a)
+      for (size_t b = a + 1; b < terms.size(); ++b) {
+        std::vector<int> t;
+        for (size_t k = 0; k < terms.size(); ++k)
+          if (k != a && k != b) t.push_back(terms[k]);
+        t.push_back(j);
+        const Eigen::VectorXd p = valPrediction(t);
+        const double rss = (yv - p).squaredNorm();
+        if (rss < best) best = rss, best_set = t, change_rms = (p - p_full).norm() / std::sqrt(nv);
+      }
+  }
+  if (best_set.empty()) return terms;
+  const bool significant = nev * std::log(best / std::max(1e-300, r_full.squaredNorm())) >= crit;
+  return significant && change_rms >= min_contribution_rms ? terms : best_set;
 }
 
 /// The terms of `terms` whose held-out contribution is below the structure the model leaves
@@ -524,6 +581,21 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
     int worst_k = -1;
     for (size_t k = 0; k < act.size(); ++k) {
       double t = std::abs(f.beta(k)) / std::sqrt(std::max(1e-300, f.cov(k, k)));
+      // A cos/sin pair is one heading-dependent term (amplitude and phase): judged by its joint
+      // Wald statistic W (chi2, 2 dof), as the one-dof z with the same tail probability
+      // exp(-W / 2), so that the world frame's orientation cannot decide which half stays.
+      const int mate = partner ? partner(act[k]) : -1;
+      const auto m = std::find(act.begin(), act.end(), mate);
+      if (mate >= 0 && m != act.end()) {
+        const Eigen::Index km = m - act.begin();
+        Eigen::Vector2d b(f.beta(k), f.beta(km));
+        Eigen::Matrix2d C;
+        C << f.cov(k, k), f.cov(k, km), f.cov(km, k), f.cov(km, km);
+        const double W = b.dot(C.ldlt().solve(b));
+        const double tail = std::exp(-0.5 * W);
+        if (W >= 0)
+          t = tail >= 1 ? 0.0 : tail > 1e-15 ? std::sqrt(stats::chi2Quantile(1 - tail, 1)) : 1e300;
+      }
       if (t < worst) worst = t, worst_k = static_cast<int>(k);
     }
     if (worst >= opt.stlsq_threshold_sigma) {
@@ -535,10 +607,17 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
         untestable = untestable || probe.lr_val_expected < opt.validation_min_expected_lr;
       }
       if (yj.size() > 10) {
-        const std::vector<int> kept =
-            heldOutPrune(predict, yj, gj, L, y, Lv, yv, lags, opt, min_contribution_rms, act);
+        const std::vector<int> kept = heldOutPrune(predict, yj, gj, L, y, Lv, yv, lags, opt,
+                                                   min_contribution_rms, act, partner);
         if (kept.size() < act.size()) {  // refit the kept terms (and their covariance)
           act = kept;
+          pruned = true;
+          continue;
+        }
+        if (std::vector<int> fewer = sparserEquivalent(predict, yj, gj, L, excluded, lags, opt,
+                                                       min_contribution_rms, act);
+            fewer.size() < act.size()) {  // the same structure in fewer terms: refit those
+          act = std::move(fewer);
           pruned = true;
           continue;
         }
@@ -558,7 +637,11 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
       res.ev = compareNested(y.squaredNorm(), f.rss, static_cast<int>(act.size()), ne);
       break;
     }
-    act.erase(act.begin() + worst_k);  // sequential thresholding: drop the weakest term
+    // sequential thresholding: drop the weakest term (with its cos/sin partner)
+    const int mate = partner ? partner(act[worst_k]) : -1;
+    act.erase(act.begin() + worst_k);
+    if (const auto m = std::find(act.begin(), act.end(), mate); mate >= 0 && m != act.end())
+      act.erase(m);
   }
   if (res.terms.empty()) return res;
   if (!selectionRule(opt, L.cols).reject(res.ev).empty()) return res;

@@ -185,7 +185,17 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
       }
       double ig = G.integral(t0, t1);
       y.push_back(ig - dphi_enc);
-      const effects::KinematicWindow w{t1 - t0, dR, dL, lw, G.value(t1) - G.value(t0)};
+      // The gyro's rate change over the window (the delay column, -d (omega(t1) - omega(t0))
+      // to first order): the gyro's mean over +-h (h = one window) around each end, not one
+      // sample each. With single samples the regressor carries the gyro's sample noise (errors
+      // in variables): on stretches without turns (the held-out last 30 % of a `square` drive)
+      // that noise alone made a delay's predicted held-out gain look testable (even averaged
+      // over +-50 ms: LR 23 > 9) while the realised gain was negative, so real 40-95 ms gyro
+      // delays were rejected. Averaged over +-one window such stretches are seen as not
+      // testing the term (LR 5 < 9).
+      const double h = std::max(opt.window_s, dtg);
+      auto meanRate = [&](double tc) { return G.integral(tc - h, tc + h) / (2 * h); };
+      const effects::KinematicWindow w{t1 - t0, dR, dL, lw, meanRate(t1) - meanRate(t0)};
       for (const auto& c : cols) X.push_back(c.value(w));
       k.t0.push_back(t0), k.t1.push_back(t1);
       k.v.push_back(0.5 * (dR + dL) / (t1 - t0));
