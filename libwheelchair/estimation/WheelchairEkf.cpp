@@ -407,6 +407,7 @@ void WheelchairEkf::encoderFaultDirection(const sensors::WheelSpeedInterval& iv)
     const Eigen::Vector2d u = input_->at(model_t_s_ + 0.5 * h);  // (i_R, i_L)
     for (int side = 0; side < 2; ++side) {
       FilterState x7 = FilterState::Zero();
+      x7(model::kIdxO1) = 1.0;  // any obstacle off the axle (vdot does not depend on it)
       x7(model::kIdxV) = model_v_[side];
       model_v_[side] =
           filterModel().rk4Step(x7, model::FilterInput(u(side), u(side)), h)(model::kIdxV);
@@ -417,7 +418,8 @@ void WheelchairEkf::encoderFaultDirection(const sensors::WheelSpeedInterval& iv)
   const Eigen::VectorXd& x = ekf_.x();
   const Eigen::MatrixXd& P = ekf_.P();
   const double s2_prior = 0.5 * opt_.encoder_scale_sigma * opt_.encoder_scale_sigma;
-  if (!(P(kIdxEncScaleS, kIdxEncScaleS) > 0.25 * s2_prior * 0.25)) {  // a turn decided it
+  // A turn (or the sonar) has decided: sd(k_s) below a quarter of its prior sd.
+  if (!(P(kIdxEncScaleS, kIdxEncScaleS) > s2_prior / 16)) {
     dir_decided_ = true;
     return;
   }
