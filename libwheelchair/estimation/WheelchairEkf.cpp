@@ -380,7 +380,7 @@ void WheelchairEkf::encoderFaultPrior() {
   // open.
   dir_decided_ = !disagree || shorter;
   dir_res_[0][0] = dir_res_[0][1] = dir_res_[1][0] = dir_res_[1][1] = dir_v_sum_ = 0;
-  dir_n_ = 0;
+  dir_n_ = dir_hold_ = 0;
 }
 
 void WheelchairEkf::encoderFaultDirection(const sensors::WheelSpeedInterval& iv) {
@@ -399,7 +399,9 @@ void WheelchairEkf::encoderFaultDirection(const sensors::WheelSpeedInterval& iv)
   // encoder hypothesis is kSeparation further off (relative to the mean speed); until then (or
   // when the model fits neither) the symmetric prior stays and the turn or the sonar decides.
   constexpr double kMatch = 0.02, kSeparation = 0.025, kMinSpeed = 0.3, kMaxTurn = 0.05;
-  constexpr int kMinSamples = 50;
+  constexpr double kWindow_s = 0.5;  // time constant of the residual means (s)
+  constexpr int kMinSamples = 50;    // straight-driving intervals before the first test
+  constexpr int kHoldSamples = 100;  // consecutive intervals the decision has to hold
   const double t1 = iv.t1_s;
   // The two model chairs, RK4 in steps of at most 20 ms at the interval's mid current.
   while (model_t_s_ < t1) {
@@ -424,18 +426,29 @@ void WheelchairEkf::encoderFaultDirection(const sensors::WheelSpeedInterval& iv)
     return;
   }
   // (The encoders' own omega is not a test of straight driving: it carries k_d a_v / l_w.)
-  if (std::fabs(x(model::kIdxOmega)) > kMaxTurn || !(std::fabs(iv.v_m_s) > kMinSpeed)) return;
+  if (std::fabs(x(model::kIdxOmega)) > kMaxTurn || !(std::fabs(iv.v_m_s) > kMinSpeed)) {
+    dir_hold_ = 0;
+    return;
+  }
+  // Residuals as exponential means over ~kWindow_s of straight driving (the model's own
+  // transient errors and a speed-dependent model error, e.g. dry friction, change with the
+  // speed: the true pair has to fit all the time, not on average).
+  const double a = std::min(1.0, iv.dt() / kWindow_s);
   const double kd = std::fabs(x(kIdxEncScaleD));
   const double ks[2] = {1.0 - 0.5 * kd, 1.0 + 0.5 * kd};  // short, long
   for (int e = 0; e < 2; ++e)
-    for (int m = 0; m < 2; ++m) dir_res_[e][m] += iv.v_m_s / ks[e] - model_v_[m];
-  dir_v_sum_ += std::fabs(iv.v_m_s);
+    for (int m = 0; m < 2; ++m)
+      dir_res_[e][m] += a * (iv.v_m_s / ks[e] - model_v_[m] - dir_res_[e][m]);
+  dir_v_sum_ += a * (std::fabs(iv.v_m_s) - dir_v_sum_);
   if (++dir_n_ < kMinSamples) return;
   double fit[2];
   for (int e = 0; e < 2; ++e)
     fit[e] = std::min(std::fabs(dir_res_[e][0]), std::fabs(dir_res_[e][1])) / dir_v_sum_;
   const int best = fit[0] <= fit[1] ? 0 : 1;
-  if (!(fit[best] < kMatch && fit[1 - best] - fit[best] > kSeparation)) return;
+  const bool clear = fit[best] < kMatch && fit[1 - best] - fit[best] > kSeparation;
+  dir_hold_ = clear && (dir_hold_ == 0 || best == dir_best_) ? dir_hold_ + 1 : 0;
+  dir_best_ = best;
+  if (dir_hold_ < kHoldSamples) return;
   // The chosen side's prior: the healthy wheel (the one reading more when the other reads
   // short, less when the other reads long) has scale 1 +- healthy sigma. A full update: the
   // pose driven so far at the symmetric k_s is corrected along its correlation with k_s.

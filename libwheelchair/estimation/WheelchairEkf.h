@@ -203,12 +203,13 @@ class WheelchairEkf : public Estimator {
   bool obstacle_initialised_ = false;
   bool fault_prior_applied_ = false;
   // encoderFaultDirection: speeds of the model chair driven by the right / left current on both
-  // sides (m/s) up to model_t_s_; evidence sums since the symmetric prior: per (encoder
-  // hypothesis short/long) x (healthy gearbox right/left) the summed speed residual (m/s), the
-  // summed encoder speed and the count.
+  // sides (m/s) up to model_t_s_; evidence since the symmetric prior: per (encoder hypothesis
+  // short/long) x (healthy gearbox right/left) the exponential mean of the speed residual
+  // (m/s), that of the encoder speed (m/s), the count of straight intervals, how many
+  // consecutive tests the best hypothesis (dir_best_) has held.
   double model_v_[2] = {0, 0}, model_t_s_ = 0;
   double dir_res_[2][2] = {{0, 0}, {0, 0}}, dir_v_sum_ = 0;
-  int dir_n_ = 0;
+  int dir_n_ = 0, dir_hold_ = 0, dir_best_ = 0;
   bool dir_decided_ = false;
   // Fault detection and isolation (open_sensor_errors_on_alarm): a group is closed (zero
   // variance, no walk) until its sensor's CUSUM alarms; the walk is added from then on.
