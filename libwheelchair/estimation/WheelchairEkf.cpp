@@ -403,17 +403,15 @@ void WheelchairEkf::encoderFaultDirection(const sensors::WheelSpeedInterval& iv)
   constexpr int kMinSamples = 50;    // straight-driving intervals before the first test
   constexpr int kHoldSamples = 100;  // consecutive intervals the decision has to hold
   const double t1 = iv.t1_s;
-  // The two model chairs, RK4 in steps of at most 20 ms at the interval's mid current.
+  // The two model chairs: vdot = a3 v + a1 (i + i), exactly over steps of at most 20 ms with
+  // the step's mid current.
+  const model::OdeCoefficients& c = filterModel().params().ode;
   while (model_t_s_ < t1) {
     const double h = std::min(0.02, t1 - model_t_s_);
     const Eigen::Vector2d u = input_->at(model_t_s_ + 0.5 * h);  // (i_R, i_L)
-    for (int side = 0; side < 2; ++side) {
-      FilterState x7 = FilterState::Zero();
-      x7(model::kIdxO1) = 1.0;  // any obstacle off the axle (vdot does not depend on it)
-      x7(model::kIdxV) = model_v_[side];
-      model_v_[side] =
-          filterModel().rk4Step(x7, model::FilterInput(u(side), u(side)), h)(model::kIdxV);
-    }
+    const double e = std::exp(c.a3 * h), g = c.a3 != 0 ? (e - 1) / c.a3 : h;
+    for (int side = 0; side < 2; ++side)
+      model_v_[side] = e * model_v_[side] + g * c.a1 * 2 * u(side);
     model_t_s_ += h;
   }
   if (dir_decided_ || !fault_prior_applied_ || !encoder_scales_open_) return;
