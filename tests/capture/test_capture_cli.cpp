@@ -414,7 +414,7 @@ TEST(CaptureCli, LiveHealthMonitorReportsAStepEncoderFaultWhileCapturing) {
   ASSERT_EQ(replay.waitFor(30), 0) << test::readFile(tmp / "replay.log");
   // Live: the event is on the console before the capture stops (the last samples wait at
   // most the reorder window), and the events file does not exist yet.
-  // (4.9 % at 9.2 s: the side from the motor currents, WheelchairEkf::encoderFaultDirection)
+  // (4.9 % at 11.1 s: the side from the motor currents, WheelchairEkf::encoderFaultDirection)
   const std::string left = "left encoder reads 4.9 % short";
   std::string console;
   for (double t = 0; t < 5 && console.find(left) == std::string::npos; t += 0.05) {
