@@ -123,7 +123,11 @@ void HealthMonitor::scales(double t, const SensorErrorEstimate& est) {
 }
 
 void HealthMonitor::report(double t, int side, double k, double sd) {
-  if (!(sd < kReportSd)) return;
+  // Reported once sd < 0.5 % (and off by 3 sd, 1 %), or sooner when sd < 1 % and it is off
+  // by 5 sd: a wheel sided by the fault prior carries the healthy wheel's 0.5 % and the
+  // ratio's sd (~0.7 % in all), and a 5 % fault at +-0.7 % is news worth saying.
+  const bool clear = sd < kReportSd || (sd < 2 * kReportSd && std::abs(k - 1) > 5 * sd);
+  if (!clear) return;
   const double margin = std::max(3 * sd, kMinFault);
   // New information: off nominal now and different from what was last reported (nominal
   // included: a fault that went away is reported back as nominal only via a new estimate).

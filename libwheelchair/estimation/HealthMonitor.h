@@ -11,7 +11,8 @@
 // open_sensor_errors_on_alarm; prior variance added), so the fault is ESTIMATED and the
 // encoders are kept, corrected, instead of rejected.
 // Estimation: after every encoder update the per-wheel scales k = value +- sd are reported as
-// an "estimate" event once sd < 0.005 and |k - 1| > max(3 sd, 0.01), and again when a later
+// an "estimate" event once sd < 0.005 and |k - 1| > max(3 sd, 0.01) (or sd < 0.01 and
+// |k - 1| > 5 sd: a side decided by the fault prior), and again when a later
 // estimate differs from the reported one by more than that (a new fault). Before a turn only
 // the RATIO k_R / k_L is known (straight driving): it is reported the same way (parameter
 // "scale_ratio", side ""), saying that the side needs a turn.

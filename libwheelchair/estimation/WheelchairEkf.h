@@ -138,6 +138,13 @@ class WheelchairEkf : public Estimator {
   /// The encoder fault prior (EkfOptions::encoder_fault_prior): once the wheels disagree and
   /// before a turn, one pseudo-measurement of the common scale (one wheel is healthy).
   void encoderFaultPrior();
+  /// The direction of an encoder fault from the motor currents (encoder_fault_prior = either):
+  /// after the symmetric fault prior and before a turn, decides "the wheel reading less is
+  /// faulty (short)" against "the wheel reading more is faulty (long)" by comparing the
+  /// encoders' mean speed under each with the speed the motor model (6) predicts from ONE
+  /// side's current (either gearbox may be the healthy one); applies the chosen side's prior
+  /// once the evidence separates them (see the .cpp).
+  void encoderFaultDirection(const sensors::WheelSpeedInterval& iv);
   /// The random walks of the open sensor-error groups since their last update
   /// (open_sensor_errors_on_alarm: the process model has none for them).
   void addErrorNoise();
@@ -195,6 +202,15 @@ class WheelchairEkf : public Estimator {
   HealthMonitor health_;
   bool obstacle_initialised_ = false;
   bool fault_prior_applied_ = false;
+  // encoderFaultDirection: speeds of the model chair driven by the right / left current on both
+  // sides (m/s) up to model_t_s_; evidence since the symmetric prior: per (encoder hypothesis
+  // short/long) x (healthy gearbox right/left) the exponential mean of the speed residual
+  // (m/s), that of the encoder speed (m/s), the count of straight intervals, how many
+  // consecutive tests the best hypothesis (dir_best_) has held.
+  double model_v_[2] = {0, 0}, model_t_s_ = 0;
+  double dir_res_[2][2] = {{0, 0}, {0, 0}}, dir_v_sum_ = 0;
+  int dir_n_ = 0, dir_hold_ = 0, dir_best_ = 0;
+  bool dir_decided_ = false;
   // Fault detection and isolation (open_sensor_errors_on_alarm): a group is closed (zero
   // variance, no walk) until its sensor's CUSUM alarms; the walk is added from then on.
   bool encoder_scales_open_ = false, gyro_bias_open_ = false;

@@ -414,7 +414,8 @@ TEST(CaptureCli, LiveHealthMonitorReportsAStepEncoderFaultWhileCapturing) {
   ASSERT_EQ(replay.waitFor(30), 0) << test::readFile(tmp / "replay.log");
   // Live: the event is on the console before the capture stops (the last samples wait at
   // most the reorder window), and the events file does not exist yet.
-  const std::string left = "left encoder reads 5.0 % short";
+  // (4.9 % at 11.1 s: the side from the motor currents, WheelchairEkf::encoderFaultDirection)
+  const std::string left = "left encoder reads 4.9 % short";
   std::string console;
   for (double t = 0; t < 5 && console.find(left) == std::string::npos; t += 0.05) {
     test::sleepFor(0.05);
@@ -430,7 +431,7 @@ TEST(CaptureCli, LiveHealthMonitorReportsAStepEncoderFaultWhileCapturing) {
   EXPECT_NE(console.find("health events (JSON lines): " + health), std::string::npos) << console;
   EXPECT_EQ(console.find("health monitor stopped"), std::string::npos) << console;
   // The file: one JSON object per line; the left encoder's scale estimate, about 0.95 from
-  // about t = 8 s, found within 8 s of the fault (the next turn separates the sides).
+  // about t = 8 s, found within 8 s of the fault (the motor currents separate the sides).
   std::istringstream in(test::readFile(health));
   int left_events = 0, lines = 0;
   for (std::string line; std::getline(in, line); ++lines) {

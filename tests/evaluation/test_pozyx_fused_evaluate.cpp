@@ -94,7 +94,10 @@ TEST(PozyxFusedEvaluate, SaysSoAndScoresAgainstTheSimulatorTruth) {
       "three_task_faulty, ekf ATE against the simulator's truth: %.3f m without the "
       "Pozyx, %.3f m with it fused\n",
       ate_nominal, ate_fused);
-  EXPECT_LT(ate_fused, 0.5 * ate_nominal);
+  // The shipped filter already corrects the faulty encoder online (its side from the motor
+  // currents: 0.013 m, 0.05 m before); fused, the Pozyx (0.1 m noise) must keep it there.
+  EXPECT_LT(ate_fused, 0.03);
+  EXPECT_LT(ate_fused, ate_nominal + 0.005);
 
   // One truth file per recording.
   EXPECT_EQ(cli("evaluate " + rawlog + " -q --truth " + truth + " " + truth).exit_code, 2);
