@@ -6,7 +6,8 @@
 // stage's streams, rows and designs, 1-30 MB each) come from the shared heap: what one stage
 // frees there stays resident and fragmented while the next one grows. Measured on
 // `wheelchair diagnose` (docs/benchmarks.md, "Memory"): peak RSS of a one-hour drive 200-212
-// -> 196 MB, ten hours 1037 -> 1020 MB, for ~0.3 s more system time per recorded hour.
+// -> 196 MB, ten hours 1037-1047 -> 1023 MB, for more system time (page faults of fresh
+// mappings: +0.3 s on one hour, 11.5 -> 28 s on ten hours; total CPU time +8 %).
 // No effect (and no error) with another C library.
 //
 // Example: at the start of a command, before reading its input:
