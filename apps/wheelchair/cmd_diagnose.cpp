@@ -15,6 +15,7 @@
 #include "libwheelchair/diagnosis/HeldOut.h"
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/Memory.h"
 #include "libwheelchair/util/OutputDir.h"
 #include "libwheelchair/visualization/DiagnosisFigures.h"
 
@@ -222,6 +223,7 @@ std::string validationText(diagnosis::DiagnosisReport& rep,
 }
 
 int runDiagnose(const DiagnoseOptions& o) {
+  util::returnLargeBlocksToSystem();  // a long drive's arrays, stage after stage (memory)
   Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   Inputs in = readInputs(o, progress);
   progress.tick("diagnosing");

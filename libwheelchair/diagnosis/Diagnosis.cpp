@@ -749,9 +749,12 @@ namespace {
 
 /// The recordings as streams: `fit` and `val` (the held-out part or the --validate
 /// recordings) and `all` (the whole fit recordings without motor currents, for the trajectory
-/// and the Pozyx checks).
+/// and the Pozyx checks). `all` is empty until makeWholeStreams(): during the stages (the peak
+/// of diagnose's memory) only the samples of a fit recording outside its fit and held-out parts
+/// are kept, in `beyond` (before, after; memory, docs/benchmarks.md).
 struct StageData {
   std::vector<Streams> fit, val, all;
+  std::vector<std::array<Streams, 2>> beyond;
   bool any_enc = false, any_gyro = false, any_mot = false;
   const std::vector<io::Recording>* fit_recs = nullptr;  ///< the recordings `all` came from
   double fit_fraction = 1.0;  ///< part of each fit recording in `fit` (1: --validate given)
@@ -770,23 +773,40 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs,
     Streams s = makeStreams(fit_recs[i], cfg);
     if (made) made(true, i);
     d.any_enc |= s.hasEncoders(), d.any_gyro |= s.hasGyro(), d.any_mot |= s.hasMotors();
+    // `all` serves the trajectory check and the Pozyx fault check (encoders, gyro, Pozyx,
+    // ground truth); until makeWholeStreams() only what fit / val do not hold is kept.
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    d.beyond.push_back({cropStreams(s, -kInf, std::nextafter(s.t_begin, -kInf)),
+                        cropStreams(s, std::nextafter(s.t_end, kInf), kInf)});
+    for (Streams& b : d.beyond.back())
+      for (auto* v : {&b.tm, &b.iR, &b.iL}) std::vector<double>().swap(*v);
     if (val_recs.empty()) {
       double tc = s.t_begin + opt.fit_fraction * (s.t_end - s.t_begin);
       d.fit.push_back(cropStreams(s, s.t_begin, tc));
       d.val.push_back(cropStreams(s, tc, s.t_end));
     } else {
-      d.fit.push_back(s);
+      d.fit.push_back(std::move(s));
     }
-    // `all` serves the trajectory check and the Pozyx fault check (encoders, gyro, Pozyx,
-    // ground truth): the motor currents are already in fit / val (memory).
-    for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
-    d.all.push_back(std::move(s));
   }
   for (std::size_t i = 0; i < val_recs.size(); ++i) {
     d.val.push_back(makeStreams(val_recs[i], cfg));
     if (made) made(false, i);
   }
   return d;
+}
+
+/// Fills data.all: each fit recording's streams (without motor currents) joined from the
+/// samples before its fit part, the fit part, its held-out part (without --validate) and the
+/// samples after: the streams makeStreams() made of it, sample for sample.
+void makeWholeStreams(StageData& data) {
+  data.all.clear();
+  for (std::size_t i = 0; i < data.fit.size(); ++i) {
+    std::vector<const Streams*> parts{&data.beyond[i][0], &data.fit[i]};
+    if (data.fit_fraction < 1.0) parts.push_back(&data.val[i]);
+    parts.push_back(&data.beyond[i][1]);
+    data.all.push_back(joinStreams(parts, false));
+  }
+  std::vector<std::array<Streams, 2>>().swap(data.beyond);
 }
 
 /// Rows rebuilt with a re-estimated stream delay (`delay` s).
@@ -1104,10 +1124,7 @@ void dynamicChannels(const DynRows& df, const DynRows& dv, const DynRows& dv2, c
   for (int sd2 = 0; sd2 < 2; ++sd2) {
     std::string ch = sd2 == 0 ? "current_right" : "current_left";
     int nRf = static_cast<int>(df.y.size() / 2);
-    std::vector<double> v(df.v.begin() + sd2 * nRf, df.v.begin() + (sd2 + 1) * nRf);
-    std::vector<double> w(df.omega.begin() + sd2 * nRf, df.omega.begin() + (sd2 + 1) * nRf);
-    std::vector<double> vd(df.vdot.begin() + sd2 * nRf, df.vdot.begin() + (sd2 + 1) * nRf);
-    std::vector<double> ph(df.phi.begin() + sd2 * nRf, df.phi.begin() + (sd2 + 1) * nRf);
+    const auto &v = df.grid.v, &w = df.grid.omega, &vd = df.grid.vdot, &ph = df.grid.phi;
     rep.channels[ch] = {
         {"unit", "A (equation error of (6), zero-phase filtered)"},
         {"cutoff_hz", opt.cutoff_hz},
@@ -1635,7 +1652,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
         termFinding(c, sel.steps[a], alpha_b, regimes, "currents", "A", dv.y.size(), df.y.size());
     Eigen::VectorXd contrib = Df.middleCols(i, k) * b;
     std::vector<std::pair<double, double>> tc;
-    for (int q = 0; q < contrib.size(); ++q) tc.push_back({df2.t[q], contrib(q)});
+    for (int q = 0; q < contrib.size(); ++q) tc.push_back({df2.grid.t[df2.step(q)], contrib(q)});
     f.segments = activeSegments(tc, sigma);
     f.channels = {"current_right", "current_left"};
     describeFinding(f, c, sel, a, fit);
@@ -1676,7 +1693,7 @@ namespace {
 /// The diagnosis on the streams `data` of the recordings (diagnose()): the recordings are read
 /// only for their encoders, ground truth and sonar after the streams are made.
 DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
-                                const std::vector<io::Recording>& val_recs, const StageData& data,
+                                const std::vector<io::Recording>& val_recs, StageData& data,
                                 const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
                                 std::chrono::steady_clock::time_point tstart) {
   DiagnosisReport rep;
@@ -1703,6 +1720,7 @@ DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
   addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
 
   // sensor faults (not physics): sonar dropouts, Pozyx outliers
+  makeWholeStreams(data);
   {
     SensorFaultOptions so;
     so.alpha = opt.alpha;
@@ -1731,7 +1749,7 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
                          const std::vector<io::Recording>& val_recs,
                          const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
   const auto tstart = std::chrono::steady_clock::now();
-  const StageData data = splitStreams(fit_recs, val_recs, cfg, opt);
+  StageData data = splitStreams(fit_recs, val_recs, cfg, opt);
   return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart);
 }
 
@@ -1739,7 +1757,7 @@ DiagnosisReport diagnose(std::vector<io::Recording>&& fit_recs,
                          std::vector<io::Recording>&& val_recs, const config::WheelchairConfig& cfg,
                          const DiagnosisOptions& opt) {
   const auto tstart = std::chrono::steady_clock::now();
-  const StageData data = splitStreams(fit_recs, val_recs, cfg, opt, [&](bool fit, std::size_t i) {
+  StageData data = splitStreams(fit_recs, val_recs, cfg, opt, [&](bool fit, std::size_t i) {
     releaseStreamSamples(fit ? fit_recs[i] : val_recs[i]);
   });
   return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart);

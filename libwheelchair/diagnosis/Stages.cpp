@@ -40,9 +40,18 @@ std::vector<std::size_t> sortedUniqueIndex(const std::vector<T>& v, F time) {
 
 template <class T, class F>
 std::vector<T> sortedUnique(const std::vector<T>& v, F time) {
+  const std::vector<std::size_t> order = sortedUniqueIndex(v, time);
   std::vector<T> out;
-  for (std::size_t k : sortedUniqueIndex(v, time)) out.push_back(v[k]);
+  out.reserve(order.size());
+  for (std::size_t k : order) out.push_back(v[k]);
   return out;
+}
+
+/// Appends to `out` the samples of `in` later than out's last (both sorted by time).
+template <class T, class F>
+void appendLater(std::vector<T>& out, const std::vector<T>& in, F time) {
+  for (const T& x : in)
+    if (out.empty() || time(x) > time(out.back())) out.push_back(x);
 }
 
 /// Cumulative trapezoid of a piecewise-linear signal, evaluated anywhere (held outside).
@@ -110,7 +119,10 @@ Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cf
   signals::DriveStreams d = signals::driveStreams(rec, cfg);
   s.te = std::move(d.te), s.sR = std::move(d.s[0]), s.sL = std::move(d.s[1]);
   s.tm = std::move(d.tm), s.iR = std::move(d.i[0]), s.iL = std::move(d.i[1]);
-  for (std::size_t k : sortedUniqueIndex(rec.imu, [](const io::ImuSample& a) { return a.t_s; })) {
+  const std::vector<std::size_t> gyro_order =
+      sortedUniqueIndex(rec.imu, [](const io::ImuSample& a) { return a.t_s; });
+  s.tg.reserve(gyro_order.size()), s.gz.reserve(gyro_order.size());  // no growth slack
+  for (std::size_t k : gyro_order) {
     const io::ImuSample& g = rec.imu[k];
     if (std::isfinite(g.gyro_z_rad_s)) s.tg.push_back(g.t_s), s.gz.push_back(g.gyro_z_rad_s);
   }
@@ -122,15 +134,59 @@ Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cf
   return s;
 }
 
+Streams joinStreams(const std::vector<const Streams*>& parts, bool with_motors) {
+  Streams o;
+  if (parts.empty()) return o;
+  // Sized once for every sample of the parts (memory); shared boundary samples leave a few.
+  std::size_t ne = 0, ng = 0, nm = 0, np = 0, nt = 0;
+  for (const Streams* p : parts)
+    ne += p->te.size(), ng += p->tg.size(), nm += p->tm.size(), np += p->pozyx.size(),
+        nt += p->gt.size();
+  for (auto* v : {&o.te, &o.sR, &o.sL}) v->reserve(ne);
+  for (auto* v : {&o.tg, &o.gz}) v->reserve(ng);
+  if (with_motors)
+    for (auto* v : {&o.tm, &o.iR, &o.iL}) v->reserve(nm);
+  o.pozyx.reserve(np), o.gt.reserve(nt);
+  for (const Streams* p : parts) {
+    for (std::size_t k = 0; k < p->te.size(); ++k)
+      if (o.te.empty() || p->te[k] > o.te.back())
+        o.te.push_back(p->te[k]), o.sR.push_back(p->sR[k]), o.sL.push_back(p->sL[k]);
+    for (std::size_t k = 0; k < p->tg.size(); ++k)
+      if (o.tg.empty() || p->tg[k] > o.tg.back())
+        o.tg.push_back(p->tg[k]), o.gz.push_back(p->gz[k]);
+    for (std::size_t k = 0; with_motors && k < p->tm.size(); ++k)
+      if (o.tm.empty() || p->tm[k] > o.tm.back())
+        o.tm.push_back(p->tm[k]), o.iR.push_back(p->iR[k]), o.iL.push_back(p->iL[k]);
+    appendLater(o.pozyx, p->pozyx, [](const io::PozyxSample& x) { return x.t_s; });
+    appendLater(o.gt, p->gt, [](const io::GroundTruthPoseSample& x) { return x.t_s; });
+  }
+  o.t_begin = parts.front()->t_begin;
+  o.t_end = parts.back()->t_end;
+  return o;
+}
+
 Streams cropStreams(const Streams& s, double a, double b) {
   Streams o;
   auto in = [&](double t) { return t >= a && t <= b; };
+  // Every output sized once to what it receives (push_back alone leaves up to as much again
+  // unused on a long drive: memory, docs/benchmarks.md).
+  auto count = [&](const std::vector<double>& t) {
+    return static_cast<std::size_t>(std::count_if(t.begin(), t.end(), in));
+  };
+  for (auto* v : {&o.te, &o.sR, &o.sL}) v->reserve(count(s.te));
+  for (auto* v : {&o.tg, &o.gz}) v->reserve(count(s.tg));
+  for (auto* v : {&o.tm, &o.iR, &o.iL}) v->reserve(count(s.tm));
   for (size_t k = 0; k < s.te.size(); ++k)
     if (in(s.te[k])) o.te.push_back(s.te[k]), o.sR.push_back(s.sR[k]), o.sL.push_back(s.sL[k]);
   for (size_t k = 0; k < s.tg.size(); ++k)
     if (in(s.tg[k])) o.tg.push_back(s.tg[k]), o.gz.push_back(s.gz[k]);
   for (size_t k = 0; k < s.tm.size(); ++k)
     if (in(s.tm[k])) o.tm.push_back(s.tm[k]), o.iR.push_back(s.iR[k]), o.iL.push_back(s.iL[k]);
+  auto countT = [&](const auto& v) {
+    return static_cast<std::size_t>(
+        std::count_if(v.begin(), v.end(), [&](const auto& p) { return in(p.t_s); }));
+  };
+  o.pozyx.reserve(countT(s.pozyx)), o.gt.reserve(countT(s.gt));
   for (auto& p : s.pozyx)
     if (in(p.t_s)) o.pozyx.push_back(p);
   for (auto& p : s.gt)
@@ -311,11 +367,10 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   const int N = 2 * nR;
   d.y.resize(N);
   d.X.resize(N, ncol);
-  for (auto* col : {&d.t, &d.v, &d.omega, &d.vdot, &d.omegadot, &d.phi, &d.u, &d.sgn_u, &d.cos_phi,
-                    &d.sin_phi, &d.current})
-    col->resize(N);
-  d.side.assign(N, 0);
-  std::fill(d.side.begin() + nR, d.side.end(), 1);
+  auto& G = d.grid;
+  for (auto* col : {&G.t, &G.v, &G.omega, &G.vdot, &G.omegadot, &G.phi, &G.cos_phi, &G.sin_phi})
+    col->resize(nR);
+  for (auto* col : {&d.u, &d.sgn_u, &d.current}) col->resize(N);
   int row_R = 0;  // next right-motor row; its left-motor row is row_R + nR
   for (signals::DriveSegment& seg : segs) {
     {
@@ -353,10 +408,11 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
       auto dpL = sensors::centralDerivative(tg, predL);
       const int bR = row_R;
       for (int i = seg.i0; i < seg.i1; ++i, ++row_R) {
+        G.t[row_R] = tg[i], G.v[row_R] = v[i], G.omega[row_R] = w[i], G.vdot[row_R] = vd[i],
+        G.omegadot[row_R] = wd[i], G.phi[row_R] = phi[i], G.cos_phi[row_R] = cph[i],
+        G.sin_phi[row_R] = sph[i];
         for (int sd = 0; sd < 2; ++sd) {
           const int k = sd == 0 ? row_R : row_R + nR;
-          d.t[k] = tg[i], d.v[k] = v[i], d.omega[k] = w[i], d.vdot[k] = vd[i],
-          d.omegadot[k] = wd[i], d.phi[k] = phi[i];
           double u = sd == 0 ? uRf[i] : uLf[i];
           double im = sd == 0 ? iRf[i] : iLf[i];
           d.y(k) = im - (sd == 0 ? predR[i] : predL[i]);
@@ -365,7 +421,7 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
               sd,     u,     sg, vd[i], cph[i], sph[i], sd == 0 ? dpR[i] : dpL[i],
               theta5, alpha, r,  rG,    Mg2};
           for (int j = 0; j < ncol; ++j) d.X(k, j) = cols[j].value(sample);
-          d.u[k] = u, d.sgn_u[k] = sg, d.cos_phi[k] = cph[i], d.sin_phi[k] = sph[i];
+          d.u[k] = u, d.sgn_u[k] = sg;
           d.current[k] = im;  // io, the other motor's, is the other side's row
         }
       }
@@ -390,20 +446,20 @@ Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
   const int nR = static_cast<int>(y.size() / 2);
   Eigen::VectorXd c(n);
   for (int q = 0; q < n; ++q) {
-    const int k = r0 + q;
-    const double uk = u[k], vk = v[k], wk = omega[k];
+    const int k = r0 + q, i = k < nR ? k : k - nR;  // row, grid sample
+    const double uk = u[k], vk = grid.v[i], wk = grid.omega[i];
     const double row[16] = {1.0,
                             vk,
                             wk,
-                            vdot[k],
-                            omegadot[k],
+                            grid.vdot[i],
+                            grid.omegadot[i],
                             sgn_u[k],
                             std::abs(uk),
                             uk * uk,
                             vk * wk,
                             wk * wk,
-                            cos_phi[k],
-                            sin_phi[k],
+                            grid.cos_phi[i],
+                            grid.sin_phi[i],
                             current[k],
                             current[k < nR ? k + nR : k - nR],
                             vk * std::abs(vk),

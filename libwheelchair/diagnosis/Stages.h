@@ -36,6 +36,12 @@ struct Streams {
 Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cfg);
 /// Samples with t in [a, b] of every stream.
 Streams cropStreams(const Streams& s, double a, double b);
+/// The parts (each sorted by time, in time order, e.g. adjacent crops of one recording's
+/// streams) as one: of each stream, a part's samples later than every sample taken so far, so
+/// a sample two parts share (a crop boundary) is taken once. Without `with_motors` the motor
+/// currents are left out. t_begin, t_end: the first part's, the last part's.
+/// E.g. joinStreams({&crop(s, a, c), &crop(s, c, b)}, true) == crop(s, a, b).
+Streams joinStreams(const std::vector<const Streams*>& parts, bool with_motors);
 
 /// Sensor corrections applied before building rows (identity by default).
 struct Corrections {
@@ -80,12 +86,24 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
 struct DynRows {
   Eigen::VectorXd y;
   Eigen::MatrixXd X;
-  std::vector<double> t, v, omega, vdot, omegadot, phi;
-  std::vector<int> side;  ///< 0 right, 1 left
+  /// What both motors' rows of a grid sample share, stored once per grid sample (memory,
+  /// docs/benchmarks.md): row k (right rows 0..nR-1, then left rows nR..2 nR-1) is grid sample
+  /// step(k). Time (s), v (m/s), omega (rad/s), their derivatives, heading phi (rad) and its
+  /// filtered cos/sin. E.g. the time of row k: grid.t[step(k)].
+  struct Grid {
+    std::vector<double> t, v, omega, vdot, omegadot, phi, cos_phi, sin_phi;
+  } grid;
   /// Per row, the rest of the library: the motor's rim speed u (m/s), its smoothed sign
-  /// sgn(u), the filtered cos/sin of the heading and the motor's filtered current (A).
-  std::vector<double> u, sgn_u, cos_phi, sin_phi, current;
+  /// sgn(u) and the motor's filtered current (A).
+  std::vector<double> u, sgn_u, current;
   stats::Groups groups;
+  /// Grid sample of row k (k < nR: the right motor's row; else the left motor's).
+  int step(int k) const {
+    const int nR = static_cast<int>(y.size() / 2);
+    return k < nR ? k : k - nR;
+  }
+  /// Motor of row k: 0 right, 1 left.
+  int side(int k) const { return k < static_cast<int>(y.size() / 2) ? 0 : 1; }
   double noise_var = 0;  ///< predicted variance of y from the current-sensor noise
   /// Library column j over rows [r0, r0 + n): 1, v, omega, vdot, omegadot, sgn(u), |u|, u^2,
   /// v*omega, omega^2, cos(phi), sin(phi), i_self, i_other (the other motor's current),

@@ -19,6 +19,9 @@ DriveStreams driveStreams(const io::Recording& rec, const config::WheelchairConf
     std::iota(idx.begin(), idx.end(), 0);
     std::stable_sort(idx.begin(), idx.end(),
                      [&](size_t a, size_t b) { return un.t_s[a] < un.t_s[b]; });
+    // Sized once for every sample (a repeated stamp leaves one unused): no growth slack, which
+    // on a long drive is up to as much again (memory, docs/benchmarks.md).
+    for (auto* v : {&s.te, &s.s[0], &s.s[1]}) v->reserve(idx.size());
     for (size_t k : idx) {
       if (!s.te.empty() && !(un.t_s[k] > s.te.back())) continue;
       s.te.push_back(un.t_s[k]);
@@ -38,6 +41,7 @@ DriveStreams driveStreams(const io::Recording& rec, const config::WheelchairConf
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     return rec.motors[a].t_s < rec.motors[b].t_s;
   });
+  for (auto* v : {&s.tm, &s.i[0], &s.i[1]}) v->reserve(order.size());
   double last = -INFINITY;
   for (std::size_t k : order) {
     const io::MotorSample& m = rec.motors[k];

@@ -24,31 +24,39 @@ TEST(DynRowsLibrary, EveryColumnIsTheNamedSignalOfItsRow) {
   int covered = 0;
   for (auto [a, b] : d.groups) covered += b - a;
   EXPECT_EQ(covered, N);
-  for (int k = 0; k < N; ++k) ASSERT_EQ(d.side[k], k < nR ? 0 : 1);
+  for (int k = 0; k < N; ++k) ASSERT_EQ(d.side(k), k < nR ? 0 : 1);
+  // The grid signals are stored once per grid sample (row k is grid sample step(k)).
+  ASSERT_EQ(d.grid.t.size(), static_cast<std::size_t>(nR));
+  ASSERT_EQ(d.grid.sin_phi.size(), static_cast<std::size_t>(nR));
   std::vector<Eigen::VectorXd> L;
   for (int j = 0; j < 16; ++j) L.push_back(d.libColumn(j, 0, N));
   const double lw = cfg.vehicle.geom.track_width_m;
   double max_current = 0;
+  const auto& g = d.grid;
   for (int k = 0; k < N; ++k) {
+    const int i = d.step(k);
+    EXPECT_EQ(i, k < nR ? k : k - nR);
     EXPECT_EQ(L[0](k), 1.0);
-    EXPECT_EQ(L[1](k), d.v[k]);
-    EXPECT_EQ(L[2](k), d.omega[k]);
-    EXPECT_EQ(L[3](k), d.vdot[k]);
-    EXPECT_EQ(L[4](k), d.omegadot[k]);
+    EXPECT_EQ(L[1](k), g.v[i]);
+    EXPECT_EQ(L[2](k), g.omega[i]);
+    EXPECT_EQ(L[3](k), g.vdot[i]);
+    EXPECT_EQ(L[4](k), g.omegadot[i]);
     EXPECT_EQ(L[6](k), std::abs(d.u[k]));
     EXPECT_EQ(L[7](k), d.u[k] * d.u[k]);
-    EXPECT_EQ(L[8](k), d.v[k] * d.omega[k]);
-    EXPECT_EQ(L[9](k), d.omega[k] * d.omega[k]);
-    EXPECT_EQ(L[14](k), d.v[k] * std::abs(d.v[k]));
-    EXPECT_NEAR(L[15](k), std::tanh(d.omega[k] / 0.02), 1e-12);
+    EXPECT_EQ(L[8](k), g.v[i] * g.omega[i]);
+    EXPECT_EQ(L[9](k), g.omega[i] * g.omega[i]);
+    EXPECT_EQ(L[14](k), g.v[i] * std::abs(g.v[i]));
+    EXPECT_NEAR(L[15](k), std::tanh(g.omega[i] / 0.02), 1e-12);
     // u is the motor's own rim speed: v +- omega l_w / 2 (right +, left -).
-    EXPECT_NEAR(d.u[k], d.v[k] + (k < nR ? 0.5 : -0.5) * lw * d.omega[k], 1e-9);
+    EXPECT_NEAR(d.u[k], g.v[i] + (k < nR ? 0.5 : -0.5) * lw * g.omega[i], 1e-9);
     EXPECT_LE(std::abs(L[5](k)), 1.2);  // the smoothed, filtered sign of u
     EXPECT_NEAR(L[10](k) * L[10](k) + L[11](k) * L[11](k), 1.0, 0.05);  // filtered cos/sin
     // i_other is the other motor's i_self at the same grid time.
     const int other = k < nR ? k + nR : k - nR;
     EXPECT_EQ(L[13](k), L[12](other));
-    EXPECT_EQ(d.t[k], d.t[other]);
+    EXPECT_EQ(d.step(k), d.step(other));
+    EXPECT_EQ(L[10](k), g.cos_phi[i]);
+    EXPECT_EQ(L[11](k), g.sin_phi[i]);
     max_current = std::max(max_current, std::abs(L[12](k)));
   }
   EXPECT_GT(max_current, 0.5);  // the excite drive draws current
@@ -56,4 +64,40 @@ TEST(DynRowsLibrary, EveryColumnIsTheNamedSignalOfItsRow) {
   const Eigen::VectorXd w = d.libColumn(13, nR + 10, 100);
   EXPECT_EQ(w, L[13].segment(nR + 10, 100));
   EXPECT_THROW(d.libColumn(16, 0, 1), std::out_of_range);
+}
+
+// diagnose keeps a recording's whole streams (trajectory and Pozyx checks) only as its fit and
+// held-out parts plus what lies outside them, and joins them afterwards (memory,
+// docs/benchmarks.md): the join must give back the streams sample for sample, including a
+// sample on the boundary of two parts.
+TEST(DynRowsLibrary, JoinedCropsAreTheWholeStreams) {
+  const auto sim = diagnosis::testutil::simulateWith("excite", 3, 30.0, {});
+  config::WheelchairConfig cfg;
+  const auto s = diagnosis::makeStreams(sim.recording, cfg);
+  ASSERT_TRUE(s.hasEncoders() && s.hasGyro() && s.hasMotors());
+  ASSERT_FALSE(s.pozyx.empty());
+  const double tc = s.tg[s.tg.size() / 2];  // a gyro sample in both middle parts
+  const double a = s.tg[10], b = s.tg[s.tg.size() - 10], inf = 1e300;
+  const auto before = diagnosis::cropStreams(s, -inf, std::nextafter(a, -inf));
+  const auto fit = diagnosis::cropStreams(s, a, tc), val = diagnosis::cropStreams(s, tc, b);
+  const auto after = diagnosis::cropStreams(s, std::nextafter(b, inf), inf);
+  ASSERT_EQ(fit.tg.back(), val.tg.front());  // the shared boundary sample
+  for (bool motors : {true, false}) {
+    const auto j = diagnosis::joinStreams({&before, &fit, &val, &after}, motors);
+    EXPECT_EQ(j.te, s.te);
+    EXPECT_EQ(j.sR, s.sR);
+    EXPECT_EQ(j.sL, s.sL);
+    EXPECT_EQ(j.tg, s.tg);
+    EXPECT_EQ(j.gz, s.gz);
+    EXPECT_EQ(j.tm, motors ? s.tm : std::vector<double>{});
+    EXPECT_EQ(j.iL, motors ? s.iL : std::vector<double>{});
+    ASSERT_EQ(j.pozyx.size(), s.pozyx.size());
+    for (std::size_t k = 0; k < s.pozyx.size(); ++k) EXPECT_EQ(j.pozyx[k].t_s, s.pozyx[k].t_s);
+    EXPECT_EQ(j.t_begin, s.t_begin);
+    EXPECT_EQ(j.t_end, s.t_end);
+  }
+  // A part that repeats another (diagnose with --validate: the fit part is the whole recording).
+  const auto j = diagnosis::joinStreams({&before, &s, &after}, true);
+  EXPECT_EQ(j.tg, s.tg);
+  EXPECT_EQ(j.te, s.te);
 }

@@ -117,15 +117,16 @@ inline TermCheck driveTermCheck(const std::string& text, const std::string& name
   const auto d1 = diagnosis::dynamicRows({s1}, {}, nominal(), opt);
   const Eigen::VectorXd pred0 = d0.X * term(Stage::dynamic, name).S * coefficientOf(text, name);
   std::vector<double> dy, pr;
-  const Eigen::Index n0R = d0.y.size() / 2;  // rows: right motor, then left
+  const Eigen::Index n0R = d0.y.size() / 2;   // rows: right motor, then left
+  const std::vector<double>& t0 = d0.grid.t;  // per grid sample, shared by both motors' rows
   for (Eigen::Index k = 0; k < d1.y.size(); ++k) {
-    const auto lo = d0.t.begin() + (d1.side[k] == 0 ? 0 : n0R);
-    const auto hi = d0.t.begin() + (d1.side[k] == 0 ? n0R : d0.y.size());
-    const auto it = std::upper_bound(lo, hi, d1.t[k]);
-    if (it == lo || it == hi) continue;
-    const Eigen::Index j = (it - d0.t.begin()) - 1;
-    if (d0.t[j + 1] - d0.t[j] > 0.05) continue;  // a segment boundary
-    const double a = (d1.t[k] - d0.t[j]) / (d0.t[j + 1] - d0.t[j]);
+    const double tk = d1.grid.t[d1.step(static_cast<int>(k))];
+    const auto it = std::upper_bound(t0.begin(), t0.end(), tk);
+    if (it == t0.begin() || it == t0.end()) continue;
+    const Eigen::Index i = (it - t0.begin()) - 1;  // grid sample before tk
+    if (t0[i + 1] - t0[i] > 0.05) continue;        // a segment boundary
+    const double a = (tk - t0[i]) / (t0[i + 1] - t0[i]);
+    const Eigen::Index j = i + (d1.side(static_cast<int>(k)) == 0 ? 0 : n0R);  // d0's row
     dy.push_back(d1.y(k) - (d0.y(j) + a * (d0.y(j + 1) - d0.y(j))));
     pr.push_back(pred0(j) + a * (pred0(j + 1) - pred0(j)));
   }
