@@ -466,9 +466,29 @@ void CdEkf::setCovariance(const Eigen::MatrixXd& P) {
   P_ = 0.5 * (P + P.transpose());
 }
 
-void CdEkf::setHeldTail(int count) {
+void CdEkf::setHeldTail(int count, bool consider) {
   if (count < 0 || count >= n_) throw std::invalid_argument("CdEkf::setHeldTail: bad count");
   held_tail_ = count;
+  consider_tail_ = consider && count > 0;
+}
+
+void CdEkf::propagateConsiderCross(double dt, double t1_s, const Eigen::MatrixXd& F0) {
+  // dP_xc/dt = F_xx(t) P_xc (setHeldTail): P_xc(t1) = Phi P_xc(t0) with the second-order
+  // Magnus step Phi = exp(M), M = dt (F_xx(t0) + F_xx(t1)) / 2, the exponential by its Taylor
+  // series to M^4 / 24 (|M| ~ |F| dt ~ 1e-2 here: truncation ~1e-12), applied as
+  // Y += T, T <- M T / k.
+  const int m = n_ - held_tail_;
+  u_->eval(t1_s, wu_);
+  model_.F(x_, wu_, wF_);
+  wM_ = (0.5 * dt) * (F0.topLeftCorner(m, m) + wF_.topLeftCorner(m, m));
+  auto Pxc = P_.topRightCorner(m, held_tail_);
+  wT_ = Pxc;
+  for (int k = 1; k <= 4; ++k) {
+    wMT_.noalias() = wM_ * wT_;  // (sized once: no allocation after the first interval)
+    wT_ = wMT_ / static_cast<double>(k);
+    Pxc += wT_;
+  }
+  P_.bottomLeftCorner(held_tail_, m) = Pxc.transpose();
 }
 
 bool CdEkf::heldTailIsZero() const {
@@ -557,7 +577,15 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   }
   // The held tail (setHeldTail()) while its rows of P are exactly zero: integrate only the
   // leading m states (same equations: the held rows of F, Q and P are zero).
-  const int m = n_ - (heldTailIsZero() ? held_tail_ : 0);
+  // A consider tail (its states do not enter f) is always held: its cross-covariance is
+  // carried by the transition matrix after the interval (propagateConsiderCross).
+  const int m = n_ - (consider_tail_ || heldTailIsZero() ? held_tail_ : 0);
+  const bool cross = consider_tail_ && m < n_ &&
+                     !(P_.topRightCorner(m, held_tail_).array() == 0.0).all();
+  if (cross) {
+    u.eval(t_, wu_);
+    model_.F(x_, wu_, wF0_);
+  }
   if (m < n_ && !cvHeld_) cvHeld_ = newCvode(m);
   Cvode* const other = m < n_ ? cv_.get() : cvHeld_.get();
   if (other) other->live = false;  // a mode switch restarts
@@ -627,6 +655,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   cv_->nni = nni;
   ++stats_.intervals;
   unpack(y, m);
+  if (cross) propagateConsiderCross(dt, t1_s, wF0_);
   t_ = t1_s;
   cv_->live = true;
   cv_->t_live = tau1;

@@ -157,6 +157,17 @@ class WheelchairEkf : public Estimator {
   /// A scalar update (gyro, sonar) that does not learn the common encoder scale k_s (gain from the
   /// covariance conditional on k_s; Joseph covariance with the true H).
   UpdateResult scaleKnownUpdate(double y, const Eigen::MatrixXd& H, double R, double gate);
+  /// A closed group (open_sensor_errors_on_alarm, its CUSUM has not alarmed) is a consider
+  /// (Schmidt) state: kept in P with closed_*_sigma, never learned.
+  bool scalesClosed() const;
+  /// Some closed group carries a non-zero variance (then every update zeroes its gain rows).
+  bool closedVariance() const;
+  /// Zeroes the gain rows of the closed groups (K: n x m).
+  void zeroClosedGainRows(Eigen::Ref<Eigen::MatrixXd> K) const;
+  /// The generic update (Pozyx; the sonar once it teaches k_s) with the closed groups as
+  /// consider states: Kalman gain of the others from the full P, zero rows for the closed
+  /// ones, Joseph covariance (docs/estimation.md, "Closed states as consider states").
+  UpdateResult schmidtUpdate(Measurement& m, double gate);
   /// x += dx and P = P_new (the consider updates' last step).
   void applyGain(const Eigen::Ref<const Eigen::VectorXd>& dx,
                  const Eigen::Ref<const Eigen::MatrixXd>& P_new);
