@@ -232,7 +232,7 @@ class CdEkf {
   std::vector<double> qPackedHeld_;  // the same for the leading n - held_tail_ states
   int held_tail_ = 0;                // states held constant while their P rows are zero
   bool consider_tail_ = false;       // ... or always, their cross-covariance carried by Phi
-  Eigen::MatrixXd wF0_, wM_, wT_, wMT_;  // consider tail: F(t0), Magnus exponent, terms
+  Eigen::MatrixXd wF0_, wM_;         // consider tail: F(t0), Magnus exponent
   int m_ = 0;                        // states integrated in the current interval
   std::unique_ptr<Cvode> cv_;        // all n states
   std::unique_ptr<Cvode> cvHeld_;    // the leading n - held_tail_ (made on first use)
