@@ -496,8 +496,8 @@ void CdEkf::propagateConsiderCross(double dt, double t1_s, const Eigen::MatrixXd
   if (m == 9 && held_tail_ == 3) {  // the wheelchair filter with its sensor-error states
     const Eigen::Matrix<double, 9, 9> M =
         (0.5 * dt) * (F0.topLeftCorner<9, 9>() + wF_.topLeftCorner<9, 9>());
-    expTimes<Eigen::Matrix<double, 9, 9>, Eigen::Matrix<double, 9, 3>>(
-        M, P_.topRightCorner<9, 3>());
+    expTimes<Eigen::Matrix<double, 9, 9>, Eigen::Matrix<double, 9, 3>>(M,
+                                                                       P_.topRightCorner<9, 3>());
   } else {
     wM_ = (0.5 * dt) * (F0.topLeftCorner(m, m) + wF_.topLeftCorner(m, m));
     expTimes<Eigen::MatrixXd, Eigen::MatrixXd>(wM_, P_.topRightCorner(m, held_tail_));
@@ -594,8 +594,8 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   // A consider tail (its states do not enter f) is always held: its cross-covariance is
   // carried by the transition matrix after the interval (propagateConsiderCross).
   const int m = n_ - (consider_tail_ || heldTailIsZero() ? held_tail_ : 0);
-  const bool cross = consider_tail_ && m < n_ &&
-                     !(P_.topRightCorner(m, held_tail_).array() == 0.0).all();
+  const bool cross =
+      consider_tail_ && m < n_ && !(P_.topRightCorner(m, held_tail_).array() == 0.0).all();
   if (cross) {
     u.eval(t_, wu_);
     model_.F(x_, wu_, wF0_);

@@ -580,7 +580,7 @@ UpdateResult WheelchairEkf::scaleConsiderUpdate(const Eigen::Vector2d& y, const 
       if (j != kIdxEncScaleS) K(j, 1) += D(j) * kks;
     K(kIdxEncScaleS, 1) = kks;
   }
-  zeroClosedGainRows(K);  // closed groups are consider states: not learned
+  zeroClosedGainRows(K);                         // closed groups are consider states: not learned
   const Eigen::Matrix<double, N, 1> dx = K * y;  // (Ref binds it without a copy)
   applyGain(dx, josephAnyGain<N, 2>(P, K, PHt, Ht, R));
   r.accepted = true;
@@ -638,7 +638,7 @@ UpdateResult WheelchairEkf::correct(Measurement& m, double g) {
       error_states && m.dim() == 1 &&
       (m.sensor == Sensor::Gyro || (m.sensor == Sensor::Sonar && !sonar_teaches));
   if (error_states) addErrorNoise();
-  const UpdateResult r = scale_known       ? scaleKnownUpdate(m.z(0) - m.h(0), m.H, m.R(0, 0), g)
+  const UpdateResult r = scale_known        ? scaleKnownUpdate(m.z(0) - m.h(0), m.H, m.R(0, 0), g)
                          : closedVariance() ? schmidtUpdate(m, g)
                                             : ekf_.correct(m, g);
   if (error_states && m.sensor == Sensor::Gyro) gyroHealth(m.z(0), m.R(0, 0));
@@ -680,8 +680,8 @@ bool WheelchairEkf::scalesClosed() const {
 bool WheelchairEkf::closedVariance() const {
   if (pm_.stateDim() <= kPhysicsStateDim || !opt_.open_sensor_errors_on_alarm) return false;
   const Eigen::MatrixXd& P = ekf_.P();
-  return (!encoder_scales_open_ && (P(kIdxEncScaleS, kIdxEncScaleS) > 0 ||
-                                    P(kIdxEncScaleD, kIdxEncScaleD) > 0)) ||
+  return (!encoder_scales_open_ &&
+          (P(kIdxEncScaleS, kIdxEncScaleS) > 0 || P(kIdxEncScaleD, kIdxEncScaleD) > 0)) ||
          (!gyro_bias_open_ && P(kIdxGyroBias, kIdxGyroBias) > 0);
 }
 

@@ -75,7 +75,8 @@ McNees monteCarlo(const Case& c) {
     opt.estimate_gyro_bias = false;
   }
   if (c.encoder_scale_sigma > 0) opt.encoder_scale_sigma = c.encoder_scale_sigma;
-  if (c.closed_encoder_scale_sigma >= 0) opt.closed_encoder_scale_sigma = c.closed_encoder_scale_sigma;
+  if (c.closed_encoder_scale_sigma >= 0)
+    opt.closed_encoder_scale_sigma = c.closed_encoder_scale_sigma;
   // The healthy chair's radii spread: the closed states' (consider) prior, or the open prior.
   const double draw_sigma =
       c.closed_until_alarm ? c.draw_sigma_closed(opt) : opt.encoder_scale_sigma;
@@ -167,8 +168,8 @@ TEST(NeesMonteCarlo, ClosedScaleStatesCarryAHealthyChairsRadiusUncertainty) {
   // consider states with a healthy wheel's prior (closed_encoder_scale_sigma = 0.5 %), and the
   // truth's rolling radii are drawn from it: the pose covariance must carry what the radius
   // does to the pose (before: held with zero variance, position NEES over-confident).
-  expectConsistent(monteCarlo({"closed until alarm, radii ~ N(1, 0.5 %)", true, 1.0, true, -1,
-                               true}));
+  expectConsistent(
+      monteCarlo({"closed until alarm, radii ~ N(1, 0.5 %)", true, 1.0, true, -1, true}));
 }
 
 TEST(NeesMonteCarlo, HeldScaleStatesWithoutConsiderVarianceAreOverconfident) {

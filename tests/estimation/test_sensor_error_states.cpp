@@ -320,9 +320,10 @@ TEST(SensorErrorStates, ClosedStatesAreConsideredNotLearned) {
   const double disp_m = std::hypot(end.x - sr.truth.front().x, end.y - sr.truth.front().y);
   const double sd_on = std::sqrt(a.final().P(2, 2) + a.final().P(3, 3));
   const double sd_off = std::sqrt(b.final().P(2, 2) + b.final().P(3, 3));
-  std::printf("consider states: displacement %.2f m, final position sd %.4f m (states off "
-              "%.4f m), largest position difference %.4f m\n",
-              disp_m, sd_on, sd_off, dmax);
+  std::printf(
+      "consider states: displacement %.2f m, final position sd %.4f m (states off "
+      "%.4f m), largest position difference %.4f m\n",
+      disp_m, sd_on, sd_off, dmax);
   EXPECT_LT(dmax, 0.005);
   // The scale's share, in quadrature with the states-off sd: at least 80 % of it.
   EXPECT_GT(sd_on * sd_on, sd_off * sd_off + std::pow(0.8 * 0.0035 * disp_m, 2));
