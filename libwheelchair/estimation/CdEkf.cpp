@@ -466,9 +466,43 @@ void CdEkf::setCovariance(const Eigen::MatrixXd& P) {
   P_ = 0.5 * (P + P.transpose());
 }
 
-void CdEkf::setHeldTail(int count) {
+void CdEkf::setHeldTail(int count, bool consider) {
   if (count < 0 || count >= n_) throw std::invalid_argument("CdEkf::setHeldTail: bad count");
   held_tail_ = count;
+  consider_tail_ = consider && count > 0;
+}
+
+namespace {
+/// Y <- exp(M) Y to fourth order, Y += M Y + ... + M^4 Y / 24 (terms T <- M T / k).
+/// |M| ~ |F| dt ~ 1e-2 for the chair's 2-10 ms intervals: the truncation (M^5 / 120 ~ 1e-12)
+/// is far below the Magnus step's own O(dt^3) error. Fixed sizes for the wheelchair filter.
+template <class MatM, class MatY, class Block>
+void expTimes(const MatM& M, Block&& Y) {
+  MatY T = Y;
+  for (int k = 1; k <= 4; ++k) {
+    const MatY MT = M * T;
+    T = MT / static_cast<double>(k);
+    Y += T;
+  }
+}
+}  // namespace
+
+void CdEkf::propagateConsiderCross(double dt, double t1_s, const Eigen::MatrixXd& F0) {
+  // dP_xc/dt = F_xx(t) P_xc (setHeldTail): P_xc(t1) = Phi P_xc(t0) with the second-order
+  // Magnus step Phi = exp(M), M = dt (F_xx(t0) + F_xx(t1)) / 2.
+  const int m = n_ - held_tail_;
+  u_->eval(t1_s, wu_);
+  model_.F(x_, wu_, wF_);
+  if (m == 9 && held_tail_ == 3) {  // the wheelchair filter with its sensor-error states
+    const Eigen::Matrix<double, 9, 9> M =
+        (0.5 * dt) * (F0.topLeftCorner<9, 9>() + wF_.topLeftCorner<9, 9>());
+    expTimes<Eigen::Matrix<double, 9, 9>, Eigen::Matrix<double, 9, 3>>(M,
+                                                                       P_.topRightCorner<9, 3>());
+  } else {
+    wM_ = (0.5 * dt) * (F0.topLeftCorner(m, m) + wF_.topLeftCorner(m, m));
+    expTimes<Eigen::MatrixXd, Eigen::MatrixXd>(wM_, P_.topRightCorner(m, held_tail_));
+  }
+  P_.bottomLeftCorner(held_tail_, m) = P_.topRightCorner(m, held_tail_).transpose();
 }
 
 bool CdEkf::heldTailIsZero() const {
@@ -557,7 +591,15 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   }
   // The held tail (setHeldTail()) while its rows of P are exactly zero: integrate only the
   // leading m states (same equations: the held rows of F, Q and P are zero).
-  const int m = n_ - (heldTailIsZero() ? held_tail_ : 0);
+  // A consider tail (its states do not enter f) is always held: its cross-covariance is
+  // carried by the transition matrix after the interval (propagateConsiderCross).
+  const int m = n_ - (consider_tail_ || heldTailIsZero() ? held_tail_ : 0);
+  const bool cross =
+      consider_tail_ && m < n_ && !(P_.topRightCorner(m, held_tail_).array() == 0.0).all();
+  if (cross) {
+    u.eval(t_, wu_);
+    model_.F(x_, wu_, wF0_);
+  }
   if (m < n_ && !cvHeld_) cvHeld_ = newCvode(m);
   Cvode* const other = m < n_ ? cv_.get() : cvHeld_.get();
   if (other) other->live = false;  // a mode switch restarts
@@ -627,6 +669,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   cv_->nni = nni;
   ++stats_.intervals;
   unpack(y, m);
+  if (cross) propagateConsiderCross(dt, t1_s, wF0_);
   t_ = t1_s;
   cv_->live = true;
   cv_->t_live = tau1;

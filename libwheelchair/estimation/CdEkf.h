@@ -174,7 +174,25 @@ class CdEkf {
   /// of that size, made on first use): the same equations, since the held rows of
   /// F P + P F' + Q stay zero; the held means stay constant. Example: the 12-state wheelchair
   /// filter with all sensor-error groups closed integrates 9 + 45 = 54 components, not 90.
-  void setHeldTail(int count);
+  ///
+  /// `consider` = true: the held states do not enter f either (their COLUMNS of F are zero
+  /// too; e.g. sensor errors that act only on measurements), so their covariance may be
+  /// non-zero while held (Schmidt "consider" states, or states whose random walk the caller
+  /// adds at its updates). Split P = [[P_xx, P_xc], [P_cx, P_cc]] (x: leading m = n - count
+  /// states, c: the held tail). With F = [[F_xx, 0], [0, 0]] and Q_xc = Q_cc = 0 the Riccati
+  /// equation decouples exactly:
+  ///   dP_xx/dt = F_xx P_xx + P_xx F_xx' + Q_xx   (CVODE, as without the tail)
+  ///   dP_xc/dt = F_xx P_xc                       (P_xc(t1) = Phi(t1, t0) P_xc(t0))
+  ///   dP_cc/dt = 0
+  /// so propagate() always integrates only the leading states with CVODE and carries the
+  /// cross-covariance with the transition matrix of the linearised leading dynamics,
+  /// Phi ~ exp(dt (F_xx(t0) + F_xx(t1)) / 2) (second-order Magnus / trapezoid: exact for a
+  /// constant F, local error O(dt^3) otherwise; the exponential to 4th order), F evaluated at
+  /// the interval's end states. Cost: two F evaluations and four m x m by m x count products
+  /// per interval, only while P_xc != 0. Example: the 12-state wheelchair filter with its
+  /// closed sensor-error states held at their prior variance: 54 CVODE components + 27 cross
+  /// terms, not 90 (docs/estimation.md, "Closed states as consider states").
+  void setHeldTail(int count, bool consider = false);
   void setCovariance(const Eigen::MatrixXd& P);
   const CvodeStats& stats() const { return stats_; }
   const CvodeOptions& options() const { return opt_; }
@@ -194,6 +212,9 @@ class CdEkf {
   void initCvode(Cvode& cv, double tau0);
   /// The held tail is declared and its rows and columns of P are exactly zero.
   bool heldTailIsZero() const;
+  /// P_xc <- Phi P_xc over [t0, t1] for a consider tail (setHeldTail), from F at the state
+  /// before (fx0, u0) and after (x_, u at t1) the interval.
+  void propagateConsiderCross(double dt, double t1_s, const Eigen::MatrixXd& F0);
 
   const CdModel& model_;
   CvodeOptions opt_;
@@ -210,6 +231,8 @@ class CdEkf {
   std::vector<double> qPacked_;      // packed (Q + Q') / 2 when the model's Q is constant
   std::vector<double> qPackedHeld_;  // the same for the leading n - held_tail_ states
   int held_tail_ = 0;                // states held constant while their P rows are zero
+  bool consider_tail_ = false;       // ... or always, their cross-covariance carried by Phi
+  Eigen::MatrixXd wF0_, wM_;         // consider tail: F(t0), Magnus exponent
   int m_ = 0;                        // states integrated in the current interval
   std::unique_ptr<Cvode> cv_;        // all n states
   std::unique_ptr<Cvode> cvHeld_;    // the leading n - held_tail_ (made on first use)

@@ -110,6 +110,12 @@ config::Options EkfOptions::options(const std::string& section) {
             "random-walk density of the gyro bias (rad^2/s^3)", nonneg)
       .flag("open_sensor_errors_on_alarm", open_sensor_errors_on_alarm,
             "sensor-error states start closed and open on their sensor's CUSUM alarm")
+      .real("closed_encoder_scale_sigma", closed_encoder_scale_sigma,
+            "1 sigma of each encoder scale while closed, a consider state (-; 0: held exactly)",
+            nonneg)
+      .real("closed_gyro_bias_sigma_rad_s", closed_gyro_bias_sigma_rad_s,
+            "1 sigma of the gyro bias while closed, a consider state (rad/s; 0: held exactly)",
+            nonneg)
       .real("initial_sigma_v_m_s", initial_sigma_v_m_s, "initial 1 sigma of v (m/s)", pos)
       .real("initial_sigma_omega_rad_s", initial_sigma_omega_rad_s,
             "initial 1 sigma of omega (rad/s)", pos)

@@ -107,10 +107,18 @@ struct EkfOptions {
   double gyro_bias_sigma_rad_s = 0.01;  ///< prior 1 sigma (rad/s)
   double q_gyro_bias_rad2_s3 = 1e-8;    ///< random-walk density (rad^2/s^3)
   /// Fault detection and isolation: an estimated group (encoder scales, gyro bias) starts
-  /// CLOSED, held at its prior mean with zero variance and no random walk (the estimates are
-  /// those of the filter without it), and OPENS (prior variance added, random walk on) when
-  /// the health monitor's CUSUM alarms for its sensor. false: open from the start.
+  /// CLOSED, held at its prior mean without random walk and not learned (a consider state with
+  /// closed_*_sigma below; 0: zero variance, the filter without it), and OPENS (prior variance
+  /// added, random walk on) when the health monitor's CUSUM alarms for its sensor. false: open
+  /// from the start.
   bool open_sensor_errors_on_alarm = true;
+  /// While a group is closed it is a Schmidt "consider" state: not learned (zero gain rows),
+  /// but carried in P with this variance, so that the pose covariance includes what a healthy
+  /// sensor's error does to it (docs/estimation.md, "Closed states as consider states"). Per
+  /// wheel: a healthy encoder's scale 1 sigma (-), as healthy_encoder_scale_sigma; the gyro
+  /// bias 1 sigma (rad/s) while closed. 0: held with zero variance (the filter without it).
+  double closed_encoder_scale_sigma = 0.005;
+  double closed_gyro_bias_sigma_rad_s = 0.0;
   /// Whether the physics filter carries the three sensor-error states: an estimate flag is on
   /// or a prior mean is not nominal (then a fixed, configured calibration).
   bool sensorErrorStates() const {

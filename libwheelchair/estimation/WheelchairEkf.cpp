@@ -4,6 +4,8 @@
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/model/VehicleParams.h"
 
+#include <Eigen/Cholesky>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -194,10 +196,15 @@ void WheelchairEkf::start(double t0) {
     x(kIdxEncScaleS) = 0.5 * (opt_.encoder_scale_right + opt_.encoder_scale_left);
     x(kIdxEncScaleD) = opt_.encoder_scale_right - opt_.encoder_scale_left;
     x(kIdxGyroBias) = opt_.gyro_bias_rad_s;
-    // Closed groups (open_sensor_errors_on_alarm) start with zero variance.
+    // Closed groups (open_sensor_errors_on_alarm) start as consider states: the healthy
+    // sensor's variance (closed_*_sigma; 0: held exactly), not learned until they open.
     const bool open = !opt_.open_sensor_errors_on_alarm;
-    const double sk = opt_.estimate_encoder_scales && open ? opt_.encoder_scale_sigma : 0.0;
-    const double sb = opt_.estimate_gyro_bias && open ? opt_.gyro_bias_sigma_rad_s : 0.0;
+    const double sk = !opt_.estimate_encoder_scales ? 0.0
+                      : open                        ? opt_.encoder_scale_sigma
+                                                    : opt_.closed_encoder_scale_sigma;
+    const double sb = !opt_.estimate_gyro_bias ? 0.0
+                      : open                   ? opt_.gyro_bias_sigma_rad_s
+                                               : opt_.closed_gyro_bias_sigma_rad_s;
     P(kIdxEncScaleS, kIdxEncScaleS) = 0.5 * sk * sk;
     P(kIdxEncScaleD, kIdxEncScaleD) = 2.0 * sk * sk;
     P(kIdxGyroBias, kIdxGyroBias) = sb * sb;
@@ -209,11 +216,13 @@ void WheelchairEkf::start(double t0) {
   P(model::kIdxY, model::kIdxY) = opt_.initial_sigma_xy_m * opt_.initial_sigma_xy_m;
   P(model::kIdxPhi, model::kIdxPhi) = opt_.initial_sigma_phi_rad * opt_.initial_sigma_phi_rad;
   ekf_.reset(t0, x, P);
-  // open_sensor_errors_on_alarm: the sensor-error states have no rate, no F rows and no Q
-  // (errorStateNoise), so while every group is closed (zero rows of P) CVODE integrates only
-  // the 9 physics states; an opened group's variance switches to all 12 (CdEkf::setHeldTail).
-  ekf_.setHeldTail(n > kPhysicsStateDim && opt_.open_sensor_errors_on_alarm ? n - kPhysicsStateDim
-                                                                            : 0);
+  // open_sensor_errors_on_alarm: the sensor-error states have no rate, no F rows or columns
+  // (f does not depend on them) and no Q (errorStateNoise: the walk of an open group is added
+  // at the updates, addErrorNoise), so CVODE integrates only the 9 physics states, closed or
+  // open, and their cross-covariance with the rest is carried by the physics states'
+  // transition matrix (CdEkf::setHeldTail, consider tail).
+  ekf_.setHeldTail(
+      n > kPhysicsStateDim && opt_.open_sensor_errors_on_alarm ? n - kPhysicsStateDim : 0, true);
   health_ = HealthMonitor(t0);
   fault_prior_applied_ = false;
   model_v_[0] = model_v_[1] = 0;
@@ -354,7 +363,7 @@ void WheelchairEkf::encoderFaultPrior() {
   // i.e. k_s + |k_d| / 2 = 1 (right only for an encoder that loses counts). Full update: the
   // pose driven so far at the old k_s is corrected along its correlation with k_s.
   if (!opt_.estimate_encoder_scales || opt_.encoder_fault_prior == EncoderFaultPrior::None ||
-      fault_prior_applied_)
+      fault_prior_applied_ || scalesClosed())
     return;
   const Eigen::VectorXd& x = ekf_.x();
   const Eigen::MatrixXd& P = ekf_.P();
@@ -652,12 +661,13 @@ UpdateResult WheelchairEkf::scaleConsiderUpdate(const Eigen::Vector2d& y, const 
     }
   }
   K.row(kIdxEncScaleS).setZero();
-  if (learn(1, 0) != 0 && pkk > 0) {
+  if (learn(1, 0) != 0 && pkk > 0 && !scalesClosed()) {
     const double kks = PHt(kIdxEncScaleS, 1) / S(1, 1);
     for (int j = 0; j < N; ++j)
       if (j != kIdxEncScaleS) K(j, 1) += D(j) * kks;
     K(kIdxEncScaleS, 1) = kks;
   }
+  zeroClosedGainRows(K);                         // closed groups are consider states: not learned
   const Eigen::Matrix<double, N, 1> dx = K * y;  // (Ref binds it without a copy)
   applyGain(dx, josephAnyGain<N, 2>(P, K, PHt, Ht, R));
   r.accepted = true;
@@ -715,8 +725,9 @@ UpdateResult WheelchairEkf::correct(Measurement& m, double g) {
       error_states && m.dim() == 1 &&
       (m.sensor == Sensor::Gyro || (m.sensor == Sensor::Sonar && !sonar_teaches));
   if (error_states) addErrorNoise();
-  const UpdateResult r =
-      scale_known ? scaleKnownUpdate(m.z(0) - m.h(0), m.H, m.R(0, 0), g) : ekf_.correct(m, g);
+  const UpdateResult r = scale_known        ? scaleKnownUpdate(m.z(0) - m.h(0), m.H, m.R(0, 0), g)
+                         : closedVariance() ? schmidtUpdate(m, g)
+                                            : ekf_.correct(m, g);
   if (error_states && m.sensor == Sensor::Gyro) gyroHealth(m.z(0), m.R(0, 0));
   wrap();
   return r;
@@ -758,6 +769,83 @@ void WheelchairEkf::gyroHealth(double z_rad_s, double R) {
                      std::sqrt(std::max(0.0, ekf_.P()(kIdxGyroBias, kIdxGyroBias))));
 }
 
+bool WheelchairEkf::scalesClosed() const {
+  return opt_.open_sensor_errors_on_alarm && !encoder_scales_open_;
+}
+
+bool WheelchairEkf::closedVariance() const {
+  if (pm_.stateDim() <= kPhysicsStateDim || !opt_.open_sensor_errors_on_alarm) return false;
+  const Eigen::MatrixXd& P = ekf_.P();
+  return (!encoder_scales_open_ &&
+          (P(kIdxEncScaleS, kIdxEncScaleS) > 0 || P(kIdxEncScaleD, kIdxEncScaleD) > 0)) ||
+         (!gyro_bias_open_ && P(kIdxGyroBias, kIdxGyroBias) > 0);
+}
+
+void WheelchairEkf::zeroClosedGainRows(Eigen::Ref<Eigen::MatrixXd> K) const {
+  if (!opt_.open_sensor_errors_on_alarm || K.rows() <= kPhysicsStateDim) return;
+  if (!encoder_scales_open_) K.middleRows<2>(kIdxEncScaleS).setZero();
+  if (!gyro_bias_open_) K.row(kIdxGyroBias).setZero();
+}
+
+namespace {
+/// Schmidt-Kalman update of an M-dimensional reading: the Kalman gain K = P H' S^-1 with the
+/// rows of the consider states zeroed by `zero_rows`, covariance by the Joseph form (exact for
+/// any gain). Returns false (r: NIS, S) when S is not positive definite or the gate rejects.
+template <int M, class ZeroRows>
+bool schmidtGain(const Eigen::MatrixXd& P_in, const Eigen::MatrixXd& H_in,
+                 const Eigen::MatrixXd& R_in, const Eigen::VectorXd& y_in, double gate,
+                 const ZeroRows& zero_rows, UpdateResult& r,
+                 Eigen::Matrix<double, kPhysicsStateDim + kNumSensorErrorStates, 1>& dx,
+                 Eigen::Matrix<double, kPhysicsStateDim + kNumSensorErrorStates,
+                               kPhysicsStateDim + kNumSensorErrorStates>& P_new) {
+  constexpr int N = kPhysicsStateDim + kNumSensorErrorStates;
+  using MatN = Eigen::Matrix<double, N, N>;
+  using MatNM = Eigen::Matrix<double, N, M>;
+  using MatM = Eigen::Matrix<double, M, M>;
+  const MatN P = P_in;
+  const Eigen::Matrix<double, M, N> H = H_in;
+  const MatM R = R_in;
+  const Eigen::Matrix<double, M, 1> y = y_in;
+  r.dof = M;
+  r.innovation = y_in;
+  const MatNM PHt = P * H.transpose();
+  MatM S = H * PHt + R;
+  S = 0.5 * (S + S.transpose());
+  r.S = S;
+  const Eigen::LLT<MatM> llt(S);
+  if (llt.info() != Eigen::Success || !std::isfinite(S.sum())) {
+    r.nis = std::numeric_limits<double>::infinity();
+    return false;
+  }
+  r.nis = y.dot(llt.solve(y));
+  if (gate > 0 && !(r.nis <= gate)) return false;
+  MatNM K = llt.solve(PHt.transpose()).transpose();
+  zero_rows(K);
+  dx = K * y;
+  P_new = josephAnyGain<N, M>(P, K, PHt, H, R);
+  return true;
+}
+}  // namespace
+
+UpdateResult WheelchairEkf::schmidtUpdate(Measurement& m, double gate) {
+  // A reading while a sensor-error group is closed but carries its consider variance: the
+  // other states get the Schmidt gain (the x rows of the Kalman gain with the full P, which
+  // accounts for the consider states' uncertainty and their correlation with x), the closed
+  // states none; P_cc stays, P_xc <- (I - K_x H_x) P_xc - K_x H_c P_cc (Joseph form).
+  constexpr int N = kPhysicsStateDim + kNumSensorErrorStates;
+  UpdateResult r;
+  Eigen::Matrix<double, N, 1> dx;
+  Eigen::Matrix<double, N, N> Pn;
+  const auto zero = [this](auto& K) { zeroClosedGainRows(K); };
+  const Eigen::VectorXd& y = m.innovation();
+  const bool ok = m.dim() == 1 ? schmidtGain<1>(ekf_.P(), m.H, m.R, y, gate, zero, r, dx, Pn)
+                               : schmidtGain<2>(ekf_.P(), m.H, m.R, y, gate, zero, r, dx, Pn);
+  if (!ok) return r;
+  applyGain(dx, Pn);
+  r.accepted = true;
+  return r;
+}
+
 void WheelchairEkf::applyGain(const Eigen::Ref<const Eigen::VectorXd>& dx,
                               const Eigen::Ref<const Eigen::MatrixXd>& P_new) {
   xs_ = ekf_.x();
@@ -794,6 +882,7 @@ UpdateResult WheelchairEkf::scaleKnownUpdate(double y, const Eigen::MatrixXd& H,
   const double Sc = Ht.dot(PcHt) + R;
   VecN K = PcHt / Sc;
   K(kIdxEncScaleS) = 0.0;
+  zeroClosedGainRows(K);
   const VecN dx = K * y;
   applyGain(dx, josephAnyGain<N, 1>(P, K, PHt, Ht, Eigen::Matrix<double, 1, 1>::Constant(R)));
   r.accepted = true;

@@ -32,9 +32,18 @@
 // Jacobian), and a turn corrects the pose along its sensitivity to k_s. Fault prior
 // (encoder_fault_prior): once the ratio is known, one wheel is taken as healthy (either side
 // by default: the turn decides which). Fault detection and isolation
-// (open_sensor_errors_on_alarm, default): a group starts closed (its prior mean, zero variance:
-// the estimates are those of the filter without it) and opens on its sensor's CUSUM alarm
-// (HealthMonitor.h): encoder scales on the encoders' yaw-rate row, gyro bias at standstill.
+// (open_sensor_errors_on_alarm, default): a group starts closed and opens on its sensor's CUSUM
+// alarm (HealthMonitor.h): encoder scales on the encoders' yaw-rate row, gyro bias at
+// standstill. Closed, it is a Schmidt "consider" state: held at its prior mean, its gain rows
+// zero in every update, but its variance (closed_encoder_scale_sigma: a healthy wheel's 0.5 %;
+// closed_gyro_bias_sigma_rad_s, 0 by default) stays in P, so with K = [K_x; 0] the Joseph form
+//   P_cc <- P_cc,  P_xc <- (I - K_x H_x) P_xc - K_x H_c P_cc,
+//   P_xx <- (I - K_x H_x) P_xx (..)' - K_x H_c P_cx (..)' - ... + K_x (H_c P_cc H_c' + R) K_x'
+// (the full Joseph product with H = [H_x, H_c]) carries what the unlearned error does to the
+// pose; K_x is the Kalman gain's x rows from the full P (schmidtUpdate; the encoder, gyro and
+// sonar updates keep their own gain models, with the closed rows zeroed). Between updates the
+// closed states are constant and do not enter f: P_xc = Phi P_xc (CdEkf::setHeldTail, consider
+// tail). 0 sigma: held exactly (the filter without the group).
 // At standstill nothing is observable except b_g (omega = 0 is known from the
 // encoders): the scale states keep their prior (tests/estimation/test_sensor_error_states.cpp). A
 // gyro SCALE is not a state: with the encoders the only yaw-rate reference, it trades off exactly
@@ -164,6 +173,17 @@ class WheelchairEkf : public Estimator {
   /// A scalar update (gyro, sonar) that does not learn the common encoder scale k_s (gain from the
   /// covariance conditional on k_s; Joseph covariance with the true H).
   UpdateResult scaleKnownUpdate(double y, const Eigen::MatrixXd& H, double R, double gate);
+  /// A closed group (open_sensor_errors_on_alarm, its CUSUM has not alarmed) is a consider
+  /// (Schmidt) state: kept in P with closed_*_sigma, never learned.
+  bool scalesClosed() const;
+  /// Some closed group carries a non-zero variance (then every update zeroes its gain rows).
+  bool closedVariance() const;
+  /// Zeroes the gain rows of the closed groups (K: n x m).
+  void zeroClosedGainRows(Eigen::Ref<Eigen::MatrixXd> K) const;
+  /// The generic update (Pozyx; the sonar once it teaches k_s) with the closed groups as
+  /// consider states: Kalman gain of the others from the full P, zero rows for the closed
+  /// ones, Joseph covariance (docs/estimation.md, "Closed states as consider states").
+  UpdateResult schmidtUpdate(Measurement& m, double gate);
   /// x += dx and P = P_new (the consider updates' last step).
   void applyGain(const Eigen::Ref<const Eigen::VectorXd>& dx,
                  const Eigen::Ref<const Eigen::MatrixXd>& P_new);

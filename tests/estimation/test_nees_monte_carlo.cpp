@@ -47,6 +47,14 @@ struct Case {
   double left_fault = 1.0;          ///< left ticks x this (the paper's fault: 0.95)
   bool draw_scales = false;         ///< truth scales ~ N(1, encoder_scale_sigma) per run
   double encoder_scale_sigma = -1;  ///< < 0: shipped
+  /// The shipped fault detection: states closed until an alarm (consider states while closed),
+  /// gyro bias as shipped; truth radii ~ N(1, closed_encoder_scale_sigma) per wheel.
+  bool closed_until_alarm = false;
+  double closed_encoder_scale_sigma = -1;  ///< < 0: shipped
+  double truth_scale_sigma = -1;           ///< < 0: the filter's closed prior
+  double draw_sigma_closed(const EkfOptions& o) const {
+    return truth_scale_sigma >= 0 ? truth_scale_sigma : o.closed_encoder_scale_sigma;
+  }
 };
 
 struct McNees {
@@ -62,9 +70,16 @@ McNees monteCarlo(const Case& c) {
   opt.encoder_fault_prior = EncoderFaultPrior::None;  // a prior on WHICH wheel fails: not sampled
   // The states as estimated from the start (not held until an alarm) and no gyro bias: this
   // checks the noise model of the pose and the scales, not the alarm's timing.
-  opt.open_sensor_errors_on_alarm = false;
-  opt.estimate_gyro_bias = false;
+  if (!c.closed_until_alarm) {
+    opt.open_sensor_errors_on_alarm = false;
+    opt.estimate_gyro_bias = false;
+  }
   if (c.encoder_scale_sigma > 0) opt.encoder_scale_sigma = c.encoder_scale_sigma;
+  if (c.closed_encoder_scale_sigma >= 0)
+    opt.closed_encoder_scale_sigma = c.closed_encoder_scale_sigma;
+  // The healthy chair's radii spread: the closed states' (consider) prior, or the open prior.
+  const double draw_sigma =
+      c.closed_until_alarm ? c.draw_sigma_closed(opt) : opt.encoder_scale_sigma;
   std::mt19937_64 rng(4242);
   std::normal_distribution<double> N01(0.0, 1.0);
   std::vector<double> sum2, sum3;
@@ -81,8 +96,8 @@ McNees monteCarlo(const Case& c) {
     so.currents = curvyCurrents(0.37 * run, 1.6, 0.4);
     so.left_encoder_scale = c.left_fault;
     if (c.draw_scales) {
-      so.right_encoder_scale = 1.0 + opt.encoder_scale_sigma * N01(rng);
-      so.left_encoder_scale *= 1.0 + opt.encoder_scale_sigma * N01(rng);
+      so.right_encoder_scale = 1.0 + draw_sigma * N01(rng);
+      so.left_encoder_scale *= 1.0 + draw_sigma * N01(rng);
     }
     const SynthRun sr = synthesize(nominal(), so, 5000 + run);
     const EstimationResult res = runEstimator(sr.rec, nominal(), opt);
@@ -146,4 +161,22 @@ TEST(NeesMonteCarlo, CovarianceStaysHonestOnTheFaultyEncoderDrive) {
   // The paper's fault (left encoder 5 % short) on chairs drawn from the shipped prior: the
   // scale states (shipped prior sd) must absorb the fault without becoming over-confident.
   expectConsistent(monteCarlo({"left encoder x0.95, states on", true, 0.95, true}));
+}
+
+TEST(NeesMonteCarlo, ClosedScaleStatesCarryAHealthyChairsRadiusUncertainty) {
+  // The shipped fault detection: the scale states closed until an alarm. Closed, they are
+  // consider states with a healthy wheel's prior (closed_encoder_scale_sigma = 0.5 %), and the
+  // truth's rolling radii are drawn from it: the pose covariance must carry what the radius
+  // does to the pose (before: held with zero variance, position NEES over-confident).
+  expectConsistent(
+      monteCarlo({"closed until alarm, radii ~ N(1, 0.5 %)", true, 1.0, true, -1, true}));
+}
+
+TEST(NeesMonteCarlo, HeldScaleStatesWithoutConsiderVarianceAreOverconfident) {
+  // The same drives with the closed states held at zero variance (the previous behaviour):
+  // the radius error is in no covariance and the position NEES leaves its band upwards. The
+  // difference to the test above is the consider variance alone.
+  const McNees r = monteCarlo(
+      {"held with zero variance, radii ~ N(1, 0.5 %)", true, 1.0, true, -1, true, 0.0, 0.005});
+  EXPECT_GT(r.position, r.band2.second);
 }

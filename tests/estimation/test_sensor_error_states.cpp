@@ -258,6 +258,7 @@ TEST(SensorErrorStates, ClosedStatesGiveTheStatesOffEstimatesOnACleanDrive) {
   const SynthRun sr = synthesize(nominal(), so, 31);
   EkfOptions on;  // detection first: both groups closed until an alarm
   on.estimate_encoder_scales = on.estimate_gyro_bias = true;
+  on.closed_encoder_scale_sigma = 0.0;  // held exactly (no consider variance)
   on.output_rate_hz = 5;
   on.cvode.rel_tol = 1e-9;  // tight: the difference below is then the filters', not CVODE's
   on.cvode.abs_tol_state = on.cvode.abs_tol_cov = 1e-12;
@@ -284,6 +285,48 @@ TEST(SensorErrorStates, ClosedStatesGiveTheStatesOffEstimatesOnACleanDrive) {
   for (int j = 0; j < 7; ++j) std::printf(" %.1e", dmax(j));
   std::printf("\n");
   EXPECT_LT(dmax.maxCoeff(), 1e-6);
+}
+
+TEST(SensorErrorStates, ClosedStatesAreConsideredNotLearned) {
+  // The shipped closed states are consider (Schmidt) states: their means never move and their
+  // variance stays the healthy prior (0.5 % per wheel), but the pose's covariance carries
+  // them: its sd grows with the distance driven at an uncertain scale, above that of the
+  // filter without the states, while the estimates stay within millimetres of it.
+  SynthOptions so;
+  so.duration_s = 20.0;
+  so.currents = curvyCurrents(0.8, 2.0, 0.6);
+  const SynthRun sr = synthesize(nominal(), so, 31);
+  EkfOptions on;
+  on.estimate_encoder_scales = on.estimate_gyro_bias = true;
+  on.output_rate_hz = 5;
+  ASSERT_TRUE(on.open_sensor_errors_on_alarm);
+  ASSERT_EQ(on.closed_encoder_scale_sigma, 0.005);
+  EkfOptions off = on;
+  off.estimate_encoder_scales = off.estimate_gyro_bias = false;
+  const EstimationResult a = runEstimator(sr.rec, nominal(), on);
+  const EstimationResult b = runEstimator(sr.rec, nominal(), off);
+  for (const HealthEvent& h : a.health) EXPECT_EQ(h.sensor, "sonar") << h.text;  // no alarm
+  EXPECT_EQ(a.sensor_errors.encoder_scale_left, 1.0);
+  EXPECT_EQ(a.sensor_errors.encoder_scale_right, 1.0);
+  EXPECT_NEAR(a.sensor_errors.encoder_scale_left_sd, 0.005, 1e-12);
+  EXPECT_EQ(a.sensor_errors.gyro_bias_sd_rad_s, 0.0);
+  ASSERT_EQ(a.estimates.size(), b.estimates.size());
+  double dmax = 0;
+  for (std::size_t i = 0; i < a.estimates.size(); ++i)
+    dmax = std::max(dmax, (a.estimates[i].x.segment<2>(2) - b.estimates[i].x.segment<2>(2)).norm());
+  // A common scale error with the heading from the gyro scales the track about its start:
+  // position error = dk_s (p - p0), so its sd is 0.35 % (0.5 % / sqrt 2) of the displacement.
+  const TruthPoint& end = sr.at(a.final().t_s);
+  const double disp_m = std::hypot(end.x - sr.truth.front().x, end.y - sr.truth.front().y);
+  const double sd_on = std::sqrt(a.final().P(2, 2) + a.final().P(3, 3));
+  const double sd_off = std::sqrt(b.final().P(2, 2) + b.final().P(3, 3));
+  std::printf(
+      "consider states: displacement %.2f m, final position sd %.4f m (states off "
+      "%.4f m), largest position difference %.4f m\n",
+      disp_m, sd_on, sd_off, dmax);
+  EXPECT_LT(dmax, 0.005);
+  // The scale's share, in quadrature with the states-off sd: at least 80 % of it.
+  EXPECT_GT(sd_on * sd_on, sd_off * sd_off + std::pow(0.8 * 0.0035 * disp_m, 2));
 }
 
 TEST(SensorErrorStates, AnEncoderFaultOpensTheScalesShortOrLong) {
