@@ -11,6 +11,13 @@ namespace {
 constexpr double kThreshold = Cusum::kThreshold;
 constexpr double kReportSd = 0.005;  // a scale is reported once its sd is below this (-)
 constexpr double kMinFault = 0.01;   // and it is off by more than this and 3 sd (-)
+
+/// An estimate is precise enough to report: sd below the reporting sd, or below twice it while
+/// the value is off nominal by more than 5 sd (a fault sided by a prior, or a gyro bias learnt
+/// from a short first standstill, carries a little more than the reporting sd but is news).
+bool clearEnough(double offset, double sd, double report_sd) {
+  return sd < report_sd || (sd < 2 * report_sd && std::abs(offset) > 5 * sd);
+}
 const char* const kSide[2] = {"right", "left"};
 }  // namespace
 
@@ -93,7 +100,7 @@ bool HealthMonitor::gyroInnovation(double t, double nu, bool bias_estimated) {
 
 void HealthMonitor::gyroBias(double t, double b, double sd) {
   constexpr double kReportSdRad = 0.002, kMinBiasRad = 0.005;  // rad/s
-  if (!(sd < kReportSdRad)) return;
+  if (!clearEnough(b, sd, kReportSdRad)) return;
   const double margin = std::max(3 * sd, kMinBiasRad);
   if (std::abs(b - gyro_reported_) <= std::max(margin, 3 * gyro_reported_sd_)) return;
   if (std::abs(b) <= margin && gyro_reported_ == 0) return;
@@ -126,8 +133,7 @@ void HealthMonitor::report(double t, int side, double k, double sd) {
   // Reported once sd < 0.5 % (and off by 3 sd, 1 %), or sooner when sd < 1 % and it is off
   // by 5 sd: a wheel sided by the fault prior carries the healthy wheel's 0.5 % and the
   // ratio's sd (~0.7 % in all), and a 5 % fault at +-0.7 % is news worth saying.
-  const bool clear = sd < kReportSd || (sd < 2 * kReportSd && std::abs(k - 1) > 5 * sd);
-  if (!clear) return;
+  if (!clearEnough(k - 1, sd, kReportSd)) return;
   const double margin = std::max(3 * sd, kMinFault);
   // New information: off nominal now and different from what was last reported (nominal
   // included: a fault that went away is reported back as nominal only via a new estimate).
