@@ -1231,7 +1231,11 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
       x.segment(s2 * nR, nR) = df2.libColumn(lib, s2 * nR, nR);
       return x;
     };
-    for (int lib = 0; lib < 12; ++lib) {
+    // Every library term but the measured currents (12 i_self, 13 i_other: kept out of the
+    // search, dynamicUnmodeled); before, v*|v| (14) and sgn(omega) (15) were silently dropped
+    // here whenever the catalogue had a term (a forward quadratic drag then read as Coulomb).
+    for (int lib = 0; lib < static_cast<int>(dynLibNames().size()); ++lib) {
+      if (lib == 12 || lib == 13) continue;
       const bool r = has(0, lib), l = has(1, lib);
       if (r && l && inSpan(qrD, Df, sideCol(0, lib) + sideCol(1, lib)))
         cols.push_back({lib, 2});
@@ -1454,6 +1458,39 @@ void reportUnmodeled(std::array<SparseResult, 2> srs, const DynRows& df2, const 
   }
 }
 
+/// The accepted one-column catalogue term (index into sel.accepted) that an out-of-catalogue
+/// library term predicts better by blocked cross-validation (betterOutOfCatalogue,
+/// UnmodeledPhysics.h), or -1; why goes to `log`. Stream delays are not tested (their rows are
+/// rebuilt with them).
+int supersededByOutOfCatalogue(const Selection& sel, const std::vector<Candidate>& cands,
+                               const DynRows& df, int lags, double alpha_b,
+                               std::vector<std::string>& log) {
+  const int nR = static_cast<int>(df.y.size() / 2);
+  DynamicTermData td;
+  td.column = [&](int j, int side, bool) { return unmodeledColumn(df, j, side * nR, nR); };
+  td.y_fit = df.y, td.groups_fit = df.groups, td.lags = lags;
+  std::vector<int> lib;
+  for (int j = 0; j < static_cast<int>(dynLibNames().size()); ++j)
+    if (j != 12 && j != 13) lib.push_back(j);  // not the measured currents (dynamicUnmodeled)
+  const Eigen::MatrixXd D = acceptedDesign(df.X, cands, sel.accepted);
+  const double crit = stats::chi2Quantile(1 - alpha_b, 1);
+  for (std::size_t a = 0; a < sel.accepted.size(); ++a) {
+    const Candidate& c = cands[sel.accepted[a]];
+    if (c.effect == "sensor_delay" || sel.ranges[a].second != 1) continue;
+    const CatalogueAlternative alt = betterOutOfCatalogue(D, sel.ranges[a].first, lib, td, crit);
+    if (alt.term < 0) continue;
+    log.push_back(fmt::format(
+        "{}: not named, the out-of-catalogue term {} ({}) predicts the currents better "
+        "(blocked cross-validation: likelihood ratio {:.1f} for it, {:.1f} for the catalogue "
+        "term beside it; {:.1f} needed)",
+        c.name, dynLibNames()[alt.term],
+        alt.pattern == 2 ? "right motor" : (alt.pattern == 3 ? "left motor" : "both motors"),
+        alt.lr_alt, alt.lr_c, crit));
+    return static_cast<int>(a);
+  }
+  return -1;
+}
+
 /// Stage 2: the per-motor equation error of the drive model in current space, with the
 /// stage 1 corrections applied. Sets corr.delay_motors. false: too little data.
 bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
@@ -1479,6 +1516,20 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     alpha_b = selectionRule(opt, cands.size()).level();
     sel = forwardSelect(sd, cands, opt);
   }
+  // A catalogue term that an out-of-catalogue term predicts better is not forced onto the
+  // catalogue (issue 16 item 3): selected again without it; the unmodeled search describes it.
+  std::vector<std::string> superseded;
+  while (opt.enable_unmodeled) {
+    const int a = supersededByOutOfCatalogue(sel, cands, df, lags, alpha_b, superseded);
+    if (a < 0) break;
+    const std::string gone = cands[sel.accepted[a]].name;
+    cands.erase(std::remove_if(cands.begin(), cands.end(),
+                               [&](const Candidate& c) { return c.name == gone; }),
+                cands.end());
+    alpha_b = selectionRule(opt, cands.size()).level();
+    sel = forwardSelect(sd, cands, opt);
+  }
+  sel.log.insert(sel.log.end(), superseded.begin(), superseded.end());
   // The rows re-built with the re-estimated delay; without a delay df, dv themselves (no
   // copy: the rows are the bulk of diagnose's memory).
   DelayRefit<DynRows> refit;

@@ -67,6 +67,36 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
                                     const DynamicTermData& data,
                                     const config::WheelchairConfig& cfg);
 
+/// An out-of-catalogue term that predicts the currents better than an accepted catalogue
+/// term (issue 16 item 3: "do not force it onto the nearest catalogue name").
+/// The forward selection tries the catalogue first, so a load the catalogue lacks but nearly
+/// spans over the speeds driven is named after it (a forward drag c v|v| as Coulomb friction
+/// sgn(u); a current-sensor offset of one motor, a constant, as that motor's Coulomb friction
+/// when its wheel never reverses). The order of fitting must not decide: here out-of-sample
+/// prediction does. Blocked K-fold cross-validation by TIME (fold k = the same time block on
+/// both motors' rows; each fold predicted by the fit on the others) of the residuals y (fit
+/// rows, stacked [right; left]):
+///   D   = the accepted catalogue designs (column c the term under test),
+///   alt = D without c, plus library term j in c's pattern (right only, left only, or the
+///         same on both motors: forward [x_R; x_L]),
+///   LR_alt = n_eff log(SSE_cv(D) / SSE_cv(alt)),  LR_c = n_eff log(SSE_cv(alt) / SSE_cv(alt + c))
+/// (n_eff: Bartlett effective sample size of alt's residual, lags d.lags). c is superseded by the
+/// j with the largest LR_alt when LR_alt >= crit (the alternative predicts significantly better)
+/// AND LR_c < crit (c adds nothing once j is there). A true catalogue term is never superseded
+/// by a different shape: Coulomb friction predicts no current at standstill, an offset does.
+/// Example: excite drive with a forward drag 14.9 N s^2/m^2, c = coulomb_friction/both ->
+/// {term: v*|v|, lr_alt: ~1e3, lr_c: ~0}.
+struct CatalogueAlternative {
+  int term = -1;    ///< library index; -1: c stands
+  int pattern = 0;  ///< 0 both motors, 2 right only, 3 left only
+  double lr_alt = 0, lr_c = 0, sse_cv_catalogue = 0, sse_cv_alt = 0;
+};
+/// D: fit rows x accepted catalogue columns; c: the column tested (a one-column term);
+/// candidates: library indices to try; crit: the chi-square level (1 dof) both tests use.
+CatalogueAlternative betterOutOfCatalogue(const Eigen::MatrixXd& D, int c,
+                                          const std::vector<int>& candidates,
+                                          const DynamicTermData& d, double crit, int folds = 5);
+
 /// Components of a stage-1 (gyro_vs_encoders) unmodeled finding from its own terms.
 nlohmann::json describeKinematicTerms(const Finding& f);
 
