@@ -422,14 +422,30 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
     const Eigen::VectorXd r_full = yv - p_full;
     const double nev = effectiveSampleSize(r_full, gv, lags);
     double best = std::numeric_limits<double>::infinity(), change_rms = 0;
-    size_t best_k = 0;
+    size_t best_k = terms.size();
+    // Each term's contribution on the fit rows (the fit of all terms there).
+    const Eigen::MatrixXd Af = L.design(terms);
+    const Eigen::VectorXd bf = Af.colPivHouseholderQr().solve(y);
+    const double nf = std::max<double>(1, y.size());
     for (size_t k = 0; k < terms.size(); ++k) {
       std::vector<int> t = terms;
       t.erase(t.begin() + static_cast<long>(k));
       const Eigen::VectorXd p = valPrediction(t);
+      // A term relevant on the fit rows that the held-out rows cannot test (there its
+      // contribution is below the relevance floor or predicts an LR gain below
+      // validation_min_expected_lr: e.g. cos(phi) when the last side of a `square` runs at
+      // phi = -90 deg) is not judged here: its removal would cost nothing there whatever it
+      // is. The blocked cross-validation below judges it on all rows.
+      const double dn = (p - p_full).squaredNorm();
+      const double expected = nev * std::log(1 + dn / std::max(1e-300, r_full.squaredNorm()));
+      const bool untestable =
+          expected < opt.validation_min_expected_lr || std::sqrt(dn / nv) < min_contribution_rms;
+      if (untestable && std::abs(bf(k)) * Af.col(k).norm() / std::sqrt(nf) >= min_contribution_rms)
+        continue;
       const double rss = (yv - p).squaredNorm();
       if (rss < best) best = rss, best_k = k, change_rms = (p - p_full).norm() / std::sqrt(nv);
     }
+    if (best_k == terms.size()) break;  // none of them testable on the held-out rows
     const bool significant = nev * std::log(best / std::max(1e-300, r_full.squaredNorm())) >= crit;
     if (significant && change_rms >= min_contribution_rms) break;
     terms.erase(terms.begin() + static_cast<long>(best_k));
@@ -458,18 +474,29 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
 /// be told from a projection of what is still missing: it is not a finding (issue 16: "honest
 /// when it cannot tell"). A term's contribution: the change of the held-out prediction when it
 /// (with its partner(j) >= 0, e.g. cos/sin of one angle) is left out and the rest refitted.
+/// Both are measured out of sample on ALL rows: the held-out rows predicted by the fit on the
+/// fit rows, and the fit rows by blocked 5-fold cross-validation on them (before, the held-out
+/// rows alone: a yaw inertia on a `square` drive, whose last 30 % barely turns, contributed
+/// 0.0013 A there against 0.0064 A unexplained and was never reported; its contribution is
+/// where the drive turns).
 /// Per dropped term: {index, contribution rms}; sigma_m set.
 std::vector<std::pair<int, double>> belowMisspecification(
     const Library& L, const Eigen::VectorXd& y, const Library& Lv, const Eigen::VectorXd& yv,
     const std::vector<int>& terms, double noise_var, const std::function<int(int)>& partner,
     double& sigma_m) {
   const Predictor heldOut = heldOutPredictor(L, y, Lv);
+  const Predictor cv = crossValidationPredictor(L, y, 5);
+  const Eigen::Index nf = y.size();
+  Eigen::VectorXd yall(nf + yv.size());
+  yall << y, yv;
   auto valPrediction = [&](const std::vector<int>& t) {
-    return t.empty() ? Eigen::VectorXd(Eigen::VectorXd::Zero(yv.size())) : heldOut(t);
+    Eigen::VectorXd p = Eigen::VectorXd::Zero(yall.size());
+    if (!t.empty()) p << cv(t), heldOut(t);
+    return p;
   };
-  const double nv = std::max<double>(1, yv.size());
+  const double nv = std::max<double>(1, yall.size());
   const Eigen::VectorXd p_full = valPrediction(terms);
-  sigma_m = std::sqrt(std::max(0.0, (yv - p_full).squaredNorm() / nv - noise_var));
+  sigma_m = std::sqrt(std::max(0.0, (yall - p_full).squaredNorm() / nv - noise_var));
   std::vector<std::pair<int, double>> out;
   for (size_t k = 0; k < terms.size(); ++k) {
     const int mate = partner ? partner(terms[k]) : -1;
@@ -1477,15 +1504,21 @@ int supersededByOutOfCatalogue(const Selection& sel, const std::vector<Candidate
   for (std::size_t a = 0; a < sel.accepted.size(); ++a) {
     const Candidate& c = cands[sel.accepted[a]];
     if (c.effect == "sensor_delay" || sel.ranges[a].second != 1) continue;
-    const CatalogueAlternative alt = betterOutOfCatalogue(D, sel.ranges[a].first, lib, td, crit);
+    // The catalogue's one-column terms as dependence classes (UnmodeledPhysics.h).
+    const std::string dep = c.effect == "coulomb_friction"  ? "sign_of_rate"
+                            : c.effect == "motor_asymmetry" ? "rate"
+                            : c.effect == "payload_mass"    ? "acceleration"
+                                                            : "";
+    const CatalogueAlternative alt =
+        betterOutOfCatalogue(D, sel.ranges[a].first, dep, lib, dynLibNames(), td, crit);
     if (alt.term < 0) continue;
     log.push_back(fmt::format(
         "{}: not named, the out-of-catalogue term {} ({}) predicts the currents better "
         "(blocked cross-validation: likelihood ratio {:.1f} for it, {:.1f} for the catalogue "
-        "term beside it; {:.1f} needed)",
+        "term beside it; {:.1f} needed; the catalogue column is {:.0f} % in its span)",
         c.name, dynLibNames()[alt.term],
         alt.pattern == 2 ? "right motor" : (alt.pattern == 3 ? "left motor" : "both motors"),
-        alt.lr_alt, alt.lr_c, crit));
+        alt.lr_alt, alt.lr_c, crit, 100 * alt.r2));
     return static_cast<int>(a);
   }
   return -1;

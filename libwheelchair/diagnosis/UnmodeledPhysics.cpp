@@ -293,8 +293,11 @@ Eigen::VectorXd timeFoldResidual(const Eigen::MatrixXd& A, const Eigen::VectorXd
 }  // namespace
 
 CatalogueAlternative betterOutOfCatalogue(const Eigen::MatrixXd& D, int c,
+                                          const std::string& c_dependence,
                                           const std::vector<int>& candidates,
-                                          const DynamicTermData& d, double crit, int folds) {
+                                          const std::vector<std::string>& names,
+                                          const DynamicTermData& d, double crit, double min_r2,
+                                          int folds) {
   CatalogueAlternative best;
   const Eigen::Index n = d.y_fit.size() / 2;
   if (n < 10 * folds || c < 0 || c >= D.cols()) return best;
@@ -307,8 +310,13 @@ CatalogueAlternative betterOutOfCatalogue(const Eigen::MatrixXd& D, int c,
   for (int j : candidates) {
     const Eigen::VectorXd x = stacked(d, Col{j, pattern}, true);
     if (!(x.squaredNorm() > 0)) continue;
+    if (!c_dependence.empty() && dependenceOf(names[j]) == c_dependence) continue;
     Eigen::MatrixXd A(D.rows(), Dw.cols() + 1);
     A << Dw, x;
+    // Only where the fitting order decides: c nearly in the span of the alternative model.
+    const Eigen::VectorXd res_c = xc - A * A.colPivHouseholderQr().solve(xc);
+    const double r2 = 1 - res_c.squaredNorm() / xc.squaredNorm();
+    if (r2 < min_r2) continue;
     const Eigen::VectorXd ra = timeFoldResidual(A, d.y_fit, folds);
     const double sse_a = ra.squaredNorm();
     if (!(sse_a > 0)) continue;
@@ -319,7 +327,7 @@ CatalogueAlternative betterOutOfCatalogue(const Eigen::MatrixXd& D, int c,
     Ac << A, xc;
     const double lr_c = ne * std::log(sse_a / timeFoldResidual(Ac, d.y_fit, folds).squaredNorm());
     if (lr_c >= crit) continue;
-    best = {j, pattern, lr_alt, lr_c, sse_D, sse_a};
+    best = {j, pattern, lr_alt, lr_c, sse_D, sse_a, r2};
   }
   return best;
 }
