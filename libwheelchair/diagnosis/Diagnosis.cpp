@@ -440,7 +440,8 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
       const double expected = nev * std::log(1 + dn / std::max(1e-300, r_full.squaredNorm()));
       const bool untestable =
           expected < opt.validation_min_expected_lr || std::sqrt(dn / nv) < min_contribution_rms;
-      if (untestable && std::abs(bf(k)) * Af.col(k).norm() / std::sqrt(nf) >= min_contribution_rms)
+      if (opt.unmodeled_judge_where_excited && untestable &&
+          std::abs(bf(k)) * Af.col(k).norm() / std::sqrt(nf) >= min_contribution_rms)
         continue;
       const double rss = (yv - p).squaredNorm();
       if (rss < best) best = rss, best_k = k, change_rms = (p - p_full).norm() / std::sqrt(nv);
@@ -474,24 +475,28 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
 /// be told from a projection of what is still missing: it is not a finding (issue 16: "honest
 /// when it cannot tell"). A term's contribution: the change of the held-out prediction when it
 /// (with its partner(j) >= 0, e.g. cos/sin of one angle) is left out and the rest refitted.
-/// Both are measured out of sample on ALL rows: the held-out rows predicted by the fit on the
-/// fit rows, and the fit rows by blocked 5-fold cross-validation on them (before, the held-out
-/// rows alone: a yaw inertia on a `square` drive, whose last 30 % barely turns, contributed
-/// 0.0013 A there against 0.0064 A unexplained and was never reported; its contribution is
-/// where the drive turns).
-/// Per dropped term: {index, contribution rms}; sigma_m set.
+/// With all_rows (DiagnosisOptions::unmodeled_judge_where_excited) both are measured out of
+/// sample on ALL rows: the held-out rows predicted by the fit on the fit rows, and the fit rows
+/// by blocked 5-fold cross-validation on them (without it, the held-out rows alone: a yaw inertia
+/// on a `square` drive, whose last 30 % barely turns, contributed 0.0013 A there against 0.0064 A
+/// unexplained and was never reported; its contribution is where the drive turns). Per dropped
+/// term: {index, contribution rms}; sigma_m set.
 std::vector<std::pair<int, double>> belowMisspecification(
     const Library& L, const Eigen::VectorXd& y, const Library& Lv, const Eigen::VectorXd& yv,
     const std::vector<int>& terms, double noise_var, const std::function<int(int)>& partner,
-    double& sigma_m) {
+    bool all_rows, double& sigma_m) {
   const Predictor heldOut = heldOutPredictor(L, y, Lv);
   const Predictor cv = crossValidationPredictor(L, y, 5);
-  const Eigen::Index nf = y.size();
+  const Eigen::Index nf = all_rows ? y.size() : 0;
   Eigen::VectorXd yall(nf + yv.size());
-  yall << y, yv;
+  if (all_rows)
+    yall << y, yv;
+  else
+    yall = yv;
   auto valPrediction = [&](const std::vector<int>& t) {
     Eigen::VectorXd p = Eigen::VectorXd::Zero(yall.size());
-    if (!t.empty()) p << cv(t), heldOut(t);
+    if (!t.empty() && all_rows) p << cv(t), heldOut(t);
+    if (!t.empty() && !all_rows) p = heldOut(t);
     return p;
   };
   const double nv = std::max<double>(1, yall.size());
@@ -572,7 +577,8 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
         double sigma_m = 0;
         if (noise_var > 0)
           for (const auto& [w, c_rms] :
-               belowMisspecification(L, y, Lv, yv, act, noise_var, partner, sigma_m))
+               belowMisspecification(L, y, Lv, yv, act, noise_var, partner,
+                                     opt.unmodeled_judge_where_excited, sigma_m))
             res.cannot_tell.push_back({{"term", act[w]},
                                        {"coefficient", f.beta(w)},
                                        {"heldout_contribution_rms", c_rms},
@@ -676,6 +682,8 @@ config::Options DiagnosisOptions::options(const std::string& section) {
       .flag("enable_unmodeled", enable_unmodeled, "sparse regression on what remains")
       .flag("unmodeled_cross_validation", unmodeled_cross_validation,
             "unmodeled terms the held-out part cannot test: confirm by blocked 5-fold CV")
+      .flag("unmodeled_judge_where_excited", unmodeled_judge_where_excited,
+            "unmodeled terms the held-out part cannot test: judged on all rows (CV)")
       .real("stlsq_threshold_sigma", stlsq_threshold_sigma,
             "STLSQ keeps terms with |coef| > this x HAC sigma (-)", nonneg)
       .flag("enable_delay", enable_delay, "fit stream delays");

@@ -20,14 +20,28 @@ using wheelchair::test::cli;
 using wheelchair::test::readFile;
 using wheelchair::test::TempDir;
 
+/// where_excited: diagnose with `[diagnosis] unmodeled_judge_where_excited = true` (the
+/// shipped configuration with that one line changed).
 nlohmann::json diagnoseWith(const std::string& effect, int seed,
-                            const std::string& scenario = "excite --duration 90") {
+                            const std::string& scenario = "excite --duration 90",
+                            bool where_excited = false) {
   const TempDir d;
-  const std::string rec = d / "u.rawlog", json = d / "u.json";
+  const std::string rec = d / "u.rawlog", json = d / "u.json", ini = d / "u.ini";
   const auto sim = cli("simulate --scenario " + scenario + " --seed " + std::to_string(seed) +
                        " --effect " + effect + " -o " + rec);
   EXPECT_EQ(sim.exit_code, 0) << sim.out;
-  const auto diag = cli("diagnose " + rec + " --no-progress --json " + json);
+  std::string config;
+  if (where_excited) {
+    std::string text = readFile(wheelchair::test::sourcePath("config/wheelchair.ini"));
+    const std::string key = "unmodeled_judge_where_excited = false";
+    const auto at = text.find(key);
+    EXPECT_NE(at, std::string::npos);
+    if (at != std::string::npos)
+      text.replace(at, key.size(), "unmodeled_judge_where_excited = true");
+    wheelchair::test::writeFile(ini, text);
+    config = " --config " + ini;
+  }
+  const auto diag = cli("diagnose " + rec + config + " --no-progress --json " + json);
   EXPECT_EQ(diag.exit_code, 0) << diag.out;
   return nlohmann::json::parse(readFile(json));
 }
@@ -91,9 +105,10 @@ TEST(UnmodeledPhysics, OneMotorOffsetOnSquareIsNotThatMotorsCoulombFriction) {
 TEST(UnmodeledPhysics, YawInertiaOnSquareIsFoundWhereTheDriveTurns) {
   // The held-out last 30 % of a `square` drive barely turns: there the omegadot term
   // contributed 0.0013 A against 0.0064 A of unexplained structure and was never reported.
-  // The misspecification bound now measures both out of sample on all rows.
+  // With unmodeled_judge_where_excited the misspecification bound measures both out of
+  // sample on all rows.
   const std::string e = "yaw_inertia:extra_kg_m2=2.515";
-  const auto j = diagnoseWith(e, 247162, "square");
+  const auto j = diagnoseWith(e, 247162, "square", true);
   const auto c = componentFor(j, e);
   ASSERT_FALSE(c.is_null()) << j["findings"].dump();
   EXPECT_EQ(c["term"], "omegadot");
@@ -105,9 +120,10 @@ TEST(UnmodeledPhysics, YawInertiaOnSquareIsFoundWhereTheDriveTurns) {
 TEST(UnmodeledPhysics, HeadingYawMomentOnSquareIsAMomentFixedInTheWorld) {
   // M = 1.192 sin(phi - 69.62 deg): largest to the left at phi = 159.6 deg. The last side of
   // the `square` runs at phi = -90 deg, where cos(phi) = 0: the held-out pruning removed
-  // cos(phi) (its removal cost nothing there) and then sin(phi) alone; nothing was reported.
+  // cos(phi) (its removal cost nothing there) and then sin(phi) alone; nothing was reported
+  // (still the default: unmodeled_judge_where_excited = false).
   const std::string e = "heading_yaw_torque:heading_deg=69.62,torque_Nm=1.192";
-  const auto j = diagnoseWith(e, 403257, "square");
+  const auto j = diagnoseWith(e, 403257, "square", true);
   const auto c = componentFor(j, e);
   ASSERT_FALSE(c.is_null()) << j["findings"].dump();
   EXPECT_EQ(c["physical"]["unit"], "N m");
