@@ -1267,11 +1267,14 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
       return x;
     };
     // Every library term but the measured currents (12 i_self, 13 i_other: kept out of the
-    // search, dynamicUnmodeled); before, v*|v| (14) and sgn(omega) (15) were silently dropped
-    // here whenever the catalogue had a term (a forward quadratic drag then read as Coulomb).
+    // search, dynamicUnmodeled). v*|v| (14) and sgn(omega) (15), a forward drag and a dry yaw
+    // moment, load both motors: they enter when found on both (before, they were dropped here
+    // whenever the catalogue had a term, and a forward quadratic drag read as Coulomb friction;
+    // found on one motor only, on MuJoCo v*|v| stood in for the centre of mass' v*omega).
     for (int lib = 0; lib < static_cast<int>(dynLibNames().size()); ++lib) {
       if (lib == 12 || lib == 13) continue;
       const bool r = has(0, lib), l = has(1, lib);
+      if (lib >= 14 && !(r && l)) continue;
       if (r && l && inSpan(qrD, Df, sideCol(0, lib) + sideCol(1, lib)))
         cols.push_back({lib, 2});
       else
