@@ -311,6 +311,10 @@ CatalogueAlternative betterOutOfCatalogue(const Eigen::MatrixXd& D, int c,
     const Eigen::VectorXd x = stacked(d, Col{j, pattern}, true);
     if (!(x.squaredNorm() > 0)) continue;
     if (!c_dependence.empty() && dependenceOf(names[j]) == c_dependence) continue;
+    // A forward drag (v*|v|) or a dry yaw moment (sgn(omega)) loads both motors: not an
+    // alternative to a one-motor term (on MuJoCo a v*|v| of one motor replaced a motor
+    // asymmetry that the unmodeled search then described as |u| on that motor).
+    if (pattern != 0 && (names[j] == "v*|v|" || names[j] == "sgn(omega)")) continue;
     Eigen::MatrixXd A(D.rows(), Dw.cols() + 1);
     A << Dw, x;
     // Only where the fitting order decides: c nearly in the span of the alternative model.

@@ -84,7 +84,8 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
 /// j with the largest LR_alt among the j that (a) have another dependence class than c (a
 /// rate law is not replaced by another rate law: same physics, and on a multibody any of them
 /// also absorbs some of the other unmodeled loads) and (b) nearly span c together with the
-/// rest of D (uncentred R^2 >= min_r2, 0.9: only there did the order of fitting decide), when
+/// rest of D (uncentred R^2 >= min_r2, 0.9: only there did the order of fitting decide) and
+/// (c) for a one-motor c, are not a load of both motors (v*|v|, sgn(omega)), when
 /// LR_alt >= crit (the alternative predicts significantly better)
 /// AND LR_c < crit (c adds nothing once j is there). A true catalogue term is never superseded
 /// by a different shape: Coulomb friction predicts no current at standstill, an offset does.
