@@ -1,5 +1,7 @@
 #include "libwheelchair/diagnosis/UnmodeledPhysics.h"
 
+#include "libwheelchair/stats/Statistics.h"
+
 #include <fmt/format.h>
 #include <Eigen/QR>
 
@@ -264,6 +266,74 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
   }
   for (const auto& [mode, h] : heading) out.push_back(headingComponent(mode, h, kF, kM));
   return out;
+}
+
+namespace {
+
+/// Blocked K-fold cross-validation by time of y on A (rows stacked [right; left], n per
+/// motor): the out-of-fold residual.
+Eigen::VectorXd timeFoldResidual(const Eigen::MatrixXd& A, const Eigen::VectorXd& y, int K) {
+  const Eigen::Index n = y.size() / 2;
+  Eigen::VectorXd r = y;
+  if (A.cols() == 0) return r;
+  for (int k = 0; k < K; ++k) {
+    const Eigen::Index a = n * k / K, b = n * (k + 1) / K;
+    std::vector<Eigen::Index> train, test;
+    for (Eigen::Index i = 0; i < 2 * n; ++i)
+      ((i % n) >= a && (i % n) < b ? test : train).push_back(i);
+    Eigen::MatrixXd At(train.size(), A.cols());
+    Eigen::VectorXd yt(train.size());
+    for (std::size_t q = 0; q < train.size(); ++q) At.row(q) = A.row(train[q]), yt(q) = y(train[q]);
+    const Eigen::VectorXd beta = At.colPivHouseholderQr().solve(yt);
+    for (Eigen::Index i : test) r(i) = y(i) - A.row(i).dot(beta);
+  }
+  return r;
+}
+
+}  // namespace
+
+CatalogueAlternative betterOutOfCatalogue(const Eigen::MatrixXd& D, int c,
+                                          const std::string& c_dependence,
+                                          const std::vector<int>& candidates,
+                                          const std::vector<std::string>& names,
+                                          const DynamicTermData& d, double crit, double min_r2,
+                                          int folds) {
+  CatalogueAlternative best;
+  const Eigen::Index n = d.y_fit.size() / 2;
+  if (n < 10 * folds || c < 0 || c >= D.cols()) return best;
+  const Eigen::VectorXd xc = D.col(c);
+  const double nr = xc.head(n).squaredNorm(), nl = xc.tail(n).squaredNorm();
+  const int pattern = nl <= 1e-12 * nr ? 2 : (nr <= 1e-12 * nl ? 3 : 0);
+  Eigen::MatrixXd Dw(D.rows(), D.cols() - 1);  // D without c
+  Dw << D.leftCols(c), D.rightCols(D.cols() - c - 1);
+  const double sse_D = timeFoldResidual(D, d.y_fit, folds).squaredNorm();
+  for (int j : candidates) {
+    const Eigen::VectorXd x = stacked(d, Col{j, pattern}, true);
+    if (!(x.squaredNorm() > 0)) continue;
+    if (!c_dependence.empty() && dependenceOf(names[j]) == c_dependence) continue;
+    // A forward drag (v*|v|) or a dry yaw moment (sgn(omega)) loads both motors: not an
+    // alternative to a one-motor term (on MuJoCo a v*|v| of one motor replaced a motor
+    // asymmetry that the unmodeled search then described as |u| on that motor).
+    if (pattern != 0 && (names[j] == "v*|v|" || names[j] == "sgn(omega)")) continue;
+    Eigen::MatrixXd A(D.rows(), Dw.cols() + 1);
+    A << Dw, x;
+    // Only where the fitting order decides: c nearly in the span of the alternative model.
+    const Eigen::VectorXd res_c = xc - A * A.colPivHouseholderQr().solve(xc);
+    const double r2 = 1 - res_c.squaredNorm() / xc.squaredNorm();
+    if (r2 < min_r2) continue;
+    const Eigen::VectorXd ra = timeFoldResidual(A, d.y_fit, folds);
+    const double sse_a = ra.squaredNorm();
+    if (!(sse_a > 0)) continue;
+    const double ne = stats::effectiveSampleSize(ra, d.groups_fit, d.lags);
+    const double lr_alt = ne * std::log(sse_D / sse_a);
+    if (lr_alt < crit || lr_alt <= best.lr_alt) continue;
+    Eigen::MatrixXd Ac(D.rows(), A.cols() + 1);
+    Ac << A, xc;
+    const double lr_c = ne * std::log(sse_a / timeFoldResidual(Ac, d.y_fit, folds).squaredNorm());
+    if (lr_c >= crit) continue;
+    best = {j, pattern, lr_alt, lr_c, sse_D, sse_a, r2};
+  }
+  return best;
 }
 
 nlohmann::json describeKinematicTerms(const Finding& f) {

@@ -67,6 +67,46 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
                                     const DynamicTermData& data,
                                     const config::WheelchairConfig& cfg);
 
+/// An out-of-catalogue term that predicts the currents better than an accepted catalogue
+/// term (issue 16 item 3: "do not force it onto the nearest catalogue name").
+/// The forward selection tries the catalogue first, so a load the catalogue lacks but nearly
+/// spans over the speeds driven is named after it (a forward drag c v|v| as Coulomb friction
+/// sgn(u); a current-sensor offset of one motor, a constant, as that motor's Coulomb friction
+/// when its wheel never reverses). The order of fitting must not decide: here out-of-sample
+/// prediction does. Blocked K-fold cross-validation by TIME (fold k = the same time block on
+/// both motors' rows; each fold predicted by the fit on the others) of the residuals y (fit
+/// rows, stacked [right; left]):
+///   D   = the accepted catalogue designs (column c the term under test),
+///   alt = D without c, plus library term j in c's pattern (right only, left only, or the
+///         same on both motors: forward [x_R; x_L]),
+///   LR_alt = n_eff log(SSE_cv(D) / SSE_cv(alt)),  LR_c = n_eff log(SSE_cv(alt) / SSE_cv(alt + c))
+/// (n_eff: Bartlett effective sample size of alt's residual, lags d.lags). c is superseded by the
+/// j with the largest LR_alt among the j that (a) have another dependence class than c (a
+/// rate law is not replaced by another rate law: same physics, and on a multibody any of them
+/// also absorbs some of the other unmodeled loads) and (b) nearly span c together with the
+/// rest of D (uncentred R^2 >= min_r2, 0.9: only there did the order of fitting decide) and
+/// (c) for a one-motor c, are not a load of both motors (v*|v|, sgn(omega)), when
+/// LR_alt >= crit (the alternative predicts significantly better)
+/// AND LR_c < crit (c adds nothing once j is there). A true catalogue term is never superseded
+/// by a different shape: Coulomb friction predicts no current at standstill, an offset does.
+/// Example: excite drive with a forward drag 14.9 N s^2/m^2, c = coulomb_friction/both ->
+/// {term: v*|v|, lr_alt: ~1e3, lr_c: ~0}.
+struct CatalogueAlternative {
+  int term = -1;    ///< library index; -1: c stands
+  int pattern = 0;  ///< 0 both motors, 2 right only, 3 left only
+  double lr_alt = 0, lr_c = 0, sse_cv_catalogue = 0, sse_cv_alt = 0;
+  double r2 = 0;  ///< uncentred R^2 of c on the alternative model
+};
+/// D: fit rows x accepted catalogue columns; c: the column tested (a one-column term) and its
+/// dependence class; candidates: library indices to try (names: the library's names); crit:
+/// the chi-square level (1 dof) both tests use.
+CatalogueAlternative betterOutOfCatalogue(const Eigen::MatrixXd& D, int c,
+                                          const std::string& c_dependence,
+                                          const std::vector<int>& candidates,
+                                          const std::vector<std::string>& names,
+                                          const DynamicTermData& d, double crit,
+                                          double min_r2 = 0.9, int folds = 5);
+
 /// Components of a stage-1 (gyro_vs_encoders) unmodeled finding from its own terms.
 nlohmann::json describeKinematicTerms(const Finding& f);
 
