@@ -1,6 +1,8 @@
 #include "libwheelchair/visualization/DriveData.h"
 
+#include "libwheelchair/estimation/ModelExtensions.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/visualization/Plot.h"
 
@@ -10,9 +12,11 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <optional>
 #include <stdexcept>
+#include <variant>
 
 namespace wheelchair::visualization {
 
@@ -197,6 +201,84 @@ void groundTruthInStartFrame(DriveData& d, const evaluation::MetricOptions& mo) 
     }
 }
 
+/// d.metrics' header for `metric_options` (lever arm of d.gt); returns the options to score with.
+evaluation::MetricOptions startMetrics(DriveData& d, const evaluation::MetricOptions& mo_in) {
+  evaluation::MetricOptions mo = mo_in;
+  mo.lever_arm_m = d.gt.lever_arm_m;
+  d.metrics.recordings = 1;
+  d.metrics.alignment = mo.alignment;
+  d.metrics.align_first_s = mo.align_first_s;
+  return mo;
+}
+
+/// One metrics row of `variant` (error `err`, else the metrics of `take()` against d.gt), and
+/// its trajectory in d.trajectories; `lean`: only the points Fig. 5 draws are kept
+/// (pathPointsToDraw). Sets d.metrics.failed_recordings when the row has an error.
+void scoreVariant(DriveData& d, const evaluation::MetricOptions& mo, bool lean,
+                  const std::string& variant, const std::string& err,
+                  const std::function<evaluation::Trajectory()>& take) {
+  evaluation::BatchRow row;
+  row.recording = std::filesystem::path(d.path).filename().string();
+  row.variant = variant;
+  row.ground_truth = evaluation::toString(d.gt.source);
+  row.error = err;
+  if (err.empty()) {
+    try {
+      auto t = take();
+      row.n_estimates = t.size();
+      row.metrics = evaluation::computeMetrics(t, d.gt.samples, mo);
+      if (lean) {  // from here on only drawn: the points drawn (Fig. 5)
+        const auto keep = pathPointsToDraw(
+            t.size(), [&](std::size_t i) { return t[i].x_m; },
+            [&](std::size_t i) { return t[i].y_m; });
+        if (keep.size() < t.size()) {
+          evaluation::Trajectory drawn;
+          drawn.reserve(keep.size());
+          for (std::size_t i : keep) drawn.push_back(t[i]);
+          t = std::move(drawn);
+        }
+      }
+      d.trajectories[variant] = std::move(t);
+    } catch (const std::exception& e) {
+      row.error = e.what();
+    }
+  }
+  if (!row.error.empty()) d.metrics.failed_recordings = 1;
+  d.metrics.rows.push_back(std::move(row));
+}
+
+/// d.t0_s, d.t1_s: the EKF trace's span (else [start_s, end_s]). Lean, no `--at` and no sonar
+/// echo: the default Fig. 7 time comes from the obstacle estimates' span; unless it is the start
+/// (kept), `rerun_ekf` runs the EKF once more into a sink that keeps the estimate there (an
+/// obstacle estimate without any echo: not seen on the bundled drives).
+void spanAndSnapshot(DriveData& d, bool lean, const DriveLoadOptions& load, double sonar_t,
+                     double start_s, double end_s,
+                     const std::function<void(ReportEkfSink&)>& rerun_ekf) {
+  if (!d.ekf_trace.empty()) {
+    d.t0_s = d.ekf_trace.front().t_s;
+    d.t1_s = d.ekf_trace.back().t_s;
+  } else {
+    d.t0_s = start_s;
+    d.t1_s = end_s;
+  }
+  if (lean && !std::isfinite(load.snapshot_since_start_s) && std::isnan(sonar_t) &&
+      !d.ekf_trace.empty()) {
+    const double t_at = defaultObstacleTime(d);
+    if (t_at > d.t0_s) {
+      ReportEkfSink again(d, NAN, t_at);
+      rerun_ekf(again);
+      d.est.ekf.estimates = again.kept();
+    }
+  }
+}
+
+std::vector<SpeedPoint> speeds(const std::vector<estimation::DeadReckoningSample>& dr) {
+  std::vector<SpeedPoint> v;
+  v.reserve(dr.size());
+  for (const auto& s : dr) v.push_back({s.t_s, s.v_m_s, s.omega_rad_s});
+  return v;
+}
+
 }  // namespace
 
 DriveData loadDrive(io::Recording rec, const std::string& path, const config::WheelchairConfig& cfg,
@@ -228,25 +310,9 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
     d.ekf_trace.reserve(d.est.ekf.estimates.size());
     for (const auto& e : d.est.ekf.estimates) d.ekf_trace.push_back(tracePoint(d, e));
   }
-  if (!d.ekf_trace.empty()) {
-    d.t0_s = d.ekf_trace.front().t_s;
-    d.t1_s = d.ekf_trace.back().t_s;
-  } else {
-    d.t0_s = d.rec.startTime();
-    d.t1_s = d.rec.endTime();
-  }
-  if (lean && !std::isfinite(load.snapshot_since_start_s) && std::isnan(sonar_t) &&
-      !d.ekf_trace.empty()) {
-    // No sonar echo: the default time comes from the obstacle estimates' span. Unless it is the
-    // start (kept), the EKF runs once more to keep the estimate there (an obstacle estimate
-    // without any echo: not seen on the bundled drives).
-    const double t_at = defaultObstacleTime(d);
-    if (t_at > d.t0_s) {
-      ReportEkfSink again(d, NAN, t_at);
-      evaluation::estimateVariants(d.rec, cfg, false, &again);
-      d.est.ekf.estimates = again.kept();
-    }
-  }
+  spanAndSnapshot(
+      d, lean, load, sonar_t, d.rec.startTime(), d.rec.endTime(),
+      [&](ReportEkfSink& again) { evaluation::estimateVariants(d.rec, cfg, false, &again); });
 
   d.gt = evaluation::groundTruthOf(d.rec, cfg);
   const auto& r = d.rec;
@@ -262,59 +328,119 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
     d.rec = std::move(kept);
     d.ekf_trace.shrink_to_fit();  // (sized for one estimate per measurement)
   }
-  auto speeds = [](const std::vector<estimation::DeadReckoningSample>& dr) {
-    std::vector<SpeedPoint> v;
-    v.reserve(dr.size());
-    for (const auto& s : dr) v.push_back({s.t_s, s.v_m_s, s.omega_rad_s});
-    return v;
-  };
   d.encoder_speeds = speeds(d.est.encoders);
   d.phase_speeds = speeds(d.est.encoders_gyro.empty() ? d.est.encoders : d.est.encoders_gyro);
   d.truth = readTruthJson(truth_path.empty() ? path + ".truth.json" : truth_path);
 
-  evaluation::MetricOptions mo = metric_options;
-  mo.lever_arm_m = d.gt.lever_arm_m;
-  d.metrics.recordings = 1;
-  d.metrics.alignment = mo.alignment;
-  d.metrics.align_first_s = mo.align_first_s;
-  bool failed = false;
-  for (const auto& [variant, err] : d.est.errors) {
-    evaluation::BatchRow row;
-    row.recording = std::filesystem::path(path).filename().string();
-    row.variant = variant;
-    row.ground_truth = evaluation::toString(d.gt.source);
-    row.error = err;
-    if (err.empty()) {
-      try {
-        auto t = lean && variant == "ekf"        ? ekf_sink.takePoses()
-                 : lean && variant == "baseline" ? baseline_sink.take()
-                                                 : d.est.trajectory(variant);
-        row.n_estimates = t.size();
-        row.metrics = evaluation::computeMetrics(t, d.gt.samples, mo);
-        if (lean) {  // from here on only drawn: the points drawn (Fig. 5)
-          const auto keep = pathPointsToDraw(
-              t.size(), [&](std::size_t i) { return t[i].x_m; },
-              [&](std::size_t i) { return t[i].y_m; });
-          if (keep.size() < t.size()) {
-            evaluation::Trajectory drawn;
-            drawn.reserve(keep.size());
-            for (std::size_t i : keep) drawn.push_back(t[i]);
-            t = std::move(drawn);
-          }
-        }
-        d.trajectories[variant] = std::move(t);
-      } catch (const std::exception& e) {
-        row.error = e.what();
-      }
-    }
-    failed |= !row.error.empty();
-    d.metrics.rows.push_back(std::move(row));
-  }
-  d.metrics.failed_recordings = failed ? 1 : 0;
+  const auto mo = startMetrics(d, metric_options);
+  for (const auto& [variant, err] : d.est.errors)
+    scoreVariant(d, mo, lean, variant, err, [&, v = variant] {
+      return lean && v == "ekf"        ? ekf_sink.takePoses()
+             : lean && v == "baseline" ? baseline_sink.take()
+                                       : d.est.trajectory(v);
+    });
   if (lean) {  // their trajectories and speeds are taken
     std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders);
     std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders_gyro);
   }
+  groundTruthInStartFrame(d, mo);
+  return d;
+}
+
+DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary& sum,
+                            const config::WheelchairConfig& cfg,
+                            const evaluation::MetricOptions& metric_options,
+                            const std::string& truth_path, double snapshot_since_start_s) {
+  DriveLoadOptions load;
+  load.keep_estimates = false;
+  load.snapshot_since_start_s = snapshot_since_start_s;
+  if (!estimation::ModelExtensions::fromConfig(cfg.ini()).empty())  // the corrected recording
+    return loadDrive(io::readRawlogSalvaging(path, true, nullptr), path, cfg, metric_options,
+                     truth_path, load);
+  DriveData d;
+  d.path = path;
+  d.cfg = cfg;
+  using io::StreamKind;
+  d.counts = {sum.count(StreamKind::Encoders), sum.count(StreamKind::Imu),
+              sum.count(StreamKind::Motors),   sum.count(StreamKind::Sonar),
+              sum.count(StreamKind::Pozyx),    sum.count(StreamKind::GroundTruth)};
+  {  // pass 1: the figures' gyro and currents, the sonar and the ground-truth streams
+    d.gyro.reserve(d.counts.imu);
+    d.currents.reserve(d.counts.motors);
+    io::RawlogSampleReader in(path);
+    io::AnySample s;
+    std::size_t k = 0;
+    while (in.next(s, k)) {
+      if (const auto* m = std::get_if<io::ImuSample>(&s)) {
+        d.gyro.push_back({m->t_s, m->gyro_z_rad_s});
+      } else if (const auto* c = std::get_if<io::MotorSample>(&s)) {
+        d.currents.push_back({c->t_s, c->current_right_A, c->current_left_A});
+      } else {
+        const auto kind = io::kindOf(s);
+        if (kind == StreamKind::Sonar || kind == StreamKind::Pozyx ||
+            kind == StreamKind::GroundTruth)
+          io::append(d.rec, s);
+      }
+    }
+  }
+  d.gt = evaluation::groundTruthOf(d.rec, cfg);
+  {  // only the sonar stays (Fig. 7, 8)
+    io::Recording kept;
+    kept.sonar = std::move(d.rec.sonar);
+    d.rec = std::move(kept);
+  }
+  const auto mo = startMetrics(d, metric_options);
+  const double sonar_t = firstSonarRunMiddle(d.rec);
+  ReportEkfSink ekf_sink(d, snapshot_since_start_s, sonar_t);
+  ekf_sink.reserve(d.counts.encoders + d.counts.imu + d.counts.sonar + d.counts.pozyx + 2);
+  evaluation::TrajectorySink baseline_sink;
+  // Each variant is scored as soon as it has run, and then keeps only what Fig. 5 draws.
+  std::vector<SpeedPoint> dr_speeds;
+  evaluation::Trajectory dr_poses;
+  auto deadReckoningSink = [&](const estimation::DeadReckoningSample& s) {
+    dr_speeds.push_back({s.t_s, s.v_m_s, s.omega_rad_s});
+    dr_poses.push_back({s.t_s, s.x_m, s.y_m, s.phi_rad});
+  };
+  evaluation::VariantSinks sinks;
+  sinks.ekf = &ekf_sink;
+  sinks.encoders = deadReckoningSink;
+  sinks.encoders_gyro = deadReckoningSink;
+  sinks.baseline = &baseline_sink;
+  auto done = [&](const std::string& variant, const std::string& err) {
+    if (variant == "ekf") {
+      // (sized for one estimate per measurement: no shrink_to_fit, whose copy would double it)
+      if (err.empty()) d.ekf_trace = ekf_sink.takeTrace();
+      scoreVariant(d, mo, true, variant, err, [&] { return ekf_sink.takePoses(); });
+    } else if (variant == "baseline") {
+      scoreVariant(d, mo, true, variant, err, [&] { return baseline_sink.take(); });
+    } else {
+      (variant == "encoders" ? d.encoder_speeds : d.phase_speeds) = std::move(dr_speeds);
+      scoreVariant(d, mo, true, variant, err, [&] {
+        evaluation::sortByTimeKeepLast(dr_poses);
+        return std::move(dr_poses);
+      });
+      std::vector<SpeedPoint>().swap(dr_speeds);
+      evaluation::Trajectory().swap(dr_poses);
+      if (variant == "encoders") {  // encoders_gyro: a sample per encoder sample and gyro time
+        dr_speeds.reserve(d.counts.encoders + d.counts.imu);
+        dr_poses.reserve(d.counts.encoders + d.counts.imu);
+      }
+    }
+  };
+  dr_speeds.reserve(d.counts.encoders);
+  dr_poses.reserve(d.counts.encoders);
+  d.est = evaluation::streamVariants(path, sum, cfg, sinks, done);
+  std::vector<SpeedPoint>().swap(dr_speeds);
+  evaluation::Trajectory().swap(dr_poses);
+  if (d.phase_speeds.empty()) d.phase_speeds = d.encoder_speeds;  // no encoder/gyro samples
+  const bool ekf_failed = !d.est.errors.empty() && !d.est.errors.front().second.empty();
+  if (!ekf_failed) d.est.ekf.estimates = ekf_sink.kept();
+  spanAndSnapshot(d, true, load, sonar_t, sum.start_s, sum.end_s, [&](ReportEkfSink& again) {
+    evaluation::VariantSinks ekf_only;
+    ekf_only.ekf = &again;
+    evaluation::streamVariants(path, sum, cfg, ekf_only, {});
+  });
+  d.truth = readTruthJson(truth_path.empty() ? path + ".truth.json" : truth_path);
   groundTruthInStartFrame(d, mo);
   return d;
 }
