@@ -129,6 +129,89 @@ double firstSonarRunMiddle(const io::Recording& rec) {
   return std::isnan(a) ? NAN : a + 0.5 * (b - a);
 }
 
+// A long time series kept as it comes (time order), thinned to what its figure draws
+// (docs/visualization.md, "Long drives"): of each bin of `bin_s` seconds (from `t_start_s`; of
+// `fine_bin_s` inside [fine_a_s, fine_b_s], Fig. 8's zoomed window), the first, the last and the
+// lowest and highest of each drawn quantity, in their order. A bin also ends where `key`
+// changes, so each run of equal key keeps its first and last sample (motion phases, obstacle
+// spans: exact), and at a non-finite quantity (kept: it breaks the line). The drawing's own
+// rule (Plot::kDecimateAbove: first, lowest, highest, last per 1/3 px column) then keeps the same
+// points up to the columns a bin straddles. bin_s <= 0: every sample is kept.
+template <class T>
+class SeriesThinner {
+ public:
+  using Value = std::function<double(const T&)>;
+  SeriesThinner(std::vector<T>& out, std::vector<Value> values, std::function<int(const T&)> key,
+                double t_start_s, double bin_s)
+      : out_(out),
+        values_(std::move(values)),
+        key_(std::move(key)),
+        t0_(t_start_s),
+        bin_s_(bin_s) {}
+  void fineWindow(double a_s, double b_s, double bin_s) {
+    fine_a_ = a_s, fine_b_ = b_s, fine_ = bin_s;
+  }
+  void add(const T& s) {
+    if (!(bin_s_ > 0)) {
+      out_.push_back(s);
+      return;
+    }
+    bool finite = std::isfinite(s.t_s);
+    for (const auto& v : values_) finite = finite && std::isfinite(v(s));
+    const int k = key_ ? key_(s) : 0;
+    const double b = binOf(s.t_s);
+    if (n_ > 0 && (!finite || b != bin_ || k != key_now_)) flush();
+    if (!finite) {
+      out_.push_back(s);
+      return;
+    }
+    if (n_ == 0) {
+      bin_ = b, key_now_ = k, first_ = s;
+      lo_.assign(values_.size(), {0, s});
+      hi_.assign(values_.size(), {0, s});
+    }
+    for (std::size_t j = 0; j < values_.size(); ++j) {
+      const double x = values_[j](s);
+      if (x < values_[j](lo_[j].second)) lo_[j] = {n_, s};
+      if (x > values_[j](hi_[j].second)) hi_[j] = {n_, s};
+    }
+    last_ = {n_, s};
+    ++n_;
+  }
+  void finish() { flush(); }
+
+ private:
+  double binOf(double t) const {
+    if (fine_ > 0 && t >= fine_a_ && t <= fine_b_) return 1e15 + std::floor((t - fine_a_) / fine_);
+    return std::floor((t - t0_) / bin_s_);
+  }
+  void flush() {
+    if (n_ == 0) return;
+    std::vector<std::pair<std::size_t, T>> keep{{0, first_}, last_};
+    keep.insert(keep.end(), lo_.begin(), lo_.end());
+    keep.insert(keep.end(), hi_.begin(), hi_.end());
+    std::stable_sort(keep.begin(), keep.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (std::size_t i = 0; i < keep.size(); ++i)
+      if (i == 0 || keep[i].first != keep[i - 1].first) out_.push_back(keep[i].second);
+    n_ = 0;
+  }
+  std::vector<T>& out_;
+  std::vector<Value> values_;
+  std::function<int(const T&)> key_;
+  double t0_, bin_s_, fine_a_ = NAN, fine_b_ = NAN, fine_ = 0;
+  double bin_ = 0;
+  int key_now_ = 0;
+  std::size_t n_ = 0;  // samples in the current bin
+  T first_{};
+  std::pair<std::size_t, T> last_{};
+  std::vector<std::pair<std::size_t, T>> lo_, hi_;
+};
+
+/// Bins a figure's time span is cut into by SeriesThinner on a long drive (~3 per 1/3 px
+/// column of the default 1000 px figure).
+constexpr double kThinBins = 8192;
+
 // The EKF's estimates of a streamed run (DriveLoadOptions::keep_estimates false): the trace,
 // the poses, and the full estimates at the start and at the snapshot time (the last one at or
 // before it; `since_start_s` after the first estimate, or the absolute `at_s`).
@@ -136,8 +219,13 @@ class ReportEkfSink : public estimation::EstimateSink {
  public:
   ReportEkfSink(const DriveData& d, double since_start_s, double at_s)
       : d_(d), since_start_s_(since_start_s), at_s_(at_s) {}
+  /// The trace points go to `f` (a SeriesThinner) instead of being stored.
+  void traceTo(std::function<void(const EkfTracePoint&)> f) { trace_to_ = std::move(f); }
   void add(const estimation::EstimateSample& e) override {
-    d_trace_.push_back(tracePoint(d_, e));
+    if (trace_to_)
+      trace_to_(tracePoint(d_, e));
+    else
+      d_trace_.push_back(tracePoint(d_, e));
     poses_.add(e);
     if (!first_) {
       first_ = e;
@@ -147,7 +235,7 @@ class ReportEkfSink : public estimation::EstimateSink {
   }
   /// Room for n estimates at once (no doubling slack on a long drive).
   void reserve(std::size_t n) {
-    d_trace_.reserve(n);
+    if (!trace_to_) d_trace_.reserve(n);
     poses_.reserve(n);
   }
   std::vector<EkfTracePoint> takeTrace() { return std::move(d_trace_); }
@@ -164,6 +252,7 @@ class ReportEkfSink : public estimation::EstimateSink {
   const DriveData& d_;
   double since_start_s_, at_s_;
   std::vector<EkfTracePoint> d_trace_;
+  std::function<void(const EkfTracePoint&)> trace_to_;
   evaluation::TrajectorySink poses_;
   std::optional<estimation::EstimateSample> first_, snapshot_;
 };
@@ -364,17 +453,27 @@ DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary&
   d.counts = {sum.count(StreamKind::Encoders), sum.count(StreamKind::Imu),
               sum.count(StreamKind::Motors),   sum.count(StreamKind::Sonar),
               sum.count(StreamKind::Pozyx),    sum.count(StreamKind::GroundTruth)};
+  // A series of more samples than the drawing thins (Plot::kDecimateAbove) is thinned as it
+  // comes (SeriesThinner): bins of 1/kThinBins of the drive's span.
+  const double span_s = sum.end_s - sum.start_s;
+  auto binFor = [&](std::size_t n) { return n > Plot::kDecimateAbove ? span_s / kThinBins : 0.0; };
   {  // pass 1: the figures' gyro and currents, the sonar and the ground-truth streams
-    d.gyro.reserve(d.counts.imu);
-    d.currents.reserve(d.counts.motors);
+    SeriesThinner<GyroPoint> gyro(d.gyro, {[](const GyroPoint& g) { return g.gyro_z_rad_s; }}, {},
+                                  sum.start_s, binFor(d.counts.imu));
+    SeriesThinner<CurrentPoint> currents(d.currents,
+                                         {[](const CurrentPoint& c) { return c.current_right_A; },
+                                          [](const CurrentPoint& c) { return c.current_left_A; }},
+                                         {}, sum.start_s, binFor(d.counts.motors));
+    if (!(binFor(d.counts.imu) > 0)) d.gyro.reserve(d.counts.imu);
+    if (!(binFor(d.counts.motors) > 0)) d.currents.reserve(d.counts.motors);
     io::RawlogSampleReader in(path);
     io::AnySample s;
     std::size_t k = 0;
     while (in.next(s, k)) {
       if (const auto* m = std::get_if<io::ImuSample>(&s)) {
-        d.gyro.push_back({m->t_s, m->gyro_z_rad_s});
+        gyro.add({m->t_s, m->gyro_z_rad_s});
       } else if (const auto* c = std::get_if<io::MotorSample>(&s)) {
-        d.currents.push_back({c->t_s, c->current_right_A, c->current_left_A});
+        currents.add({c->t_s, c->current_right_A, c->current_left_A});
       } else {
         const auto kind = io::kindOf(s);
         if (kind == StreamKind::Sonar || kind == StreamKind::Pozyx ||
@@ -382,6 +481,8 @@ DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary&
           io::append(d.rec, s);
       }
     }
+    gyro.finish();
+    currents.finish();
   }
   d.gt = evaluation::groundTruthOf(d.rec, cfg);
   {  // only the sonar stays (Fig. 7, 8)
@@ -392,13 +493,50 @@ DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary&
   const auto mo = startMetrics(d, metric_options);
   const double sonar_t = firstSonarRunMiddle(d.rec);
   ReportEkfSink ekf_sink(d, snapshot_since_start_s, sonar_t);
-  ekf_sink.reserve(d.counts.encoders + d.counts.imu + d.counts.sonar + d.counts.pozyx + 2);
+  const std::size_t n_estimates =
+      d.counts.encoders + d.counts.imu + d.counts.sonar + d.counts.pozyx + 2;
+  // The EKF trace: Fig. 6a, 6b (v, omega) and Fig. 8 (range +- sd, obstacle spans), whose
+  // window (the valid sonar readings, -2 s .. +4 s) gets bins of its own length's 1/kThinBins.
+  SeriesThinner<EkfTracePoint> trace(
+      d.ekf_trace,
+      {[](const EkfTracePoint& e) { return e.v_m_s; },
+       [](const EkfTracePoint& e) { return e.omega_rad_s; },
+       [](const EkfTracePoint& e) { return e.range_m; },
+       [](const EkfTracePoint& e) { return e.range_m - e.range_sd_m; },
+       [](const EkfTracePoint& e) { return e.range_m + e.range_sd_m; }},
+      [](const EkfTracePoint& e) { return e.obstacle ? 1 : 0; }, sum.start_s, binFor(n_estimates));
+  {
+    double a = NAN, b = NAN;
+    for (const auto& s : d.rec.sonar)
+      if (s.range_m > 0) a = std::isnan(a) ? s.t_s : a, b = s.t_s;
+    if (!std::isnan(a)) trace.fineWindow(a - 3.0, b + 5.0, (b - a + 8.0) / kThinBins);
+  }
+  const bool thin_trace = binFor(n_estimates) > 0;
+  if (thin_trace) ekf_sink.traceTo([&](const EkfTracePoint& e) { trace.add(e); });
+  ekf_sink.reserve(n_estimates);
   evaluation::TrajectorySink baseline_sink;
-  // Each variant is scored as soon as it has run, and then keeps only what Fig. 5 draws.
-  std::vector<SpeedPoint> dr_speeds;
+  // Each variant is scored as soon as it has run, and then keeps only what Fig. 5 draws; the
+  // dead reckonings' speeds are thinned as they come (encoders: Fig. 6a, 6b; the phases: runs
+  // of equal motionKind, exact).
+  const double dr_bin = binFor(d.counts.encoders);
+  std::vector<SpeedPoint> enc_phases;
+  const std::vector<SeriesThinner<SpeedPoint>::Value> vw{
+      [](const SpeedPoint& p) { return p.v_m_s; },
+      [](const SpeedPoint& p) { return p.omega_rad_s; }};
+  std::optional<SeriesThinner<SpeedPoint>> speeds_thin, phases_thin;
+  auto startDeadReckoning = [&](std::vector<SpeedPoint>* speeds_out,
+                                std::vector<SpeedPoint>& phases_out) {
+    if (speeds_out) speeds_thin.emplace(*speeds_out, vw, nullptr, sum.start_s, dr_bin);
+    if (!speeds_out) speeds_thin.reset();
+    phases_thin.emplace(
+        phases_out, std::vector<SeriesThinner<SpeedPoint>::Value>{},
+        [](const SpeedPoint& p) { return motionKind(p); }, sum.start_s, dr_bin);
+  };
   evaluation::Trajectory dr_poses;
   auto deadReckoningSink = [&](const estimation::DeadReckoningSample& s) {
-    dr_speeds.push_back({s.t_s, s.v_m_s, s.omega_rad_s});
+    const SpeedPoint p{s.t_s, s.v_m_s, s.omega_rad_s};
+    if (speeds_thin) speeds_thin->add(p);
+    phases_thin->add(p);
     dr_poses.push_back({s.t_s, s.x_m, s.y_m, s.phi_rad});
   };
   evaluation::VariantSinks sinks;
@@ -409,30 +547,35 @@ DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary&
   auto done = [&](const std::string& variant, const std::string& err) {
     if (variant == "ekf") {
       // (sized for one estimate per measurement: no shrink_to_fit, whose copy would double it)
-      if (err.empty()) d.ekf_trace = ekf_sink.takeTrace();
+      if (thin_trace) trace.finish();
+      if (err.empty() && !thin_trace) d.ekf_trace = ekf_sink.takeTrace();
+      if (!err.empty()) std::vector<EkfTracePoint>().swap(d.ekf_trace);  // as the stored run
       scoreVariant(d, mo, true, variant, err, [&] { return ekf_sink.takePoses(); });
+      startDeadReckoning(&d.encoder_speeds, enc_phases);
+      dr_poses.reserve(d.counts.encoders);
     } else if (variant == "baseline") {
       scoreVariant(d, mo, true, variant, err, [&] { return baseline_sink.take(); });
     } else {
-      (variant == "encoders" ? d.encoder_speeds : d.phase_speeds) = std::move(dr_speeds);
+      if (speeds_thin) speeds_thin->finish();
+      phases_thin->finish();
+      if (!err.empty()) {  // (as the stored run: nothing)
+        if (variant == "encoders") d.encoder_speeds.clear(), enc_phases.clear();
+        if (variant == "encoders_gyro") d.phase_speeds.clear();
+      }
       scoreVariant(d, mo, true, variant, err, [&] {
         evaluation::sortByTimeKeepLast(dr_poses);
         return std::move(dr_poses);
       });
-      std::vector<SpeedPoint>().swap(dr_speeds);
       evaluation::Trajectory().swap(dr_poses);
       if (variant == "encoders") {  // encoders_gyro: a sample per encoder sample and gyro time
-        dr_speeds.reserve(d.counts.encoders + d.counts.imu);
+        startDeadReckoning(nullptr, d.phase_speeds);
         dr_poses.reserve(d.counts.encoders + d.counts.imu);
       }
     }
   };
-  dr_speeds.reserve(d.counts.encoders);
-  dr_poses.reserve(d.counts.encoders);
   d.est = evaluation::streamVariants(path, sum, cfg, sinks, done);
-  std::vector<SpeedPoint>().swap(dr_speeds);
   evaluation::Trajectory().swap(dr_poses);
-  if (d.phase_speeds.empty()) d.phase_speeds = d.encoder_speeds;  // no encoder/gyro samples
+  if (d.phase_speeds.empty()) d.phase_speeds = std::move(enc_phases);  // no encoder/gyro samples
   const bool ekf_failed = !d.est.errors.empty() && !d.est.errors.front().second.empty();
   if (!ekf_failed) d.est.ekf.estimates = ekf_sink.kept();
   spanAndSnapshot(d, true, load, sonar_t, sum.start_s, sum.end_s, [&](ReportEkfSink& again) {
@@ -443,6 +586,10 @@ DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary&
   d.truth = readTruthJson(truth_path.empty() ? path + ".truth.json" : truth_path);
   groundTruthInStartFrame(d, mo);
   return d;
+}
+
+int motionKind(const SpeedPoint& s) {
+  return std::fabs(s.omega_rad_s) >= 0.2 ? 2 : (std::fabs(s.v_m_s) > 0.08 ? 1 : 0);
 }
 
 double defaultObstacleTime(const DriveData& d) {

@@ -64,6 +64,9 @@ struct CurrentPoint {
 struct SpeedPoint {
   double t_s = 0, v_m_s = 0, omega_rad_s = 0;
 };
+/// Motion phase of a speed sample (report's shaded phases): 2 turning (|omega| >= 0.2 rad/s),
+/// 1 driving straight (|v| > 0.08 m/s), 0 standing.
+int motionKind(const SpeedPoint& s);
 struct SampleCounts {
   std::size_t encoders = 0, imu = 0, motors = 0, sonar = 0, pozyx = 0, ground_truth = 0;
 };
