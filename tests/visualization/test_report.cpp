@@ -4,11 +4,13 @@
 
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/visualization/DriveData.h"
+#include "libwheelchair/visualization/Plot.h"
 #include "libwheelchair/visualization/Report.h"
 
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <tuple>
 
 namespace wheelchair::visualization {
 namespace {
@@ -164,6 +166,65 @@ TEST(Report, StreamedLoadEqualsTheLoadedOne) {
     EXPECT_EQ(b.gt_start.back().x_m, a.gt_start.back().x_m);
     EXPECT_EQ(b.gt_frame_note, a.gt_frame_note);
   }
+}
+
+// A drive long enough for the figures' thinning (more than Plot::kDecimateAbove samples per
+// series): the streamed load keeps its time series thinned as they come (SeriesThinner), with
+// the same span, extremes, motion phases and obstacle span as every sample, and the same metrics.
+TEST(Report, LongDriveSeriesAreThinnedKeepingWhatIsDrawn) {
+  test::TempDir dir;
+  const std::string rawlog = dir / "long.rawlog";
+  const auto sim = test::cli("simulate --scenario excite --duration 240 --seed 3 -o " + rawlog);
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  const config::WheelchairConfig cfg;
+  const evaluation::MetricOptions mo;
+  DriveLoadOptions lo;
+  lo.keep_estimates = false;
+  const DriveData a = loadDrive(io::readRawlog(rawlog), rawlog, cfg, mo, "", lo);
+  const DriveData b = loadDriveStreamed(rawlog, io::scanRawlog(rawlog), cfg, mo);
+  ASSERT_GT(a.gyro.size(), Plot::kDecimateAbove);
+  ASSERT_GT(a.ekf_trace.size(), Plot::kDecimateAbove);
+  // (at most first, last, lowest and highest per 1/8192 of the span: a 240 s drive has ~3 gyro
+  // samples per bin, a one-hour drive ~44)
+  EXPECT_LT(b.gyro.size(), a.gyro.size());
+  EXPECT_LT(b.currents.size(), a.currents.size());
+  EXPECT_LT(b.ekf_trace.size(), a.ekf_trace.size());
+  EXPECT_LE(b.phase_speeds.size(), a.phase_speeds.size());
+  auto extremes = [](const auto& v, auto value) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (const auto& x : v) lo = std::min(lo, value(x)), hi = std::max(hi, value(x));
+    return std::make_pair(lo, hi);
+  };
+  auto gz = [](const GyroPoint& g) { return g.gyro_z_rad_s; };
+  auto il = [](const CurrentPoint& c) { return c.current_left_A; };
+  auto ew = [](const EkfTracePoint& e) { return e.omega_rad_s; };
+  auto ev = [](const SpeedPoint& e) { return e.v_m_s; };
+  EXPECT_EQ(extremes(b.gyro, gz), extremes(a.gyro, gz));
+  EXPECT_EQ(extremes(b.currents, il), extremes(a.currents, il));
+  EXPECT_EQ(extremes(b.ekf_trace, ew), extremes(a.ekf_trace, ew));
+  EXPECT_EQ(extremes(b.encoder_speeds, ev), extremes(a.encoder_speeds, ev));
+  EXPECT_EQ(b.gyro.front().t_s, a.gyro.front().t_s);
+  EXPECT_EQ(b.gyro.back().t_s, a.gyro.back().t_s);
+  EXPECT_EQ(b.t0_s, a.t0_s);
+  EXPECT_EQ(b.t1_s, a.t1_s);
+  EXPECT_EQ(defaultObstacleTime(b), defaultObstacleTime(a));
+  // The shaded phases: the runs of equal motionKind, first and last time of each.
+  auto runs = [](const std::vector<SpeedPoint>& v) {
+    std::vector<std::tuple<int, double, double>> r;
+    for (const auto& s : v)
+      if (r.empty() || std::get<0>(r.back()) != motionKind(s))
+        r.emplace_back(motionKind(s), s.t_s, s.t_s);
+      else
+        std::get<2>(r.back()) = s.t_s;
+    return r;
+  };
+  EXPECT_EQ(runs(b.phase_speeds), runs(a.phase_speeds));
+  ASSERT_EQ(b.metrics.rows.size(), a.metrics.rows.size());
+  for (std::size_t i = 0; i < a.metrics.rows.size(); ++i) {
+    EXPECT_EQ(b.metrics.rows[i].n_estimates, a.metrics.rows[i].n_estimates);
+    EXPECT_EQ(b.metrics.rows[i].metrics.ate_rmse_m, a.metrics.rows[i].metrics.ate_rmse_m);
+  }
+  for (const auto& [v, t] : a.trajectories) EXPECT_EQ(b.trajectories.at(v).size(), t.size()) << v;
 }
 
 TEST(Report, BadInputExitsWithOne) {
