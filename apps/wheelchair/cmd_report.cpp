@@ -6,6 +6,7 @@
 #include "Command.h"
 
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/evaluation/Batch.h"
@@ -34,11 +35,11 @@ int runReport(const ReportCliOptions& o) {
   ro.out_dir = o.out_dir;
   ro.scene3d = !o.no_3d;
   ro.truth_path = o.truth;
-  visualization::DriveLoadOptions load;  // the figures' series, not every estimate
-  load.keep_estimates = false;
-  load.snapshot_since_start_s = o.at_s;
-  const auto d = visualization::loadDrive(readRawlogFor("report", o.file, o.salvage), o.file, cfg,
-                                          ro.metrics, o.truth, load);
+  // The rawlog read as a stream: the figures' series, not the recording nor every estimate.
+  std::string warning;
+  const io::RecordingSummary sum = io::scanRawlogSalvaging(o.file, o.salvage, &warning);
+  if (!warning.empty()) std::cerr << "wheelchair report: warning: " << warning << "\n";
+  const auto d = visualization::loadDriveStreamed(o.file, sum, cfg, ro.metrics, o.truth, o.at_s);
   if (std::isfinite(o.at_s)) ro.at_s = d.t0_s + o.at_s;
   const auto r = visualization::writeReport(d, ro);
   for (const auto& f : r.figures) fmt::print("wrote {}\n", f);

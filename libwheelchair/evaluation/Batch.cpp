@@ -267,6 +267,56 @@ RecordingEstimates estimateVariants(const io::Recording& raw_rec,
   return r;
 }
 
+RecordingEstimates streamVariants(
+    const std::string& rawlog, const io::RecordingSummary& sum, const config::WheelchairConfig& cfg,
+    const VariantSinks& sinks,
+    const std::function<void(const std::string& variant, const std::string& error)>& done) {
+  if (!estimation::ModelExtensions::fromConfig(cfg.ini()).empty())
+    throw std::invalid_argument(
+        "streamVariants: a configuration with [model_extensions] needs the recording in memory");
+  RecordingEstimates r;
+  r.has_baseline = sinks.baseline != nullptr;
+  auto attempt = [&](const std::string& name, const std::function<void()>& f) {
+    std::string err;
+    try {
+      f();
+    } catch (const std::exception& e) {
+      err = e.what();
+    }
+    r.errors.emplace_back(name, err);
+    if (done) done(name, err);
+  };
+  auto deadReckoning = [&](bool with_gyro, const char* empty_error,
+                           const std::function<void(const estimation::DeadReckoningSample&)>& f) {
+    const auto run = estimation::deadReckonRawlog(rawlog, sum, with_gyro, cfg.encoders.params,
+                                                  cfg.vehicle.geom, f);
+    if (run.samples == 0) throw std::runtime_error(empty_error);
+  };
+  if (sinks.ekf)
+    attempt("ekf", [&] {
+      r.ekf = estimation::runEstimator(
+          rawlog, sum, cfg, ekfOptions(cfg, estimation::FilterKind::Physics), *sinks.ekf);
+      if (r.ekf.n_estimates == 0) throw std::runtime_error("the EKF produced no estimate");
+    });
+  if (sinks.encoders)
+    attempt("encoders", [&] { deadReckoning(false, "no encoder samples", sinks.encoders); });
+  if (sinks.encoders_gyro)
+    attempt("encoders_gyro",
+            [&] { deadReckoning(true, "no encoder/gyro samples", sinks.encoders_gyro); });
+  if (sinks.baseline)
+    attempt("baseline", [&] {
+      r.baseline = estimation::runEstimator(
+          rawlog, sum, cfg, ekfOptions(cfg, estimation::FilterKind::Baseline), *sinks.baseline);
+      if (r.baseline.n_estimates == 0)
+        throw std::runtime_error("the baseline produced no estimate");
+    });
+  return r;
+}
+
+void sortByTimeKeepLast(Trajectory& t) {
+  sortByTimeKeepLast<Pose2DStamped>(t);
+}
+
 namespace {
 
 // The wheelchair variants of estimateVariants, one after the other: each trajectory (or its

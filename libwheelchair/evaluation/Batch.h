@@ -146,6 +146,36 @@ RecordingEstimates estimateVariants(const io::Recording& rec, const config::Whee
                                     estimation::EstimateSink* ekf_sink = nullptr,
                                     estimation::EstimateSink* baseline_sink = nullptr);
 
+/// Where streamVariants sends each variant's output as it is produced. A variant whose sink
+/// is unset (nullptr / empty function) is not run and gets no `errors` entry.
+struct VariantSinks {
+  estimation::EstimateSink* ekf = nullptr;
+  std::function<void(const estimation::DeadReckoningSample&)> encoders, encoders_gyro;
+  estimation::EstimateSink* baseline = nullptr;
+};
+
+/// estimateVariants over a rawlog read as a stream (io/RawlogStream.h; `sum` from
+/// io::scanRawlogSalvaging), for a configuration without [model_extensions] (throws
+/// std::invalid_argument with one; load the recording then). The variants run one after the
+/// other in variantNames() order, each reading the file once and streaming its estimates or
+/// dead-reckoning samples to its sink (bit-identical to estimateVariants on
+/// io::readRawlog(rawlog); a dead reckoning's samples as deadReckoningEncoders/EncoderGyro
+/// return them, before toTrajectory's sort); after each, `done(variant, error)` ("" = ok, the
+/// messages of estimateVariants). Returns the filters' results (counts, statistics, warnings;
+/// no `estimates`), `errors` and `has_baseline`; the dead-reckoning vectors stay empty. Memory:
+/// what the sinks keep. Example:
+///   TrajectorySink ekf;
+///   VariantSinks sinks; sinks.ekf = &ekf;
+///   auto r = streamVariants("d.rawlog", io::scanRawlog("d.rawlog"), cfg, sinks, {});
+RecordingEstimates streamVariants(
+    const std::string& rawlog, const io::RecordingSummary& sum, const config::WheelchairConfig& cfg,
+    const VariantSinks& sinks,
+    const std::function<void(const std::string& variant, const std::string& error)>& done);
+
+/// Sorted by time (stable), then strictly increasing times: of equal timestamps the last pose
+/// wins (what toTrajectory does; in place when already in order).
+void sortByTimeKeepLast(Trajectory& t);
+
 /// Both variants of a command-driven recording (see the header comment).
 struct CommandDrivenEstimates {
   estimation::CommandDrivenEkfResult ekf;

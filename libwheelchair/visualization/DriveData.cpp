@@ -1,6 +1,8 @@
 #include "libwheelchair/visualization/DriveData.h"
 
+#include "libwheelchair/estimation/ModelExtensions.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/model/Kinematics.h"
 #include "libwheelchair/visualization/Plot.h"
 
@@ -10,9 +12,11 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <optional>
 #include <stdexcept>
+#include <variant>
 
 namespace wheelchair::visualization {
 
@@ -125,6 +129,89 @@ double firstSonarRunMiddle(const io::Recording& rec) {
   return std::isnan(a) ? NAN : a + 0.5 * (b - a);
 }
 
+// A long time series kept as it comes (time order), thinned to what its figure draws
+// (docs/visualization.md, "Long drives"): of each bin of `bin_s` seconds (from `t_start_s`; of
+// `fine_bin_s` inside [fine_a_s, fine_b_s], Fig. 8's zoomed window), the first, the last and the
+// lowest and highest of each drawn quantity, in their order. A bin also ends where `key`
+// changes, so each run of equal key keeps its first and last sample (motion phases, obstacle
+// spans: exact), and at a non-finite quantity (kept: it breaks the line). The drawing's own
+// rule (Plot::kDecimateAbove: first, lowest, highest, last per 1/3 px column) then keeps the same
+// points up to the columns a bin straddles. bin_s <= 0: every sample is kept.
+template <class T>
+class SeriesThinner {
+ public:
+  using Value = std::function<double(const T&)>;
+  SeriesThinner(std::vector<T>& out, std::vector<Value> values, std::function<int(const T&)> key,
+                double t_start_s, double bin_s)
+      : out_(out),
+        values_(std::move(values)),
+        key_(std::move(key)),
+        t0_(t_start_s),
+        bin_s_(bin_s) {}
+  void fineWindow(double a_s, double b_s, double bin_s) {
+    fine_a_ = a_s, fine_b_ = b_s, fine_ = bin_s;
+  }
+  void add(const T& s) {
+    if (!(bin_s_ > 0)) {
+      out_.push_back(s);
+      return;
+    }
+    bool finite = std::isfinite(s.t_s);
+    for (const auto& v : values_) finite = finite && std::isfinite(v(s));
+    const int k = key_ ? key_(s) : 0;
+    const double b = binOf(s.t_s);
+    if (n_ > 0 && (!finite || b != bin_ || k != key_now_)) flush();
+    if (!finite) {
+      out_.push_back(s);
+      return;
+    }
+    if (n_ == 0) {
+      bin_ = b, key_now_ = k, first_ = s;
+      lo_.assign(values_.size(), {0, s});
+      hi_.assign(values_.size(), {0, s});
+    }
+    for (std::size_t j = 0; j < values_.size(); ++j) {
+      const double x = values_[j](s);
+      if (x < values_[j](lo_[j].second)) lo_[j] = {n_, s};
+      if (x > values_[j](hi_[j].second)) hi_[j] = {n_, s};
+    }
+    last_ = {n_, s};
+    ++n_;
+  }
+  void finish() { flush(); }
+
+ private:
+  double binOf(double t) const {
+    if (fine_ > 0 && t >= fine_a_ && t <= fine_b_) return 1e15 + std::floor((t - fine_a_) / fine_);
+    return std::floor((t - t0_) / bin_s_);
+  }
+  void flush() {
+    if (n_ == 0) return;
+    std::vector<std::pair<std::size_t, T>> keep{{0, first_}, last_};
+    keep.insert(keep.end(), lo_.begin(), lo_.end());
+    keep.insert(keep.end(), hi_.begin(), hi_.end());
+    std::stable_sort(keep.begin(), keep.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (std::size_t i = 0; i < keep.size(); ++i)
+      if (i == 0 || keep[i].first != keep[i - 1].first) out_.push_back(keep[i].second);
+    n_ = 0;
+  }
+  std::vector<T>& out_;
+  std::vector<Value> values_;
+  std::function<int(const T&)> key_;
+  double t0_, bin_s_, fine_a_ = NAN, fine_b_ = NAN, fine_ = 0;
+  double bin_ = 0;
+  int key_now_ = 0;
+  std::size_t n_ = 0;  // samples in the current bin
+  T first_{};
+  std::pair<std::size_t, T> last_{};
+  std::vector<std::pair<std::size_t, T>> lo_, hi_;
+};
+
+/// Bins a figure's time span is cut into by SeriesThinner on a long drive (~3 per 1/3 px
+/// column of the default 1000 px figure).
+constexpr double kThinBins = 8192;
+
 // The EKF's estimates of a streamed run (DriveLoadOptions::keep_estimates false): the trace,
 // the poses, and the full estimates at the start and at the snapshot time (the last one at or
 // before it; `since_start_s` after the first estimate, or the absolute `at_s`).
@@ -132,8 +219,13 @@ class ReportEkfSink : public estimation::EstimateSink {
  public:
   ReportEkfSink(const DriveData& d, double since_start_s, double at_s)
       : d_(d), since_start_s_(since_start_s), at_s_(at_s) {}
+  /// The trace points go to `f` (a SeriesThinner) instead of being stored.
+  void traceTo(std::function<void(const EkfTracePoint&)> f) { trace_to_ = std::move(f); }
   void add(const estimation::EstimateSample& e) override {
-    d_trace_.push_back(tracePoint(d_, e));
+    if (trace_to_)
+      trace_to_(tracePoint(d_, e));
+    else
+      d_trace_.push_back(tracePoint(d_, e));
     poses_.add(e);
     if (!first_) {
       first_ = e;
@@ -143,7 +235,7 @@ class ReportEkfSink : public estimation::EstimateSink {
   }
   /// Room for n estimates at once (no doubling slack on a long drive).
   void reserve(std::size_t n) {
-    d_trace_.reserve(n);
+    if (!trace_to_) d_trace_.reserve(n);
     poses_.reserve(n);
   }
   std::vector<EkfTracePoint> takeTrace() { return std::move(d_trace_); }
@@ -160,6 +252,7 @@ class ReportEkfSink : public estimation::EstimateSink {
   const DriveData& d_;
   double since_start_s_, at_s_;
   std::vector<EkfTracePoint> d_trace_;
+  std::function<void(const EkfTracePoint&)> trace_to_;
   evaluation::TrajectorySink poses_;
   std::optional<estimation::EstimateSample> first_, snapshot_;
 };
@@ -197,6 +290,84 @@ void groundTruthInStartFrame(DriveData& d, const evaluation::MetricOptions& mo) 
     }
 }
 
+/// d.metrics' header for `metric_options` (lever arm of d.gt); returns the options to score with.
+evaluation::MetricOptions startMetrics(DriveData& d, const evaluation::MetricOptions& mo_in) {
+  evaluation::MetricOptions mo = mo_in;
+  mo.lever_arm_m = d.gt.lever_arm_m;
+  d.metrics.recordings = 1;
+  d.metrics.alignment = mo.alignment;
+  d.metrics.align_first_s = mo.align_first_s;
+  return mo;
+}
+
+/// One metrics row of `variant` (error `err`, else the metrics of `take()` against d.gt), and
+/// its trajectory in d.trajectories; `lean`: only the points Fig. 5 draws are kept
+/// (pathPointsToDraw). Sets d.metrics.failed_recordings when the row has an error.
+void scoreVariant(DriveData& d, const evaluation::MetricOptions& mo, bool lean,
+                  const std::string& variant, const std::string& err,
+                  const std::function<evaluation::Trajectory()>& take) {
+  evaluation::BatchRow row;
+  row.recording = std::filesystem::path(d.path).filename().string();
+  row.variant = variant;
+  row.ground_truth = evaluation::toString(d.gt.source);
+  row.error = err;
+  if (err.empty()) {
+    try {
+      auto t = take();
+      row.n_estimates = t.size();
+      row.metrics = evaluation::computeMetrics(t, d.gt.samples, mo);
+      if (lean) {  // from here on only drawn: the points drawn (Fig. 5)
+        const auto keep = pathPointsToDraw(
+            t.size(), [&](std::size_t i) { return t[i].x_m; },
+            [&](std::size_t i) { return t[i].y_m; });
+        if (keep.size() < t.size()) {
+          evaluation::Trajectory drawn;
+          drawn.reserve(keep.size());
+          for (std::size_t i : keep) drawn.push_back(t[i]);
+          t = std::move(drawn);
+        }
+      }
+      d.trajectories[variant] = std::move(t);
+    } catch (const std::exception& e) {
+      row.error = e.what();
+    }
+  }
+  if (!row.error.empty()) d.metrics.failed_recordings = 1;
+  d.metrics.rows.push_back(std::move(row));
+}
+
+/// d.t0_s, d.t1_s: the EKF trace's span (else [start_s, end_s]). Lean, no `--at` and no sonar
+/// echo: the default Fig. 7 time comes from the obstacle estimates' span; unless it is the start
+/// (kept), `rerun_ekf` runs the EKF once more into a sink that keeps the estimate there (an
+/// obstacle estimate without any echo: not seen on the bundled drives).
+void spanAndSnapshot(DriveData& d, bool lean, const DriveLoadOptions& load, double sonar_t,
+                     double start_s, double end_s,
+                     const std::function<void(ReportEkfSink&)>& rerun_ekf) {
+  if (!d.ekf_trace.empty()) {
+    d.t0_s = d.ekf_trace.front().t_s;
+    d.t1_s = d.ekf_trace.back().t_s;
+  } else {
+    d.t0_s = start_s;
+    d.t1_s = end_s;
+  }
+  if (lean && !std::isfinite(load.snapshot_since_start_s) && std::isnan(sonar_t) &&
+      !d.ekf_trace.empty()) {
+    const double t_at = defaultObstacleTime(d);
+    if (t_at > d.t0_s) {
+      ReportEkfSink again(d, NAN, t_at);
+      rerun_ekf(again);
+      d.est.ekf.estimates = again.kept();
+    }
+  }
+}
+
+std::vector<SpeedPoint> speeds(const std::vector<estimation::DeadReckoningSample>& dr) {
+  std::vector<SpeedPoint> v;
+  v.reserve(dr.size());
+  for (const auto& s : dr) v.push_back({s.t_s, s.v_m_s, s.omega_rad_s});
+  return v;
+}
+
 }  // namespace
 
 DriveData loadDrive(io::Recording rec, const std::string& path, const config::WheelchairConfig& cfg,
@@ -228,25 +399,9 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
     d.ekf_trace.reserve(d.est.ekf.estimates.size());
     for (const auto& e : d.est.ekf.estimates) d.ekf_trace.push_back(tracePoint(d, e));
   }
-  if (!d.ekf_trace.empty()) {
-    d.t0_s = d.ekf_trace.front().t_s;
-    d.t1_s = d.ekf_trace.back().t_s;
-  } else {
-    d.t0_s = d.rec.startTime();
-    d.t1_s = d.rec.endTime();
-  }
-  if (lean && !std::isfinite(load.snapshot_since_start_s) && std::isnan(sonar_t) &&
-      !d.ekf_trace.empty()) {
-    // No sonar echo: the default time comes from the obstacle estimates' span. Unless it is the
-    // start (kept), the EKF runs once more to keep the estimate there (an obstacle estimate
-    // without any echo: not seen on the bundled drives).
-    const double t_at = defaultObstacleTime(d);
-    if (t_at > d.t0_s) {
-      ReportEkfSink again(d, NAN, t_at);
-      evaluation::estimateVariants(d.rec, cfg, false, &again);
-      d.est.ekf.estimates = again.kept();
-    }
-  }
+  spanAndSnapshot(
+      d, lean, load, sonar_t, d.rec.startTime(), d.rec.endTime(),
+      [&](ReportEkfSink& again) { evaluation::estimateVariants(d.rec, cfg, false, &again); });
 
   d.gt = evaluation::groundTruthOf(d.rec, cfg);
   const auto& r = d.rec;
@@ -262,61 +417,179 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
     d.rec = std::move(kept);
     d.ekf_trace.shrink_to_fit();  // (sized for one estimate per measurement)
   }
-  auto speeds = [](const std::vector<estimation::DeadReckoningSample>& dr) {
-    std::vector<SpeedPoint> v;
-    v.reserve(dr.size());
-    for (const auto& s : dr) v.push_back({s.t_s, s.v_m_s, s.omega_rad_s});
-    return v;
-  };
   d.encoder_speeds = speeds(d.est.encoders);
   d.phase_speeds = speeds(d.est.encoders_gyro.empty() ? d.est.encoders : d.est.encoders_gyro);
   d.truth = readTruthJson(truth_path.empty() ? path + ".truth.json" : truth_path);
 
-  evaluation::MetricOptions mo = metric_options;
-  mo.lever_arm_m = d.gt.lever_arm_m;
-  d.metrics.recordings = 1;
-  d.metrics.alignment = mo.alignment;
-  d.metrics.align_first_s = mo.align_first_s;
-  bool failed = false;
-  for (const auto& [variant, err] : d.est.errors) {
-    evaluation::BatchRow row;
-    row.recording = std::filesystem::path(path).filename().string();
-    row.variant = variant;
-    row.ground_truth = evaluation::toString(d.gt.source);
-    row.error = err;
-    if (err.empty()) {
-      try {
-        auto t = lean && variant == "ekf"        ? ekf_sink.takePoses()
-                 : lean && variant == "baseline" ? baseline_sink.take()
-                                                 : d.est.trajectory(variant);
-        row.n_estimates = t.size();
-        row.metrics = evaluation::computeMetrics(t, d.gt.samples, mo);
-        if (lean) {  // from here on only drawn: the points drawn (Fig. 5)
-          const auto keep = pathPointsToDraw(
-              t.size(), [&](std::size_t i) { return t[i].x_m; },
-              [&](std::size_t i) { return t[i].y_m; });
-          if (keep.size() < t.size()) {
-            evaluation::Trajectory drawn;
-            drawn.reserve(keep.size());
-            for (std::size_t i : keep) drawn.push_back(t[i]);
-            t = std::move(drawn);
-          }
-        }
-        d.trajectories[variant] = std::move(t);
-      } catch (const std::exception& e) {
-        row.error = e.what();
-      }
-    }
-    failed |= !row.error.empty();
-    d.metrics.rows.push_back(std::move(row));
-  }
-  d.metrics.failed_recordings = failed ? 1 : 0;
+  const auto mo = startMetrics(d, metric_options);
+  for (const auto& [variant, err] : d.est.errors)
+    scoreVariant(d, mo, lean, variant, err, [&, v = variant] {
+      return lean && v == "ekf"        ? ekf_sink.takePoses()
+             : lean && v == "baseline" ? baseline_sink.take()
+                                       : d.est.trajectory(v);
+    });
   if (lean) {  // their trajectories and speeds are taken
     std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders);
     std::vector<estimation::DeadReckoningSample>().swap(d.est.encoders_gyro);
   }
   groundTruthInStartFrame(d, mo);
   return d;
+}
+
+DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary& sum,
+                            const config::WheelchairConfig& cfg,
+                            const evaluation::MetricOptions& metric_options,
+                            const std::string& truth_path, double snapshot_since_start_s) {
+  DriveLoadOptions load;
+  load.keep_estimates = false;
+  load.snapshot_since_start_s = snapshot_since_start_s;
+  if (!estimation::ModelExtensions::fromConfig(cfg.ini()).empty())  // the corrected recording
+    return loadDrive(io::readRawlogSalvaging(path, true, nullptr), path, cfg, metric_options,
+                     truth_path, load);
+  DriveData d;
+  d.path = path;
+  d.cfg = cfg;
+  using io::StreamKind;
+  d.counts = {sum.count(StreamKind::Encoders), sum.count(StreamKind::Imu),
+              sum.count(StreamKind::Motors),   sum.count(StreamKind::Sonar),
+              sum.count(StreamKind::Pozyx),    sum.count(StreamKind::GroundTruth)};
+  // A series of more samples than the drawing thins (Plot::kDecimateAbove) is thinned as it
+  // comes (SeriesThinner): bins of 1/kThinBins of the drive's span.
+  const double span_s = sum.end_s - sum.start_s;
+  auto binFor = [&](std::size_t n) { return n > Plot::kDecimateAbove ? span_s / kThinBins : 0.0; };
+  {  // pass 1: the figures' gyro and currents, the sonar and the ground-truth streams
+    SeriesThinner<GyroPoint> gyro(d.gyro, {[](const GyroPoint& g) { return g.gyro_z_rad_s; }}, {},
+                                  sum.start_s, binFor(d.counts.imu));
+    SeriesThinner<CurrentPoint> currents(d.currents,
+                                         {[](const CurrentPoint& c) { return c.current_right_A; },
+                                          [](const CurrentPoint& c) { return c.current_left_A; }},
+                                         {}, sum.start_s, binFor(d.counts.motors));
+    if (!(binFor(d.counts.imu) > 0)) d.gyro.reserve(d.counts.imu);
+    if (!(binFor(d.counts.motors) > 0)) d.currents.reserve(d.counts.motors);
+    io::RawlogSampleReader in(path);
+    io::AnySample s;
+    std::size_t k = 0;
+    while (in.next(s, k)) {
+      if (const auto* m = std::get_if<io::ImuSample>(&s)) {
+        gyro.add({m->t_s, m->gyro_z_rad_s});
+      } else if (const auto* c = std::get_if<io::MotorSample>(&s)) {
+        currents.add({c->t_s, c->current_right_A, c->current_left_A});
+      } else {
+        const auto kind = io::kindOf(s);
+        if (kind == StreamKind::Sonar || kind == StreamKind::Pozyx ||
+            kind == StreamKind::GroundTruth)
+          io::append(d.rec, s);
+      }
+    }
+    gyro.finish();
+    currents.finish();
+  }
+  d.gt = evaluation::groundTruthOf(d.rec, cfg);
+  {  // only the sonar stays (Fig. 7, 8)
+    io::Recording kept;
+    kept.sonar = std::move(d.rec.sonar);
+    d.rec = std::move(kept);
+  }
+  const auto mo = startMetrics(d, metric_options);
+  const double sonar_t = firstSonarRunMiddle(d.rec);
+  ReportEkfSink ekf_sink(d, snapshot_since_start_s, sonar_t);
+  const std::size_t n_estimates =
+      d.counts.encoders + d.counts.imu + d.counts.sonar + d.counts.pozyx + 2;
+  // The EKF trace: Fig. 6a, 6b (v, omega) and Fig. 8 (range +- sd, obstacle spans), whose
+  // window (the valid sonar readings, -2 s .. +4 s) gets bins of its own length's 1/kThinBins.
+  SeriesThinner<EkfTracePoint> trace(
+      d.ekf_trace,
+      {[](const EkfTracePoint& e) { return e.v_m_s; },
+       [](const EkfTracePoint& e) { return e.omega_rad_s; },
+       [](const EkfTracePoint& e) { return e.range_m; },
+       [](const EkfTracePoint& e) { return e.range_m - e.range_sd_m; },
+       [](const EkfTracePoint& e) { return e.range_m + e.range_sd_m; }},
+      [](const EkfTracePoint& e) { return e.obstacle ? 1 : 0; }, sum.start_s, binFor(n_estimates));
+  {
+    double a = NAN, b = NAN;
+    for (const auto& s : d.rec.sonar)
+      if (s.range_m > 0) a = std::isnan(a) ? s.t_s : a, b = s.t_s;
+    if (!std::isnan(a)) trace.fineWindow(a - 3.0, b + 5.0, (b - a + 8.0) / kThinBins);
+  }
+  const bool thin_trace = binFor(n_estimates) > 0;
+  if (thin_trace) ekf_sink.traceTo([&](const EkfTracePoint& e) { trace.add(e); });
+  ekf_sink.reserve(n_estimates);
+  evaluation::TrajectorySink baseline_sink;
+  // Each variant is scored as soon as it has run, and then keeps only what Fig. 5 draws; the
+  // dead reckonings' speeds are thinned as they come (encoders: Fig. 6a, 6b; the phases: runs
+  // of equal motionKind, exact).
+  const double dr_bin = binFor(d.counts.encoders);
+  std::vector<SpeedPoint> enc_phases;
+  const std::vector<SeriesThinner<SpeedPoint>::Value> vw{
+      [](const SpeedPoint& p) { return p.v_m_s; },
+      [](const SpeedPoint& p) { return p.omega_rad_s; }};
+  std::optional<SeriesThinner<SpeedPoint>> speeds_thin, phases_thin;
+  auto startDeadReckoning = [&](std::vector<SpeedPoint>* speeds_out,
+                                std::vector<SpeedPoint>& phases_out) {
+    if (speeds_out) speeds_thin.emplace(*speeds_out, vw, nullptr, sum.start_s, dr_bin);
+    if (!speeds_out) speeds_thin.reset();
+    phases_thin.emplace(
+        phases_out, std::vector<SeriesThinner<SpeedPoint>::Value>{},
+        [](const SpeedPoint& p) { return motionKind(p); }, sum.start_s, dr_bin);
+  };
+  evaluation::Trajectory dr_poses;
+  auto deadReckoningSink = [&](const estimation::DeadReckoningSample& s) {
+    const SpeedPoint p{s.t_s, s.v_m_s, s.omega_rad_s};
+    if (speeds_thin) speeds_thin->add(p);
+    phases_thin->add(p);
+    dr_poses.push_back({s.t_s, s.x_m, s.y_m, s.phi_rad});
+  };
+  evaluation::VariantSinks sinks;
+  sinks.ekf = &ekf_sink;
+  sinks.encoders = deadReckoningSink;
+  sinks.encoders_gyro = deadReckoningSink;
+  sinks.baseline = &baseline_sink;
+  auto done = [&](const std::string& variant, const std::string& err) {
+    if (variant == "ekf") {
+      // (sized for one estimate per measurement: no shrink_to_fit, whose copy would double it)
+      if (thin_trace) trace.finish();
+      if (err.empty() && !thin_trace) d.ekf_trace = ekf_sink.takeTrace();
+      if (!err.empty()) std::vector<EkfTracePoint>().swap(d.ekf_trace);  // as the stored run
+      scoreVariant(d, mo, true, variant, err, [&] { return ekf_sink.takePoses(); });
+      startDeadReckoning(&d.encoder_speeds, enc_phases);
+      dr_poses.reserve(d.counts.encoders);
+    } else if (variant == "baseline") {
+      scoreVariant(d, mo, true, variant, err, [&] { return baseline_sink.take(); });
+    } else {
+      if (speeds_thin) speeds_thin->finish();
+      phases_thin->finish();
+      if (!err.empty()) {  // (as the stored run: nothing)
+        if (variant == "encoders") d.encoder_speeds.clear(), enc_phases.clear();
+        if (variant == "encoders_gyro") d.phase_speeds.clear();
+      }
+      scoreVariant(d, mo, true, variant, err, [&] {
+        evaluation::sortByTimeKeepLast(dr_poses);
+        return std::move(dr_poses);
+      });
+      evaluation::Trajectory().swap(dr_poses);
+      if (variant == "encoders") {  // encoders_gyro: a sample per encoder sample and gyro time
+        startDeadReckoning(nullptr, d.phase_speeds);
+        dr_poses.reserve(d.counts.encoders + d.counts.imu);
+      }
+    }
+  };
+  d.est = evaluation::streamVariants(path, sum, cfg, sinks, done);
+  evaluation::Trajectory().swap(dr_poses);
+  if (d.phase_speeds.empty()) d.phase_speeds = std::move(enc_phases);  // no encoder/gyro samples
+  const bool ekf_failed = !d.est.errors.empty() && !d.est.errors.front().second.empty();
+  if (!ekf_failed) d.est.ekf.estimates = ekf_sink.kept();
+  spanAndSnapshot(d, true, load, sonar_t, sum.start_s, sum.end_s, [&](ReportEkfSink& again) {
+    evaluation::VariantSinks ekf_only;
+    ekf_only.ekf = &again;
+    evaluation::streamVariants(path, sum, cfg, ekf_only, {});
+  });
+  d.truth = readTruthJson(truth_path.empty() ? path + ".truth.json" : truth_path);
+  groundTruthInStartFrame(d, mo);
+  return d;
+}
+
+int motionKind(const SpeedPoint& s) {
+  return std::fabs(s.omega_rad_s) >= 0.2 ? 2 : (std::fabs(s.v_m_s) > 0.08 ? 1 : 0);
 }
 
 double defaultObstacleTime(const DriveData& d) {

@@ -15,6 +15,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/evaluation/Batch.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/io/Recording.h"
 
 #include <limits>
@@ -63,6 +64,9 @@ struct CurrentPoint {
 struct SpeedPoint {
   double t_s = 0, v_m_s = 0, omega_rad_s = 0;
 };
+/// Motion phase of a speed sample (report's shaded phases): 2 turning (|omega| >= 0.2 rad/s),
+/// 1 driving straight (|v| > 0.08 m/s), 0 standing.
+int motionKind(const SpeedPoint& s);
 struct SampleCounts {
   std::size_t encoders = 0, imu = 0, motors = 0, sonar = 0, pozyx = 0, ground_truth = 0;
 };
@@ -117,6 +121,19 @@ DriveData loadDrive(const std::string& path, const config::WheelchairConfig& cfg
 DriveData loadDrive(io::Recording rec, const std::string& path, const config::WheelchairConfig& cfg,
                     const evaluation::MetricOptions& metric_options,
                     const std::string& truth_path = "", const DriveLoadOptions& load = {});
+
+/// `wheelchair report`: loadDrive(io::readRawlog(path), ...) with keep_estimates false and the
+/// snapshot at `snapshot_since_start_s` (NaN: the default), without loading the recording. The
+/// rawlog (`sum` from io::scanRawlogSalvaging, which applied the salvage rule) is read once for
+/// the gyro and current series, the sonar and the ground-truth streams, then once per variant
+/// as a stream (evaluation::streamVariants); each variant is scored as soon as it has run and
+/// then keeps only the points Fig. 5 draws, so at most one full trajectory is held at a time.
+/// The same DriveData (figures, metrics) as the loaded path. A configuration with
+/// [model_extensions] loads the recording (the corrected copy).
+DriveData loadDriveStreamed(
+    const std::string& path, const io::RecordingSummary& sum, const config::WheelchairConfig& cfg,
+    const evaluation::MetricOptions& metric_options, const std::string& truth_path = "",
+    double snapshot_since_start_s = std::numeric_limits<double>::quiet_NaN());
 
 /// A default instant for Fig. 7 / the viewer: the middle of the first run of valid (non-zero)
 /// sonar readings; without any, 40 % into the span where the EKF has an obstacle estimate.

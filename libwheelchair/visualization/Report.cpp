@@ -36,7 +36,7 @@ std::vector<XSpan> motionPhases(const DriveData& d, double t0) {
   };
   std::vector<Run> runs;
   for (const auto& s : dr) {
-    const int kind = std::fabs(s.omega_rad_s) >= 0.2 ? 2 : (std::fabs(s.v_m_s) > 0.08 ? 1 : 0);
+    const int kind = motionKind(s);
     if (runs.empty() || runs.back().kind != kind)
       runs.push_back({kind, s.t_s, s.t_s});
     else

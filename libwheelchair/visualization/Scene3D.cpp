@@ -112,6 +112,15 @@ void insertDrives(COpenGLScene& scene, const DriveData& d, Legend& legend) {
     std::vector<std::pair<double, double>> p;
     for (std::size_t i = 0; i < d.truth->t_s.size(); i += 5)
       p.emplace_back(d.truth->x_m[i], d.truth->y_m[i]);
+    if (p.size() > Plot::kDecimateAbove) {  // a long drive: the points drawn (pathPointsToDraw)
+      const auto keep = pathPointsToDraw(
+          p.size(), [&](std::size_t i) { return p[i].first; },
+          [&](std::size_t i) { return p[i].second; });
+      std::vector<std::pair<double, double>> drawn;
+      drawn.reserve(keep.size());
+      for (std::size_t i : keep) drawn.push_back(p[i]);
+      p = std::move(drawn);
+    }
     scene.insert(ribbon(p, variantColor("truth"), 0.03, z));
     legend.emplace_back(variantLabel("truth"), variantColor("truth"));
   }

@@ -4,10 +4,13 @@
 
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/visualization/DriveData.h"
+#include "libwheelchair/visualization/Plot.h"
 #include "libwheelchair/visualization/Report.h"
 
 #include <cmath>
 #include <filesystem>
+#include <limits>
+#include <tuple>
 
 namespace wheelchair::visualization {
 namespace {
@@ -104,6 +107,124 @@ TEST(Report, LeanLoadKeepsWhatTheFiguresDraw) {
   }
   for (int s = 0; s < estimation::kNumSensors; ++s)
     EXPECT_EQ(lean.est.ekf.sensors[s].used, full.est.ekf.sensors[s].used);
+}
+
+// `report` reads the rawlog as a stream (loadDriveStreamed: the recording is never loaded, the
+// variants are scored one by one as they run): the same DriveData as the loaded lean path, bit
+// for bit, with and without `--at`.
+TEST(Report, StreamedLoadEqualsTheLoadedOne) {
+  const std::string rawlog = testutil::SimulatedDrive::rawlog();
+  const config::WheelchairConfig cfg;
+  const evaluation::MetricOptions mo;
+  for (const double at : {std::numeric_limits<double>::quiet_NaN(), 6.0}) {
+    DriveLoadOptions lo;
+    lo.keep_estimates = false;
+    lo.snapshot_since_start_s = at;
+    const DriveData a = loadDrive(io::readRawlog(rawlog), rawlog, cfg, mo, "", lo);
+    const DriveData b = loadDriveStreamed(rawlog, io::scanRawlog(rawlog), cfg, mo, "", at);
+    ASSERT_GT(a.ekf_trace.size(), 100u);
+    ASSERT_EQ(b.ekf_trace.size(), a.ekf_trace.size());
+    for (std::size_t i = 0; i < a.ekf_trace.size(); ++i) {
+      ASSERT_EQ(a.ekf_trace[i].t_s, b.ekf_trace[i].t_s);
+      ASSERT_EQ(a.ekf_trace[i].omega_rad_s, b.ekf_trace[i].omega_rad_s);
+      ASSERT_EQ(a.ekf_trace[i].range_sd_m, b.ekf_trace[i].range_sd_m);
+    }
+    ASSERT_EQ(b.gyro.size(), a.gyro.size());
+    EXPECT_EQ(b.gyro.back().gyro_z_rad_s, a.gyro.back().gyro_z_rad_s);
+    ASSERT_EQ(b.currents.size(), a.currents.size());
+    EXPECT_EQ(b.currents.back().current_left_A, a.currents.back().current_left_A);
+    ASSERT_EQ(b.encoder_speeds.size(), a.encoder_speeds.size());
+    EXPECT_EQ(b.encoder_speeds.back().v_m_s, a.encoder_speeds.back().v_m_s);
+    ASSERT_EQ(b.phase_speeds.size(), a.phase_speeds.size());
+    EXPECT_EQ(b.phase_speeds.back().omega_rad_s, a.phase_speeds.back().omega_rad_s);
+    EXPECT_EQ(b.counts.imu, a.counts.imu);
+    EXPECT_EQ(b.counts.encoders, a.counts.encoders);
+    EXPECT_EQ(b.rec.sonar.size(), a.rec.sonar.size());
+    EXPECT_EQ(b.t0_s, a.t0_s);
+    EXPECT_EQ(b.t1_s, a.t1_s);
+    ASSERT_EQ(b.est.ekf.estimates.size(), a.est.ekf.estimates.size());
+    EXPECT_EQ(b.est.ekf.estimates.back().P, a.est.ekf.estimates.back().P);
+    for (int s = 0; s < estimation::kNumSensors; ++s)
+      EXPECT_EQ(b.est.ekf.sensors[s].rejected, a.est.ekf.sensors[s].rejected);
+    ASSERT_EQ(b.trajectories.size(), a.trajectories.size());
+    for (const auto& [v, t] : a.trajectories) {
+      ASSERT_EQ(b.trajectories.at(v).size(), t.size()) << v;
+      EXPECT_EQ(b.trajectories.at(v).back().y_m, t.back().y_m) << v;
+    }
+    ASSERT_EQ(b.metrics.rows.size(), a.metrics.rows.size());
+    for (std::size_t i = 0; i < a.metrics.rows.size(); ++i) {
+      const auto &ra = a.metrics.rows[i], &rb = b.metrics.rows[i];
+      EXPECT_EQ(rb.variant, ra.variant);
+      EXPECT_EQ(rb.error, ra.error);
+      EXPECT_EQ(rb.n_estimates, ra.n_estimates);
+      const double x = ra.metrics.ate_rmse_m, y = rb.metrics.ate_rmse_m;
+      EXPECT_TRUE(x == y || (std::isnan(x) && std::isnan(y))) << ra.variant;
+    }
+    EXPECT_EQ(b.metrics.failed_recordings, a.metrics.failed_recordings);
+    ASSERT_EQ(b.gt_start.size(), a.gt_start.size());
+    ASSERT_FALSE(a.gt_start.empty());
+    EXPECT_EQ(b.gt_start.back().x_m, a.gt_start.back().x_m);
+    EXPECT_EQ(b.gt_frame_note, a.gt_frame_note);
+  }
+}
+
+// A drive long enough for the figures' thinning (more than Plot::kDecimateAbove samples per
+// series): the streamed load keeps its time series thinned as they come (SeriesThinner), with
+// the same span, extremes, motion phases and obstacle span as every sample, and the same metrics.
+TEST(Report, LongDriveSeriesAreThinnedKeepingWhatIsDrawn) {
+  test::TempDir dir;
+  const std::string rawlog = dir / "long.rawlog";
+  const auto sim = test::cli("simulate --scenario excite --duration 240 --seed 3 -o " + rawlog);
+  ASSERT_EQ(sim.exit_code, 0) << sim.out;
+  const config::WheelchairConfig cfg;
+  const evaluation::MetricOptions mo;
+  DriveLoadOptions lo;
+  lo.keep_estimates = false;
+  const DriveData a = loadDrive(io::readRawlog(rawlog), rawlog, cfg, mo, "", lo);
+  const DriveData b = loadDriveStreamed(rawlog, io::scanRawlog(rawlog), cfg, mo);
+  ASSERT_GT(a.gyro.size(), Plot::kDecimateAbove);
+  ASSERT_GT(a.ekf_trace.size(), Plot::kDecimateAbove);
+  // (at most first, last, lowest and highest per 1/8192 of the span: a 240 s drive has ~3 gyro
+  // samples per bin, a one-hour drive ~44)
+  EXPECT_LT(b.gyro.size(), a.gyro.size());
+  EXPECT_LT(b.currents.size(), a.currents.size());
+  EXPECT_LT(b.ekf_trace.size(), a.ekf_trace.size());
+  EXPECT_LE(b.phase_speeds.size(), a.phase_speeds.size());
+  auto extremes = [](const auto& v, auto value) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (const auto& x : v) lo = std::min(lo, value(x)), hi = std::max(hi, value(x));
+    return std::make_pair(lo, hi);
+  };
+  auto gz = [](const GyroPoint& g) { return g.gyro_z_rad_s; };
+  auto il = [](const CurrentPoint& c) { return c.current_left_A; };
+  auto ew = [](const EkfTracePoint& e) { return e.omega_rad_s; };
+  auto ev = [](const SpeedPoint& e) { return e.v_m_s; };
+  EXPECT_EQ(extremes(b.gyro, gz), extremes(a.gyro, gz));
+  EXPECT_EQ(extremes(b.currents, il), extremes(a.currents, il));
+  EXPECT_EQ(extremes(b.ekf_trace, ew), extremes(a.ekf_trace, ew));
+  EXPECT_EQ(extremes(b.encoder_speeds, ev), extremes(a.encoder_speeds, ev));
+  EXPECT_EQ(b.gyro.front().t_s, a.gyro.front().t_s);
+  EXPECT_EQ(b.gyro.back().t_s, a.gyro.back().t_s);
+  EXPECT_EQ(b.t0_s, a.t0_s);
+  EXPECT_EQ(b.t1_s, a.t1_s);
+  EXPECT_EQ(defaultObstacleTime(b), defaultObstacleTime(a));
+  // The shaded phases: the runs of equal motionKind, first and last time of each.
+  auto runs = [](const std::vector<SpeedPoint>& v) {
+    std::vector<std::tuple<int, double, double>> r;
+    for (const auto& s : v)
+      if (r.empty() || std::get<0>(r.back()) != motionKind(s))
+        r.emplace_back(motionKind(s), s.t_s, s.t_s);
+      else
+        std::get<2>(r.back()) = s.t_s;
+    return r;
+  };
+  EXPECT_EQ(runs(b.phase_speeds), runs(a.phase_speeds));
+  ASSERT_EQ(b.metrics.rows.size(), a.metrics.rows.size());
+  for (std::size_t i = 0; i < a.metrics.rows.size(); ++i) {
+    EXPECT_EQ(b.metrics.rows[i].n_estimates, a.metrics.rows[i].n_estimates);
+    EXPECT_EQ(b.metrics.rows[i].metrics.ate_rmse_m, a.metrics.rows[i].metrics.ate_rmse_m);
+  }
+  for (const auto& [v, t] : a.trajectories) EXPECT_EQ(b.trajectories.at(v).size(), t.size()) << v;
 }
 
 TEST(Report, BadInputExitsWithOne) {
