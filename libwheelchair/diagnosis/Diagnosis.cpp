@@ -1634,19 +1634,12 @@ int supersededByOutOfCatalogue(const Selection& sel, const std::vector<Candidate
   return -1;
 }
 
-/// Stage 2: the per-motor equation error of the drive model in current space, with the
-/// stage 1 corrections applied. Sets corr.delay_motors. false: too little data.
-bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
-                  const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep) {
-  auto cands = dynamicCandidates(cfg.vehicle.geom.body_mass_kg, opt.enable_delay);
-  double alpha_b = selectionRule(opt, cands.size()).level();
-  DynRows df = dynamicRows(data.fit, corr, cfg, opt), dv = dynamicRows(data.val, corr, cfg, opt);
-  // Stage 1 found nothing to correct: dv are the fully nominal model's rows too.
-  const bool sensors_nominal = corr == Corrections{};
-  int lags = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
-  if (!(df.y.size() > 50)) return false;
-  SelectionData sd{df.y,      dv.y,      df.X, dv.X,
-                   df.groups, dv.groups, lags, opt.min_relevance * cfg.motors.current_noise_A};
+/// Stage 2's catalogue selection (forwardSelect), selected again without a catalogue term the
+/// data show is not that term: a motor asymmetry that is the same on both motors (a load the
+/// catalogue does not have), or a term an out-of-catalogue term predicts better
+/// (supersededByOutOfCatalogue; issue 16 item 3). cands and alpha_b follow the candidates left.
+Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands, const DynRows& df,
+                          int lags, const DiagnosisOptions& opt, double& alpha_b) {
   Selection sel = forwardSelect(sd, cands, opt);
   if (symmetricAsymmetry(sel, cands)) {
     // Both motors' viscous friction up by the same amount is no asymmetry: it is a load the
@@ -1673,6 +1666,23 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     sel = forwardSelect(sd, cands, opt);
   }
   sel.log.insert(sel.log.end(), superseded.begin(), superseded.end());
+  return sel;
+}
+
+/// Stage 2: the per-motor equation error of the drive model in current space, with the
+/// stage 1 corrections applied. Sets corr.delay_motors. false: too little data.
+bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
+                  const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep) {
+  auto cands = dynamicCandidates(cfg.vehicle.geom.body_mass_kg, opt.enable_delay);
+  double alpha_b = selectionRule(opt, cands.size()).level();
+  DynRows df = dynamicRows(data.fit, corr, cfg, opt), dv = dynamicRows(data.val, corr, cfg, opt);
+  // Stage 1 found nothing to correct: dv are the fully nominal model's rows too.
+  const bool sensors_nominal = corr == Corrections{};
+  int lags = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
+  if (!(df.y.size() > 50)) return false;
+  SelectionData sd{df.y,      dv.y,      df.X, dv.X,
+                   df.groups, dv.groups, lags, opt.min_relevance * cfg.motors.current_noise_A};
+  Selection sel = selectCatalogue(sd, cands, df, lags, opt, alpha_b);
   // The rows re-built with the re-estimated delay; without a delay df, dv themselves (no
   // copy: the rows are the bulk of diagnose's memory).
   DelayRefit<DynRows> refit;

@@ -216,6 +216,18 @@ Trajectory RecordingEstimates::trajectory(const std::string& variant) const {
   throw std::invalid_argument("unknown trajectory variant '" + variant + "'");
 }
 
+namespace {
+/// Runs one variant: "" when it succeeded, else the reason it failed (the other variants run).
+std::string errorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+}  // namespace
+
 RecordingEstimates estimateVariants(const io::Recording& raw_rec,
                                     const config::WheelchairConfig& raw_cfg, bool with_baseline,
                                     estimation::EstimateSink* ekf_sink,
@@ -230,13 +242,7 @@ RecordingEstimates estimateVariants(const io::Recording& raw_rec,
   RecordingEstimates r;
   r.has_baseline = with_baseline;
   auto attempt = [&](const std::string& name, const std::function<void()>& f) {
-    std::string err;
-    try {
-      f();
-    } catch (const std::exception& e) {
-      err = e.what();
-    }
-    r.errors.emplace_back(name, err);
+    r.errors.emplace_back(name, errorOf(f));
   };
   // The filter's estimates stored, or streamed to `sink` when there is one.
   auto run = [&](estimation::FilterKind kind, estimation::EstimateSink* sink) {
@@ -277,12 +283,7 @@ RecordingEstimates streamVariants(
   RecordingEstimates r;
   r.has_baseline = sinks.baseline != nullptr;
   auto attempt = [&](const std::string& name, const std::function<void()>& f) {
-    std::string err;
-    try {
-      f();
-    } catch (const std::exception& e) {
-      err = e.what();
-    }
+    const std::string err = errorOf(f);
     r.errors.emplace_back(name, err);
     if (done) done(name, err);
   };

@@ -182,16 +182,7 @@ LsSolution solveLeastSquaresBlocked(const LsRowSource& rows, int p, const LsOpti
   const Eigen::MatrixXd Rc = tsqr(rows, p, inv_scale);
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Rc.topLeftCorner(p, p),
                                               Eigen::ComputeFullU | Eigen::ComputeFullV);
-  s.singular_values = svd.singularValues();
-  s.V = svd.matrixV();
-  const double smax = s.singular_values(0);
-  s.rank = 0;
-  for (long k = 0; k < p; ++k)
-    if (s.singular_values(k) > opt.rank_tol * smax) ++s.rank;
-  const double smin = s.singular_values(p - 1);
-  s.condition_number = smin > 0 ? smax / smin : std::numeric_limits<double>::infinity();
-  s.condition_number_identifiable =
-      s.rank > 0 ? smax / s.singular_values(s.rank - 1) : std::numeric_limits<double>::infinity();
+  s.setSpectrum(svd, opt.rank_tol);
   const int r = s.rank;
   const Eigen::MatrixXd Vr = s.V.leftCols(r);
   const Eigen::VectorXd sr = s.singular_values.head(r);

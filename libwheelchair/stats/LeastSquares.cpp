@@ -119,16 +119,7 @@ LsSolution solve(Eigen::MatrixXd X, const Eigen::VectorXd& y, const std::vector<
   Eigen::VectorXd sr, beta_s;
   {  // the SVD's n x p work matrices are freed before the score series are built
     Eigen::JacobiSVD<Eigen::MatrixXd> svd(Xs, Eigen::ComputeThinU | Eigen::ComputeFullV);
-    s.singular_values = svd.singularValues();
-    s.V = svd.matrixV();
-    const double smax = s.singular_values(0);
-    s.rank = 0;
-    for (long k = 0; k < p; ++k)
-      if (s.singular_values(k) > opt.rank_tol * smax) ++s.rank;
-    const double smin = s.singular_values(p - 1);
-    s.condition_number = smin > 0 ? smax / smin : std::numeric_limits<double>::infinity();
-    s.condition_number_identifiable =
-        s.rank > 0 ? smax / s.singular_values(s.rank - 1) : std::numeric_limits<double>::infinity();
+    s.setSpectrum(svd, opt.rank_tol);
     Vr = s.V.leftCols(s.rank);
     sr = s.singular_values.head(s.rank);
     beta_s =

@@ -31,6 +31,7 @@
 
 #include <Eigen/Core>
 
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -85,7 +86,25 @@ struct LsSolution {
   double estimate(const Eigen::VectorXd& w) const { return w.dot(beta); }
   double standardError(const Eigen::VectorXd& w) const;
   double standardErrorNaive(const Eigen::VectorXd& w) const;
+  /// Sets singular_values, V, rank (singular values above rank_tol * sigma_max) and the two
+  /// condition numbers from an SVD of the equilibrated design (or of its R factor).
+  template <class Svd>
+  void setSpectrum(const Svd& svd, double rank_tol);
 };
+
+template <class Svd>
+void LsSolution::setSpectrum(const Svd& svd, double rank_tol) {
+  singular_values = svd.singularValues();
+  V = svd.matrixV();
+  const long p = singular_values.size();
+  const double smax = singular_values(0), smin = singular_values(p - 1);
+  rank = 0;
+  for (long k = 0; k < p; ++k)
+    if (singular_values(k) > rank_tol * smax) ++rank;
+  const double inf = std::numeric_limits<double>::infinity();
+  condition_number = smin > 0 ? smax / smin : inf;
+  condition_number_identifiable = rank > 0 ? smax / singular_values(rank - 1) : inf;
+}
 
 LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt = {});
 /// The same, consuming `in.X` (equilibrated in place instead of copied: the design of a long

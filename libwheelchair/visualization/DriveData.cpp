@@ -436,6 +436,51 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
   return d;
 }
 
+namespace {
+
+/// Pass 1 of the streamed load: the figures' gyro and currents (thinned as they come when a
+/// series has more samples than the drawing thins: binFor(count) > 0), and the sonar, Pozyx
+/// and ground-truth samples into d.rec.
+template <class BinFor>
+void readFigureStreams(DriveData& d, const std::string& path, const io::RecordingSummary& sum,
+                       const BinFor& binFor) {
+  using io::StreamKind;
+  SeriesThinner<GyroPoint> gyro(d.gyro, {[](const GyroPoint& g) { return g.gyro_z_rad_s; }}, {},
+                                sum.start_s, binFor(d.counts.imu));
+  SeriesThinner<CurrentPoint> currents(d.currents,
+                                       {[](const CurrentPoint& c) { return c.current_right_A; },
+                                        [](const CurrentPoint& c) { return c.current_left_A; }},
+                                       {}, sum.start_s, binFor(d.counts.motors));
+  if (!(binFor(d.counts.imu) > 0)) d.gyro.reserve(d.counts.imu);
+  if (!(binFor(d.counts.motors) > 0)) d.currents.reserve(d.counts.motors);
+  io::RawlogSampleReader in(path);
+  io::AnySample s;
+  std::size_t k = 0;
+  while (in.next(s, k)) {
+    if (const auto* m = std::get_if<io::ImuSample>(&s)) {
+      gyro.add({m->t_s, m->gyro_z_rad_s});
+    } else if (const auto* c = std::get_if<io::MotorSample>(&s)) {
+      currents.add({c->t_s, c->current_right_A, c->current_left_A});
+    } else {
+      const auto kind = io::kindOf(s);
+      if (kind == StreamKind::Sonar || kind == StreamKind::Pozyx || kind == StreamKind::GroundTruth)
+        io::append(d.rec, s);
+    }
+  }
+  gyro.finish();
+  currents.finish();
+}
+
+/// First and last time of a valid sonar range (none: no valid reading).
+std::optional<std::pair<double, double>> validSonarSpan(const io::Recording& rec) {
+  std::optional<std::pair<double, double>> w;
+  for (const auto& s : rec.sonar)
+    if (s.range_m > 0) w = std::make_pair(w ? w->first : s.t_s, s.t_s);
+  return w;
+}
+
+}  // namespace
+
 DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary& sum,
                             const config::WheelchairConfig& cfg,
                             const evaluation::MetricOptions& metric_options,
@@ -457,33 +502,7 @@ DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary&
   // comes (SeriesThinner): bins of 1/kThinBins of the drive's span.
   const double span_s = sum.end_s - sum.start_s;
   auto binFor = [&](std::size_t n) { return n > Plot::kDecimateAbove ? span_s / kThinBins : 0.0; };
-  {  // pass 1: the figures' gyro and currents, the sonar and the ground-truth streams
-    SeriesThinner<GyroPoint> gyro(d.gyro, {[](const GyroPoint& g) { return g.gyro_z_rad_s; }}, {},
-                                  sum.start_s, binFor(d.counts.imu));
-    SeriesThinner<CurrentPoint> currents(d.currents,
-                                         {[](const CurrentPoint& c) { return c.current_right_A; },
-                                          [](const CurrentPoint& c) { return c.current_left_A; }},
-                                         {}, sum.start_s, binFor(d.counts.motors));
-    if (!(binFor(d.counts.imu) > 0)) d.gyro.reserve(d.counts.imu);
-    if (!(binFor(d.counts.motors) > 0)) d.currents.reserve(d.counts.motors);
-    io::RawlogSampleReader in(path);
-    io::AnySample s;
-    std::size_t k = 0;
-    while (in.next(s, k)) {
-      if (const auto* m = std::get_if<io::ImuSample>(&s)) {
-        gyro.add({m->t_s, m->gyro_z_rad_s});
-      } else if (const auto* c = std::get_if<io::MotorSample>(&s)) {
-        currents.add({c->t_s, c->current_right_A, c->current_left_A});
-      } else {
-        const auto kind = io::kindOf(s);
-        if (kind == StreamKind::Sonar || kind == StreamKind::Pozyx ||
-            kind == StreamKind::GroundTruth)
-          io::append(d.rec, s);
-      }
-    }
-    gyro.finish();
-    currents.finish();
-  }
+  readFigureStreams(d, path, sum, binFor);
   d.gt = evaluation::groundTruthOf(d.rec, cfg);
   {  // only the sonar stays (Fig. 7, 8)
     io::Recording kept;
@@ -505,12 +524,8 @@ DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary&
        [](const EkfTracePoint& e) { return e.range_m - e.range_sd_m; },
        [](const EkfTracePoint& e) { return e.range_m + e.range_sd_m; }},
       [](const EkfTracePoint& e) { return e.obstacle ? 1 : 0; }, sum.start_s, binFor(n_estimates));
-  {
-    double a = NAN, b = NAN;
-    for (const auto& s : d.rec.sonar)
-      if (s.range_m > 0) a = std::isnan(a) ? s.t_s : a, b = s.t_s;
-    if (!std::isnan(a)) trace.fineWindow(a - 3.0, b + 5.0, (b - a + 8.0) / kThinBins);
-  }
+  if (const auto w = validSonarSpan(d.rec))
+    trace.fineWindow(w->first - 3.0, w->second + 5.0, (w->second - w->first + 8.0) / kThinBins);
   const bool thin_trace = binFor(n_estimates) > 0;
   if (thin_trace) ekf_sink.traceTo([&](const EkfTracePoint& e) { trace.add(e); });
   ekf_sink.reserve(n_estimates);
