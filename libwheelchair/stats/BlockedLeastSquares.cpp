@@ -222,22 +222,7 @@ LsSolution solveLeastSquaresBlocked(const LsRowSource& rows, int p, const LsOpti
   rs.lag1_autocorr = lag1.finish();
 
   // Covariances as solveLeastSquares: (X_s'X_s)^+ on the retained subspace, the HAC sandwich.
-  const Eigen::MatrixXd P = Vr * sr.array().pow(-2).matrix().asDiagonal() * Vr.transpose();
-  const double sigma2 = ee / std::max<long>(1, n - r);
-  const Eigen::MatrixXd cov_naive_s = sigma2 * P;
-  const Eigen::MatrixXd S = hac.finish();
-  const double small_sample = double(n) / std::max<long>(1, n - r);
-  const Eigen::MatrixXd cov_s = small_sample * P * S * P;
-  const Eigen::MatrixXd Dinv = inv_scale.asDiagonal();
-  s.cov = Dinv * cov_s * Dinv;
-  s.cov_naive = Dinv * cov_naive_s * Dinv;
-  double ratio = 0;
-  for (int k = 0; k < r; ++k) {
-    const double vh = Vr.col(k).dot(cov_s * Vr.col(k));
-    const double vn = Vr.col(k).dot(cov_naive_s * Vr.col(k));
-    ratio += vh > 0 ? vn / vh : 1.0;
-  }
-  rs.n_effective = r > 0 ? n * ratio / r : 0;
+  s.setCovariances(Vr, sr, hac.finish(), ee, n, inv_scale);
   return s;
 }
 

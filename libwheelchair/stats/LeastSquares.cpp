@@ -93,6 +93,28 @@ double LsSolution::standardErrorNaive(const Eigen::VectorXd& w) const {
   return std::sqrt(std::max(0.0, w.dot(cov_naive * w)));
 }
 
+void LsSolution::setCovariances(const Eigen::MatrixXd& Vr, const Eigen::VectorXd& sr,
+                                const Eigen::MatrixXd& S_hac, double rss, long n,
+                                const Eigen::VectorXd& inv_scale) {
+  const int r = rank;
+  const Eigen::MatrixXd P = Vr * sr.array().pow(-2).matrix().asDiagonal() * Vr.transpose();
+  const double sigma2 = rss / std::max<long>(1, n - r);
+  const Eigen::MatrixXd cov_naive_s = sigma2 * P;
+  const double small_sample = double(n) / std::max<long>(1, n - r);
+  const Eigen::MatrixXd cov_s = small_sample * P * S_hac * P;
+  const Eigen::MatrixXd Dinv = inv_scale.asDiagonal();
+  cov = Dinv * cov_s * Dinv;
+  cov_naive = Dinv * cov_naive_s * Dinv;
+  // Effective number of rows: how much the autocorrelation inflates the variance.
+  double ratio = 0;
+  for (int k = 0; k < r; ++k) {
+    const double vh = Vr.col(k).dot(cov_s * Vr.col(k));
+    const double vn = Vr.col(k).dot(cov_naive_s * Vr.col(k));
+    ratio += vh > 0 ? vn / vh : 1.0;
+  }
+  residual.n_effective = r > 0 ? n * ratio / r : 0;
+}
+
 namespace {
 
 // solveLeastSquares on the design X, which it owns and equilibrates in place (fitLinear's
@@ -138,26 +160,9 @@ LsSolution solve(Eigen::MatrixXd X, const Eigen::VectorXd& y, const std::vector<
   rs.rms_y = std::sqrt(y.squaredNorm() / n);
   rs.r_squared = 1.0 - s.residuals.squaredNorm() / std::max(y.squaredNorm(), 1e-300);
 
-  // (X_s'X_s)^+ on the retained subspace.
-  const Eigen::MatrixXd P = Vr * sr.array().pow(-2).matrix().asDiagonal() * Vr.transpose();
-  const double sigma2 = s.residuals.squaredNorm() / std::max<long>(1, n - r);
-  const Eigen::MatrixXd cov_naive_s = sigma2 * P;
-  const Eigen::MatrixXd S =
-      hacScoreCovariance(Xs, s.residuals, time_index, block, std::max(0, opt.hac_lags));
-  const double small_sample = double(n) / std::max<long>(1, n - r);
-  const Eigen::MatrixXd cov_s = small_sample * P * S * P;
-  const Eigen::MatrixXd Dinv = s.column_scale.cwiseInverse().asDiagonal();
-  s.cov = Dinv * cov_s * Dinv;
-  s.cov_naive = Dinv * cov_naive_s * Dinv;
-
-  // Effective number of rows: how much the autocorrelation inflates the variance.
-  double ratio = 0;
-  for (int k = 0; k < r; ++k) {
-    const double vh = Vr.col(k).dot(cov_s * Vr.col(k));
-    const double vn = Vr.col(k).dot(cov_naive_s * Vr.col(k));
-    ratio += vh > 0 ? vn / vh : 1.0;
-  }
-  rs.n_effective = r > 0 ? n * ratio / r : 0;
+  s.setCovariances(
+      Vr, sr, hacScoreCovariance(Xs, s.residuals, time_index, block, std::max(0, opt.hac_lags)),
+      s.residuals.squaredNorm(), n, s.column_scale.cwiseInverse());
 
   // Lag-1 autocorrelation of the per-time-step residual sum, within blocks.
   {

@@ -90,6 +90,12 @@ struct LsSolution {
   /// condition numbers from an SVD of the equilibrated design (or of its R factor).
   template <class Svd>
   void setSpectrum(const Svd& svd, double rank_tol);
+  /// Sets cov (the HAC sandwich n/(n-r) P S P with P = (X_s'X_s)^+ = V_r diag(s_r^-2) V_r' on
+  /// the retained subspace, S the Newey-West sum of the scores), cov_naive (sigma^2 P, sigma^2
+  /// = rss / (n - r)), both mapped back by diag(inv_scale), and residual.n_effective.
+  void setCovariances(const Eigen::MatrixXd& Vr, const Eigen::VectorXd& sr,
+                      const Eigen::MatrixXd& S_hac, double rss, long n,
+                      const Eigen::VectorXd& inv_scale);
 };
 
 template <class Svd>
