@@ -136,23 +136,13 @@ void checkSizes(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const std::v
 
 // Pass 2: the (p + 1) x (p + 1) triangle [R c; 0 rho] of the equilibrated [X D^-1, y].
 Eigen::MatrixXd tsqr(const LsRowSource& rows, int p, const Eigen::VectorXd& inv_scale) {
-  Eigen::MatrixXd R(0, p + 1), W;
+  TsqrAccumulator acc(inv_scale);
   rows([&](const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const std::vector<long>& ti,
            const std::vector<int>& blk) {
     checkSizes(X, y, ti, blk, p);
-    const long nb = X.rows();
-    if (nb == 0) return;
-    W.resize(R.rows() + nb, p + 1);
-    W.topRows(R.rows()) = R;
-    W.bottomRows(nb).leftCols(p) = X * inv_scale.asDiagonal();
-    W.bottomRows(nb).col(p) = y;
-    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(W);
-    const long k = std::min<long>(W.rows(), p + 1);
-    R = qr.matrixQR().topRows(k).triangularView<Eigen::Upper>();
+    acc.add(X, y);
   });
-  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(p + 1, p + 1);
-  out.topRows(R.rows()) = R;
-  return out;
+  return acc.triangle();
 }
 
 }  // namespace

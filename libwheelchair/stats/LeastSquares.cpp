@@ -115,6 +115,26 @@ void LsSolution::setCovariances(const Eigen::MatrixXd& Vr, const Eigen::VectorXd
   residual.n_effective = r > 0 ? n * ratio / r : 0;
 }
 
+void TsqrAccumulator::add(const Eigen::Ref<const Eigen::MatrixXd>& X,
+                          const Eigen::Ref<const Eigen::VectorXd>& y) {
+  const long nb = X.rows(), p = inv_scale_.size();
+  if (nb == 0) return;
+  W_.resize(R_.rows() + nb, p + 1);
+  W_.topRows(R_.rows()) = R_;
+  W_.bottomRows(nb).leftCols(p) = X * inv_scale_.asDiagonal();
+  W_.bottomRows(nb).col(p) = y;
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(W_);
+  const long k = std::min<long>(W_.rows(), p + 1);
+  R_ = qr.matrixQR().topRows(k).triangularView<Eigen::Upper>();
+}
+
+Eigen::MatrixXd TsqrAccumulator::triangle() const {
+  const long p = inv_scale_.size();
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(p + 1, p + 1);
+  out.topRows(R_.rows()) = R_;
+  return out;
+}
+
 namespace {
 
 // solveLeastSquares on the design X, which it owns and equilibrates in place (fitLinear's
@@ -198,26 +218,16 @@ namespace {
 // Rows per block of the blocked fit (work matrices of a few (block + p) x p doubles).
 constexpr long kFitBlockRows = 2048;
 
-// Householder QR of the equilibrated [X D^-1, y], block of rows by block (TSQR: the R of
-// the rows so far is stacked on the next block and factorised again): returns the
-// (p + 1) x (p + 1) upper triangle [R c; 0 rho] with X D^-1 = Q R and Q'y = c.
+// The (p + 1) x (p + 1) triangle [R c; 0 rho] of the equilibrated [X D^-1, y] (TsqrAccumulator),
+// kFitBlockRows rows at a time.
 Eigen::MatrixXd blockedQr(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
                           const Eigen::VectorXd& inv_scale) {
-  const long n = X.rows(), p = X.cols();
-  Eigen::MatrixXd R(0, p + 1), W;
-  for (long r0 = 0; r0 < n; r0 += kFitBlockRows) {
+  TsqrAccumulator acc(inv_scale);
+  for (long r0 = 0, n = X.rows(); r0 < n; r0 += kFitBlockRows) {
     const long nb = std::min(kFitBlockRows, n - r0);
-    W.resize(R.rows() + nb, p + 1);
-    W.topRows(R.rows()) = R;
-    W.bottomRows(nb).leftCols(p) = X.middleRows(r0, nb) * inv_scale.asDiagonal();
-    W.bottomRows(nb).col(p) = y.segment(r0, nb);
-    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(W);
-    const long k = std::min<long>(W.rows(), p + 1);
-    R = qr.matrixQR().topRows(k).triangularView<Eigen::Upper>();
+    acc.add(X.middleRows(r0, nb), y.segment(r0, nb));
   }
-  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(p + 1, p + 1);
-  out.topRows(R.rows()) = R;
-  return out;
+  return acc.triangle();
 }
 
 // Newey-West S of the scores g_i = (X D^-1)_i' e_i of the rows of each group (one series per

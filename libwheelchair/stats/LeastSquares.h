@@ -112,6 +112,22 @@ void LsSolution::setSpectrum(const Svd& svd, double rank_tol) {
   condition_number_identifiable = rank > 0 ? smax / singular_values(rank - 1) : inf;
 }
 
+/// Householder QR of the equilibrated [X D^-1, y] (D^-1 = diag(inv_scale)) fed block of rows by
+/// block (TSQR: the triangle of the rows so far is stacked on the next block and factorised
+/// again). triangle() is the (p + 1) x (p + 1) upper triangle [R c; 0 rho] with X D^-1 = Q R,
+/// Q'y = c and rho^2 the residual sum of squares. Memory: (block + p + 1) x (p + 1) doubles.
+class TsqrAccumulator {
+ public:
+  explicit TsqrAccumulator(const Eigen::VectorXd& inv_scale)
+      : inv_scale_(inv_scale), R_(0, inv_scale.size() + 1) {}
+  void add(const Eigen::Ref<const Eigen::MatrixXd>& X, const Eigen::Ref<const Eigen::VectorXd>& y);
+  Eigen::MatrixXd triangle() const;
+
+ private:
+  Eigen::VectorXd inv_scale_;
+  Eigen::MatrixXd R_, W_;
+};
+
 LsSolution solveLeastSquares(const LsInput& in, const LsOptions& opt = {});
 /// The same, consuming `in.X` (equilibrated in place instead of copied: the design of a long
 /// drive is ~25 MB per recorded hour and column; same numbers).

@@ -845,6 +845,52 @@ std::string figureStatsMarkdown(const std::vector<RecordingFigures>& recs, bool 
   return md;
 }
 
+// index.md's head: what was fitted and validated, the verdict, the configurations, what could
+// and could not be tested.
+std::string indexHeaderMarkdown(const json& report, const config::WheelchairConfig& input_cfg,
+                                const estimation::ModelExtensions& ext,
+                                const std::vector<std::string>& fit_paths,
+                                const std::vector<std::string>& validate_paths, bool heldout,
+                                double fit_fraction) {
+  std::string md = "# Diagnosis report\n\n";
+  auto list = [](const std::vector<std::string>& v) {
+    std::string s;
+    for (const auto& p : v) s += (s.empty() ? "`" : ", `") + p + "`";
+    return s.empty() ? std::string("–") : s;
+  };
+  md += "* fitted on: " + list(fit_paths) + "\n";
+  md += "* validation: " +
+        (heldout ? fmt::format("held-out last {:.0f}% of each fitted recording",
+                               100 * (1 - fit_fraction))
+                 : list(validate_paths)) +
+        "\n";
+  md += std::string("* mismatch: **") + (report.value("mismatch", false) ? "yes" : "no") + "**\n";
+  md += "* input configuration: `" + input_cfg.origin() + "`\n";
+  if (report.contains("config_written") && report["config_written"].is_string() &&
+      !report["config_written"].get<std::string>().empty())
+    md += "* corrected configuration written to: `" + report["config_written"].get<std::string>() +
+          "`\n";
+  if (!ext.empty()) md += "* model extensions applied in the figures: " + ext.summary() + "\n";
+  if (report.contains("info") && report["info"].contains("comparisons")) {
+    // what could and could not be tested (diagnosis/Comparisons.h), one line each
+    std::string tested;
+    for (const auto& c : report["info"]["comparisons"])
+      if (c.value("tested", false))
+        tested += (tested.empty() ? "" : "; ") + c.value("comparison", std::string());
+    md += "* tested: " + (tested.empty() ? std::string("nothing") : tested) + "\n";
+    for (const auto& c : report["info"]["comparisons"])
+      if (!c.value("tested", false))
+        md += "* not tested: " + c.value("comparison", std::string()) + ": " +
+              cell(c.value("why", nlohmann::json(""))) + "\n";
+  } else if (report.contains("info") && report["info"].contains("skipped"))
+    for (const auto& [k, v] : report["info"]["skipped"].items())
+      md += "* skipped " + k + ": " + cell(v) + "\n";
+  if (report.contains("info") && report["info"].contains("insufficient_data"))
+    for (const auto& why : report["info"]["insufficient_data"])
+      md += "* insufficient data: " + cell(why) + "\n";
+  return md;
+}
+
 }  // namespace
 
 DiagnosisFigureResult writeDiagnosisFigures(const json& report,
@@ -910,42 +956,8 @@ DiagnosisFigureResult writeDiagnosisFigures(const json& report,
   }
 
   // index.md
-  std::string md = "# Diagnosis report\n\n";
-  auto list = [](const std::vector<std::string>& v) {
-    std::string s;
-    for (const auto& p : v) s += (s.empty() ? "`" : ", `") + p + "`";
-    return s.empty() ? std::string("–") : s;
-  };
-  md += "* fitted on: " + list(fit_paths) + "\n";
-  md += "* validation: " +
-        (heldout ? fmt::format("held-out last {:.0f}% of each fitted recording",
-                               100 * (1 - o.diagnosis_options.fit_fraction))
-                 : list(validate_paths)) +
-        "\n";
-  md += std::string("* mismatch: **") + (report.value("mismatch", false) ? "yes" : "no") + "**\n";
-  md += "* input configuration: `" + input_cfg.origin() + "`\n";
-  if (report.contains("config_written") && report["config_written"].is_string() &&
-      !report["config_written"].get<std::string>().empty())
-    md += "* corrected configuration written to: `" + report["config_written"].get<std::string>() +
-          "`\n";
-  if (!ext.empty()) md += "* model extensions applied in the figures: " + ext.summary() + "\n";
-  if (report.contains("info") && report["info"].contains("comparisons")) {
-    // what could and could not be tested (diagnosis/Comparisons.h), one line each
-    std::string tested;
-    for (const auto& c : report["info"]["comparisons"])
-      if (c.value("tested", false))
-        tested += (tested.empty() ? "" : "; ") + c.value("comparison", std::string());
-    md += "* tested: " + (tested.empty() ? std::string("nothing") : tested) + "\n";
-    for (const auto& c : report["info"]["comparisons"])
-      if (!c.value("tested", false))
-        md += "* not tested: " + c.value("comparison", std::string()) + ": " +
-              cell(c.value("why", nlohmann::json(""))) + "\n";
-  } else if (report.contains("info") && report["info"].contains("skipped"))
-    for (const auto& [k, v] : report["info"]["skipped"].items())
-      md += "* skipped " + k + ": " + cell(v) + "\n";
-  if (report.contains("info") && report["info"].contains("insufficient_data"))
-    for (const auto& why : report["info"]["insufficient_data"])
-      md += "* insufficient data: " + cell(why) + "\n";
+  std::string md = indexHeaderMarkdown(report, input_cfg, ext, fit_paths, validate_paths, heldout,
+                                       o.diagnosis_options.fit_fraction);
   md += "\n## Findings\n\n" + findingsMarkdown(report);
   md += channelsMarkdown(report);
   const std::string val = validationMarkdown(report);

@@ -438,13 +438,19 @@ DriveData loadDrive(io::Recording rec, const std::string& path, const config::Wh
 
 namespace {
 
-/// Pass 1 of the streamed load: the figures' gyro and currents (thinned as they come when a
-/// series has more samples than the drawing thins: binFor(count) > 0), and the sonar, Pozyx
-/// and ground-truth samples into d.rec.
+/// Pass 1 of the streamed load: the counts, the figures' gyro and currents (thinned as they
+/// come when a series has more samples than the drawing thins: binFor(count) > 0), the ground
+/// truth (from the Pozyx / ground-truth samples) and the sonar (d.rec keeps only it).
 template <class BinFor>
-void readFigureStreams(DriveData& d, const std::string& path, const io::RecordingSummary& sum,
-                       const BinFor& binFor) {
+DriveData readFigureStreams(const std::string& path, const io::RecordingSummary& sum,
+                            const config::WheelchairConfig& cfg, const BinFor& binFor) {
   using io::StreamKind;
+  DriveData d;
+  d.path = path;
+  d.cfg = cfg;
+  d.counts = {sum.count(StreamKind::Encoders), sum.count(StreamKind::Imu),
+              sum.count(StreamKind::Motors),   sum.count(StreamKind::Sonar),
+              sum.count(StreamKind::Pozyx),    sum.count(StreamKind::GroundTruth)};
   SeriesThinner<GyroPoint> gyro(d.gyro, {[](const GyroPoint& g) { return g.gyro_z_rad_s; }}, {},
                                 sum.start_s, binFor(d.counts.imu));
   SeriesThinner<CurrentPoint> currents(d.currents,
@@ -469,6 +475,11 @@ void readFigureStreams(DriveData& d, const std::string& path, const io::Recordin
   }
   gyro.finish();
   currents.finish();
+  d.gt = evaluation::groundTruthOf(d.rec, cfg);
+  io::Recording kept;  // only the sonar stays (Fig. 7, 8)
+  kept.sonar = std::move(d.rec.sonar);
+  d.rec = std::move(kept);
+  return d;
 }
 
 /// First and last time of a valid sonar range (none: no valid reading).
@@ -491,24 +502,11 @@ DriveData loadDriveStreamed(const std::string& path, const io::RecordingSummary&
   if (!estimation::ModelExtensions::fromConfig(cfg.ini()).empty())  // the corrected recording
     return loadDrive(io::readRawlogSalvaging(path, true, nullptr), path, cfg, metric_options,
                      truth_path, load);
-  DriveData d;
-  d.path = path;
-  d.cfg = cfg;
-  using io::StreamKind;
-  d.counts = {sum.count(StreamKind::Encoders), sum.count(StreamKind::Imu),
-              sum.count(StreamKind::Motors),   sum.count(StreamKind::Sonar),
-              sum.count(StreamKind::Pozyx),    sum.count(StreamKind::GroundTruth)};
   // A series of more samples than the drawing thins (Plot::kDecimateAbove) is thinned as it
   // comes (SeriesThinner): bins of 1/kThinBins of the drive's span.
   const double span_s = sum.end_s - sum.start_s;
   auto binFor = [&](std::size_t n) { return n > Plot::kDecimateAbove ? span_s / kThinBins : 0.0; };
-  readFigureStreams(d, path, sum, binFor);
-  d.gt = evaluation::groundTruthOf(d.rec, cfg);
-  {  // only the sonar stays (Fig. 7, 8)
-    io::Recording kept;
-    kept.sonar = std::move(d.rec.sonar);
-    d.rec = std::move(kept);
-  }
+  DriveData d = readFigureStreams(path, sum, cfg, binFor);
   const auto mo = startMetrics(d, metric_options);
   const double sonar_t = firstSonarRunMiddle(d.rec);
   ReportEkfSink ekf_sink(d, snapshot_since_start_s, sonar_t);
