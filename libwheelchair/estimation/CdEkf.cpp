@@ -433,6 +433,10 @@ void CdEkf::evalRhs(double tau, const double* y, double* ydot) {
   for (int i = n; i < n_; ++i) wx_(i) = x_(i);
   u_->eval(t_ref_ + tau, wu_);  // CVODE's time is relative to t_ref_ (see integrate())
   model_.fAndF(wx_, wu_, wxd_, wF_);
+  if (capture_F0_ && tau == capture_tau_) {  // F(t0) for propagateConsiderCross (integrate())
+    wF0_ = wF_;
+    capture_F0_ = false;
+  }
   std::vector<double>& qp = n == n_ ? qPacked_ : qPackedHeld_;
   if (qp.empty() || !model_.constantQ()) {
     model_.Q(wx_, wu_, wQ_);
@@ -480,7 +484,7 @@ template <class MatM, class MatY, class Block>
 void expTimes(const MatM& M, Block&& Y) {
   MatY T = Y;
   for (int k = 1; k <= 4; ++k) {
-    const MatY MT = M * T;
+    const MatY MT = M.lazyProduct(T);  // (9 x 9 by 9 x 3: not Eigen's blocked GEMM)
     T = MT / static_cast<double>(k);
     Y += T;
   }
@@ -596,10 +600,6 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   const int m = n_ - (consider_tail_ || heldTailIsZero() ? held_tail_ : 0);
   const bool cross =
       consider_tail_ && m < n_ && !(P_.topRightCorner(m, held_tail_).array() == 0.0).all();
-  if (cross) {
-    u.eval(t_, wu_);
-    model_.F(x_, wu_, wF0_);
-  }
   if (m < n_ && !cvHeld_) cvHeld_ = newCvode(m);
   Cvode* const other = m < n_ ? cv_.get() : cvHeld_.get();
   if (other) other->live = false;  // a mode switch restarts
@@ -634,8 +634,17 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   // Never step past t1: u(t) is only defined on [t0, t1].
   check(CVodeSetStopTime(mem, tau1), "CVodeSetStopTime");
 
+  // After a restart CVODE's first right-hand side is f(tau0, y0), whose Jacobian is F(t0):
+  // evalRhs keeps it for the consider cross-covariance instead of a second evaluation here.
+  capture_F0_ = cross && !resume;
+  capture_tau_ = tau0;
   double tret = tau0;
   const int flag = CVode(mem, tau1, cv_->y, &tret, CV_NORMAL);
+  if (cross && (capture_F0_ || resume)) {  // no restart (or no first evaluation at t0)
+    capture_F0_ = false;
+    u.eval(t_, wu_);
+    model_.F(x_, wu_, wF0_);
+  }
   if (flag < 0) {
     // Name the interval (absolute times) and CVODE's reason; the caller adds the record.
     cv_->live = false;

@@ -233,6 +233,10 @@ class CdEkf {
   int held_tail_ = 0;                // states held constant while their P rows are zero
   bool consider_tail_ = false;       // ... or always, their cross-covariance carried by Phi
   Eigen::MatrixXd wF0_, wM_;         // consider tail: F(t0), Magnus exponent
+  // Consider tail after a restart: wF0_ is taken from CVODE's first right-hand side, which is
+  // evaluated at (tau, y) = (capture_tau_, the packed state at t0), instead of a separate F.
+  bool capture_F0_ = false;
+  double capture_tau_ = 0;  // (s, CVODE's time)
   int m_ = 0;                        // states integrated in the current interval
   std::unique_ptr<Cvode> cv_;        // all n states
   std::unique_ptr<Cvode> cvHeld_;    // the leading n - held_tail_ (made on first use)

@@ -589,10 +589,12 @@ Eigen::Matrix<double, N, N> josephAnyGain(const Eigen::Matrix<double, N, N>& P,
                                           const Eigen::Matrix<double, M, N>& Ht,
                                           const Eigen::Matrix<double, M, M>& R) {
   Eigen::Matrix<double, N, N> Pn = P;
-  Pn.noalias() -= K * PHt.transpose();
-  const Eigen::Matrix<double, N, M> AHt = Pn * Ht.transpose();
-  Pn.noalias() -= AHt * K.transpose();
-  Pn.noalias() += (K * R) * K.transpose();
+  // Coefficient-based products: at N = 12 Eigen would take its blocked GEMM (N + N + M > 20).
+  Pn.noalias() -= K.lazyProduct(PHt.transpose());
+  const Eigen::Matrix<double, N, M> AHt = Pn.lazyProduct(Ht.transpose());
+  Pn.noalias() -= AHt.lazyProduct(K.transpose());
+  const Eigen::Matrix<double, N, M> KR = K * R;
+  Pn.noalias() += KR.lazyProduct(K.transpose());
   return Pn;
 }
 
@@ -622,7 +624,7 @@ UpdateResult WheelchairEkf::scaleConsiderUpdate(const Eigen::Vector2d& y, const 
   r.innovation = y;
   const MatN P = ekf_.P();
   const Mat2N Ht = H, Hgt = Hg;
-  const MatN2 PHt = P * Ht.transpose();
+  const MatN2 PHt = P.lazyProduct(Ht.transpose());
   Eigen::Matrix2d S = Ht * PHt + R;
   S = 0.5 * (S + S.transpose());
   r.S = S;
@@ -808,7 +810,7 @@ bool schmidtGain(const Eigen::MatrixXd& P_in, const Eigen::MatrixXd& H_in,
   const Eigen::Matrix<double, M, 1> y = y_in;
   r.dof = M;
   r.innovation = y_in;
-  const MatNM PHt = P * H.transpose();
+  const MatNM PHt = P.lazyProduct(H.transpose());
   MatM S = H * PHt + R;
   S = 0.5 * (S + S.transpose());
   r.S = S;
