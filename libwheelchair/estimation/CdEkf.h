@@ -236,7 +236,7 @@ class CdEkf {
   // Consider tail after a restart: wF0_ is taken from CVODE's first right-hand side, which is
   // evaluated at (tau, y) = (capture_tau_, the packed state at t0), instead of a separate F.
   bool capture_F0_ = false;
-  double capture_tau_ = 0;  // (s, CVODE's time)
+  double capture_tau_ = 0;           // (s, CVODE's time)
   int m_ = 0;                        // states integrated in the current interval
   std::unique_ptr<Cvode> cv_;        // all n states
   std::unique_ptr<Cvode> cvHeld_;    // the leading n - held_tail_ (made on first use)
