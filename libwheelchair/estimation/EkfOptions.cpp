@@ -82,6 +82,12 @@ config::Options EkfOptions::options(const std::string& section) {
       .flag("encoder_quantisation", encoder_quantisation, "add the tick-quantisation variance")
       .real("encoder_extra_noise_m_s", encoder_extra_noise_m_s,
             "extra rim-speed noise, 1 sigma (m/s)", nonneg)
+      .flag("encoder_quantisation_carry", encoder_quantisation_carry,
+            "carry a count's quantisation error into the next interval (telescoping)")
+      .real("encoder_noise_adapt_window_s", encoder_noise_adapt_window_s,
+            "window of the adaptive slip variance, bounded by encoder_extra_noise_m_s "
+            "(s of driving; 0 = fixed)",
+            nonneg)
       .real("max_encoder_interval_s", max_encoder_interval_s,
             "longer encoder intervals give no measurement (s)", pos)
       .real("gyro_noise_rad_s", gyro_noise_rad_s, sensor, any)
@@ -173,6 +179,7 @@ void EkfOptions::validate() const {
   };
   nonneg(output_rate_hz, "output_rate_hz");
   nonneg(gate_probability, "gate_probability");
+  nonneg(encoder_noise_adapt_window_s, "encoder_noise_adapt_window_s");
   if (sonar_reinit_after_rejections < 0)
     throw std::invalid_argument("sonar_reinit_after_rejections must be >= 0");
   if (pozyx_inflate_after_rejections < 0)

@@ -87,6 +87,19 @@ struct EkfOptions {
   double pozyx_noise_m = -1;               ///< 1 sigma per axis; negative: [pozyx] noise_m
   /// Pozyx anchor frame: p_anchor = R(yaw) p_start + (x, y) (m, m, deg).
   double pozyx_anchor_x_m = 0, pozyx_anchor_y_m = 0, pozyx_anchor_yaw_deg = 0;
+  /// Telescoping quantisation (physics filter, encoder_model = mean; docs/estimation.md
+  /// "Coloured encoder errors"): a count's quantisation error e_k (uniform, tick^2 / 12 per
+  /// wheel) enters interval k with + and interval k+1 with -. true: the accumulators restart
+  /// after an update at minus the estimate of e_k, alpha (s - dt z) with alpha = its share of
+  /// the interval's noise (1 without slip), covariance kept, instead of 0, and R has
+  /// tick^2 / 12 / dt^2 per wheel (each error once); false: white, tick^2 / 6 / dt^2.
+  bool encoder_quantisation_carry = true;
+  /// Adaptive slip variance (physics filter): the per-wheel rim-speed variance beyond the
+  /// quantisation is estimated from the encoder innovations while moving (Mehra: mean of
+  /// y y' - H P H' - R_quantisation, exponential window of this many seconds of driving),
+  /// bounded to [0, encoder_extra_noise_m_s^2] and starting at the upper bound; 0: fixed
+  /// encoder_extra_noise_m_s.
+  double encoder_noise_adapt_window_s = 0.0;
 
   // --- sensor-error states (physics filter; docs/estimation.md "Sensor-error states") -------
   /// Estimate the per-wheel encoder scales k_R, k_L (reported / true distance) as random walks.

@@ -236,6 +236,7 @@ void WheelchairEkf::start(double t0) {
   setObstacle(configObstacle(), configObstacleCov());
   obstacle_initialised_ = opt_.initial_obstacle == ObstacleInit::Config;
   acc_valid_ = false;
+  slip_var_m2_s2_ = opt_.encoder_extra_noise_m_s * opt_.encoder_extra_noise_m_s;
 }
 
 void WheelchairEkf::setObstacle(const Eigen::Vector2d& p, const Eigen::Matrix2d& cov) {
@@ -310,8 +311,107 @@ void WheelchairEkf::resetAccumulators(double t) {
   xs_(kIdxSomega) = 0;
   ekf_.setState(xs_);
   ekf_.zeroCovarianceRowsCols(kIdxSv, 2);
+  const double q = tickVarianceM2();
+  if (opt_.encoder_quantisation_carry && q > 0 &&
+      opt_.encoder_model == EncoderMeasurementModel::Mean) {
+    // s = -e, e the count's error per wheel (uniform, tick^2 / 12): s_v = -(e_R + e_L) / 2,
+    // s_omega = -(e_R - e_L) / l_w.
+    Pw_ = ekf_.P();
+    Pw_(kIdxSv, kIdxSv) = 0.5 * q;
+    Pw_(kIdxSomega, kIdxSomega) = 2.0 * q / (track_width_m_ * track_width_m_);
+    ekf_.setCovariance(Pw_);
+  }
   acc_start_s_ = t;
   acc_valid_ = true;
+}
+
+double WheelchairEkf::tickVarianceM2() const {
+  if (!opt_.encoder_quantisation) return 0.0;
+  const double tick_m = wheel_radius_m_ * wheel_rad_per_tick_;
+  return tick_m * tick_m / 12.0;
+}
+
+Eigen::Matrix2d WheelchairEkf::encoderIntervalNoise(double dt) const {
+  // Per-wheel rim-speed variance: quantisation + slip. Carried (telescoping), each count's
+  // error e_k enters once, through the accumulators' restart value (-e_{k-1}, in P) and the
+  // new count (+e_k, here): tick^2 / 12 / dt^2. White: both, tick^2 / 6 / dt^2
+  // (Estimator::encoderNoise, the baseline's model).
+  const bool carry =
+      opt_.encoder_quantisation_carry && opt_.encoder_model == EncoderMeasurementModel::Mean;
+  const double var_u = (carry ? 1.0 : 2.0) * tickVarianceM2() / (dt * dt) + slip_var_m2_s2_;
+  Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
+  R(0, 0) = 0.5 * var_u;                                      // v = (uR + uL) / 2
+  R(1, 1) = 2.0 * var_u / (track_width_m_ * track_width_m_);  // omega = (uR - uL) / l_w
+  return R;
+}
+
+void WheelchairEkf::nextEncoderInterval(const Eigen::Vector2d& z, double dt, double t, bool carry) {
+  // The accumulators s(t) = (true distance since t_{k-1}) - M^-1 e_{k-1}, so the count
+  // difference is z dt = M s(t_k) + v_k with v_k = e_k + slip_k dt white (M = dz/da, I
+  // without scales). The new interval starts at s' = -M^-1 e_k. Both parts of v_k are
+  // Gaussian-approximated, independent and in the same proportion on both rows, so
+  // e_k = alpha v_k + u, alpha = q / (q + slip dt^2), u independent of v_k with variance
+  // (1 - alpha) q; and v_k = z dt - M s(t_k). Hence the linear map
+  //   s' = alpha (s - dt M^-1 z) - M^-1 u,
+  // P' = G P G' + var(M^-1 u), G = I except the s rows (alpha, and d s' / d k with the scales).
+  // alpha = 1 (no slip): the exact telescoping; alpha = 0: the white model's restart at 0.
+  const double q = tickVarianceM2();
+  if (!carry || q <= 0 || !opt_.encoder_quantisation_carry ||
+      opt_.encoder_model != EncoderMeasurementModel::Mean) {
+    resetAccumulators(t);
+    return;
+  }
+  const double alpha = q / (q + slip_var_m2_s2_ * dt * dt);
+  const int n = pm_.stateDim();
+  const Eigen::VectorXd& x = ekf_.x();
+  Eigen::Matrix2d Minv = Eigen::Matrix2d::Identity();
+  Eigen::Matrix2d dsdk = Eigen::Matrix2d::Zero();
+  if (n > kPhysicsStateDim) {
+    Eigen::Matrix2d M, dz_dk;
+    scaledEncoderSpeeds(Eigen::Vector2d::Zero(), x(kIdxEncScaleS), x(kIdxEncScaleD), track_width_m_,
+                        &M);
+    Minv << M(1, 1), -M(0, 1), -M(1, 0), M(0, 0);  // 2 x 2 inverse
+    Minv /= M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
+    scaledEncoderSpeeds(Minv * z, x(kIdxEncScaleS), x(kIdxEncScaleD), track_width_m_, nullptr,
+                        &dz_dk);
+    dsdk = alpha * dt * Minv * dz_dk;  // d(-alpha dt M^-1 z)/dk = alpha dt M^-1 dM/dk M^-1 z
+  }
+  xs_ = x;
+  xs_.segment<2>(kIdxSv) = alpha * (x.segment<2>(kIdxSv) - dt * Minv * z);
+  ekf_.setState(xs_);
+  // G P G' with G = I + E, E nonzero only in the s rows: s rows <- alpha s rows + dsdk k rows.
+  Pw_ = ekf_.P();
+  Eigen::MatrixXd rows = alpha * Pw_.middleRows<2>(kIdxSv);
+  if (n > kPhysicsStateDim) rows += dsdk * Pw_.middleRows<2>(kIdxEncScaleS);
+  Pw_.middleRows<2>(kIdxSv) = rows;
+  rows = alpha * Pw_.middleCols<2>(kIdxSv);
+  if (n > kPhysicsStateDim) rows += Pw_.middleCols<2>(kIdxEncScaleS) * dsdk.transpose();
+  Pw_.middleCols<2>(kIdxSv) = rows;
+  const double lw2 = track_width_m_ * track_width_m_;
+  const Eigen::Matrix2d Qu = (1.0 - alpha) * q * Eigen::Vector2d(0.5, 2.0 / lw2).asDiagonal();
+  Pw_.block<2, 2>(kIdxSv, kIdxSv) += Minv * Qu * Minv.transpose();
+  ekf_.setCovariance(0.5 * (Pw_ + Pw_.transpose()));
+  acc_start_s_ = t;
+  acc_valid_ = true;
+}
+
+void WheelchairEkf::adaptSlipVariance(const UpdateResult& r, const Eigen::Matrix2d& R, double dt) {
+  // Innovation-based estimate (Mehra 1970): E[y y'] = H P H' + R, so per update
+  //   R_hat = y y' - (S - R),   var_u_hat = (R_hat_vv / 0.5 + R_hat_ww l_w^2 / 2) / 2
+  // (the rows' per-wheel variances, averaged), and the slip sample is var_u_hat minus the
+  // quantisation part. An exponential mean over encoder_noise_adapt_window_s of driving, kept
+  // in [0, encoder_extra_noise_m_s^2]: a chair that slips keeps (up to) the allowance, one
+  // that does not is trusted down to the quantisation floor.
+  const double window = opt_.encoder_noise_adapt_window_s;
+  if (!(window > 0) || !r.accepted || r.S.rows() != 2) return;
+  const double lw2 = track_width_m_ * track_width_m_;
+  const double rv = r.innovation(0) * r.innovation(0) - (r.S(0, 0) - R(0, 0));
+  const double rw = r.innovation(1) * r.innovation(1) - (r.S(1, 1) - R(1, 1));
+  const double quant = 2.0 * R(0, 0) - slip_var_m2_s2_;  // R_vv = var_u / 2
+  const double sample = 0.5 * (rv / 0.5 + rw * lw2 / 2.0) - quant;
+  const double cap = opt_.encoder_extra_noise_m_s * opt_.encoder_extra_noise_m_s;
+  const double w = std::min(1.0, dt / window);
+  slip_var_m2_s2_ = std::clamp(slip_var_m2_s2_ + w * (sample - slip_var_m2_s2_), 0.0, cap);
 }
 
 void WheelchairEkf::reopenEncoderScales() {
@@ -515,7 +615,7 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
   const double g = gate(2);
   Measurement& m = enc_m_;
   m.z << iv.v_m_s, iv.omega_rad_s;
-  const Eigen::Matrix2d R = encoderNoise(dt);
+  const Eigen::Matrix2d R = encoderIntervalNoise(dt);
   m.R = R;
   UpdateResult r;
   if (n > kPhysicsStateDim) {
@@ -547,7 +647,8 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
     health_.scales(iv.t1_s, sensorErrors());
   }
   wrap();
-  resetAccumulators(iv.t1_s);
+  if (!still) adaptSlipVariance(r, R, dt);
+  nextEncoderInterval(Eigen::Vector2d(iv.v_m_s, iv.omega_rad_s), dt, iv.t1_s, r.accepted && !still);
 }
 
 Eigen::Matrix2d WheelchairEkf::learnableScaleColumns(

@@ -140,7 +140,22 @@ class WheelchairEkf : public Estimator {
  private:
   model::FilterState head() const;
   void wrap();
+  /// Restarts the accumulators (s = 0, no covariance) and, with encoder_quantisation_carry,
+  /// the quantisation chain: s = -e with e the unknown error of the count at t_s, variance
+  /// tickVarianceM2() mapped to (s_v, s_omega), uncorrelated with the rest.
   void resetAccumulators(double t_s);
+  /// Per-wheel variance of a count's quantisation error as a rim distance (m^2): tick^2 / 12;
+  /// 0 with encoder_quantisation off.
+  double tickVarianceM2() const;
+  /// R of the encoder interval of dt_s s (telescoping quantisation and adaptive slip; .cpp).
+  Eigen::Matrix2d encoderIntervalNoise(double dt_s) const;
+  /// After an encoder update: carries the quantisation error into the next interval
+  /// (encoder_quantisation_carry, an applied update of a moving interval; see the .cpp) or
+  /// restarts the accumulators.
+  void nextEncoderInterval(const Eigen::Vector2d& z, double dt_s, double t_s, bool carry);
+  /// The adaptive slip variance (encoder_noise_adapt_window_s) from an applied update of a
+  /// moving interval with innovation covariance S and measurement noise R.
+  void adaptSlipVariance(const UpdateResult& r, const Eigen::Matrix2d& R, double dt_s);
   /// Adds the prior variance to the encoder scale states (a step of unknown size; their
   /// cross-covariances are kept): the fault hypothesis after a health-monitor alarm.
   void reopenEncoderScales();
@@ -238,6 +253,9 @@ class WheelchairEkf : public Estimator {
   bool encoders_standstill_ = false;  ///< the last encoder interval had no tick on either wheel
   double standstill_since_s_ = 0;     ///< start of the current run of tick-free intervals (s)
   double acc_start_s_ = -1e300;
+  /// Per-wheel rim-speed variance beyond the quantisation (m^2/s^2): encoder_extra_noise_m_s^2,
+  /// or its adaptive estimate (encoder_noise_adapt_window_s > 0).
+  double slip_var_m2_s2_ = 0;
   bool acc_valid_ = false;
 };
 
