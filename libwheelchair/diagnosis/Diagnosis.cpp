@@ -1394,12 +1394,13 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
                                 const DiagnosisOptions& opt) {
   JointDynamicFit j{sel.fit.beta, sel.fit.cov, {}};
   const int nR = static_cast<int>(df2.y.size() / 2);
+  // Df's QR (an n x k copy) is made after the search, not held through it (memory).
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrD;
-  if (Df.cols() > 0) qrD.compute(Df);
   for (int pass = 0; pass < 2; ++pass) {
     const Eigen::VectorXd rf = df2.y - Df * j.beta, rv = dv2.y - Dv * j.beta;
     j.unmodeled = dynamicUnmodeled(df2, dv2, rf, rv, lags, cfg, opt);
     if (Df.cols() == 0 || !(j.unmodeled[0].accepted || j.unmodeled[1].accepted)) break;
+    if (pass == 0) qrD.compute(Df);
     // The unmodeled columns: (library column, sides) with sides 0 right, 1 left, 2 antisymmetric.
     struct Col {
       int lib, sides;
@@ -1429,16 +1430,30 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
         for (int s2 = 0; s2 < 2; ++s2)
           if ((s2 == 0 ? r : l) && !inSpan(qrD, Df, sideCol(s2, lib))) cols.push_back({lib, s2});
     }
-    auto colOf = [&](const Col& c) -> Eigen::VectorXd {
-      return c.sides == 2 ? Eigen::VectorXd(sideCol(0, c.lib) - sideCol(1, c.lib))
-                          : sideCol(c.sides, c.lib);
+    // Rows [r0, r0 + nb) of the joint design [Df, the unmodeled columns] (never stored whole):
+    // a column of sides 0 or 1 is sideCol(sides, lib), of sides 2 sideCol(0) - sideCol(1).
+    auto jointRows = [&](long r0, long nb, Eigen::MatrixXd& A) {
+      A.resize(nb, Df.cols() + static_cast<Eigen::Index>(cols.size()));
+      A.leftCols(Df.cols()) = Df.middleRows(r0, nb);
+      for (size_t c = 0; c < cols.size(); ++c) {
+        auto x = A.col(Df.cols() + static_cast<Eigen::Index>(c));
+        x.setZero();
+        for (int s2 = 0; s2 < 2; ++s2) {  // this block's rows of motor s2
+          if (cols[c].sides != 2 && cols[c].sides != s2) continue;
+          const long a = std::max<long>(r0, s2 * nR), b = std::min<long>(r0 + nb, (s2 + 1) * nR);
+          if (a >= b) continue;
+          const Eigen::VectorXd lib =
+              df2.libColumn(cols[c].lib, static_cast<int>(a), static_cast<int>(b - a));
+          if (cols[c].sides == 2 && s2 == 1)
+            x.segment(a - r0, b - a) = Eigen::VectorXd::Zero(b - a) - lib;  // 0 - x
+          else
+            x.segment(a - r0, b - a) = lib;
+        }
+      }
     };
     LinearFit f;
     for (;;) {  // joint fit; the weakest unmodeled column below the threshold goes
-      Eigen::MatrixXd A(Df.rows(), Df.cols() + cols.size());
-      A.leftCols(Df.cols()) = Df;
-      for (size_t c = 0; c < cols.size(); ++c) A.col(Df.cols() + c) = colOf(cols[c]);
-      f = fitLinear(std::move(A), df2.y, df2.groups, lags);
+      f = fitLinear(jointRows, Df.cols() + static_cast<long>(cols.size()), df2.y, df2.groups, lags);
       if (!f.ok) {
         if (cols.empty()) break;
         cols.pop_back();

@@ -381,6 +381,9 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
       double fc2 = std::min(2.5 * fc, 0.45 * fs);
       auto uR2 = sensors::filtfiltButter2(seg.u[0], fc2, fs);
       auto uL2 = sensors::filtfiltButter2(seg.u[1], fc2, fs);
+      // What the rows no longer read goes before the next temporaries (memory: the segment of
+      // a ten-hour drive is ~1.3 M grid steps, 10 MB per signal).
+      for (auto* x : {&seg.u[0], &seg.u[1]}) std::vector<double>().swap(*x);
       // nonlinear columns from lightly filtered signals, then filtered like everything else
       std::vector<double> sgR(n), sgL(n), cph(n), sph(n), phi(n);
       for (int i = 0; i < n; ++i) {
@@ -390,6 +393,7 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
         cph[i] = std::cos(phi[i]);
         sph[i] = std::sin(phi[i]);
       }
+      for (auto* x : {&seg.p[0], &seg.p[1], &uR2, &uL2}) std::vector<double>().swap(*x);
       sgR = sensors::filtfiltButter2(sgR, fc, fs);
       sgL = sensors::filtfiltButter2(sgL, fc, fs);
       cph = sensors::filtfiltButter2(cph, fc, fs);
