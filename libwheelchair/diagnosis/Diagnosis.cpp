@@ -337,17 +337,58 @@ struct SparseResult {
 };
 
 /// A term library over a set of rows, its columns made on demand (a long drive's library is
-/// not kept as a matrix: memory, docs/benchmarks.md).
+/// not kept as a matrix: memory, docs/benchmarks.md). Its designs are never made whole either:
+/// the fits, predictions and cross-validations below take them block of rows by block.
 struct Library {
   int rows = 0, cols = 0;
-  std::function<Eigen::VectorXd(int)> col;
-  /// The columns `which`, in order.
-  Eigen::MatrixXd design(const std::vector<int>& which) const {
-    Eigen::MatrixXd A(rows, which.size());
-    for (size_t k = 0; k < which.size(); ++k) A.col(k) = col(which[k]);
+  /// Column j over rows [r0, r0 + n).
+  std::function<Eigen::VectorXd(int j, int r0, int n)> range;
+  Eigen::VectorXd col(int j) const { return range(j, 0, rows); }
+  /// Rows [r0, r0 + n) of the columns `which`, in order.
+  Eigen::MatrixXd block(const std::vector<int>& which, int r0, int n) const {
+    Eigen::MatrixXd A(n, which.size());
+    for (size_t k = 0; k < which.size(); ++k) A.col(k) = range(which[k], r0, n);
     return A;
   }
+  /// The design of the columns `which` as fitLinear's block source.
+  stats::DesignRows blocks(const std::vector<int>& which) const {
+    return [this, which](long r0, long nb, Eigen::MatrixXd& out) {
+      out = block(which, static_cast<int>(r0), static_cast<int>(nb));
+    };
+  }
+  Eigen::VectorXd times(const std::vector<int>& which, const Eigen::VectorXd& coef) const;
+  Eigen::VectorXd solve(const std::vector<int>& which, const Eigen::VectorXd& y, int skip0 = 0,
+                        int skip1 = 0) const;
 };
+
+constexpr int kLibraryBlockRows = 2048;  // rows per block of a library design
+
+/// The design of `which` times coef (a prediction on every row), block by block.
+Eigen::VectorXd Library::times(const std::vector<int>& which, const Eigen::VectorXd& coef) const {
+  Eigen::VectorXd p(rows);
+  for (int r0 = 0; r0 < rows; r0 += kLibraryBlockRows) {
+    const int nb = std::min(kLibraryBlockRows, rows - r0);
+    p.segment(r0, nb).noalias() = block(which, r0, nb) * coef;
+  }
+  return p;
+}
+
+/// The least-squares coefficients of y on the columns `which` over all rows but [skip0, skip1),
+/// as a column-pivoting QR of that design gives them (its basic solution when rank deficient):
+/// the QR is the one of the design's triangle R (blocked Householder QR of [A y], TSQR), whose
+/// column norms and least-squares problem are A's (A = Q R).
+Eigen::VectorXd Library::solve(const std::vector<int>& which, const Eigen::VectorXd& y, int skip0,
+                               int skip1) const {
+  const Eigen::Index k = static_cast<Eigen::Index>(which.size());
+  stats::TsqrAccumulator acc(Eigen::VectorXd::Ones(k));
+  for (const auto& [a, b] : {std::pair{0, skip0}, std::pair{std::max(skip0, skip1), rows}})
+    for (int r0 = a; r0 < b; r0 += kLibraryBlockRows) {
+      const int nb = std::min(kLibraryBlockRows, b - r0);
+      acc.add(block(which, r0, nb), y.segment(r0, nb));
+    }
+  const Eigen::MatrixXd T = acc.triangle();
+  return T.topLeftCorner(k, k).colPivHouseholderQr().solve(Eigen::VectorXd(T.col(k).head(k)));
+}
 
 /// blockedCvTerm (HeldOut.h) of every term of `terms`, on the fit rows followed by the
 /// validation rows (10 time blocks; bootstrap blocks of `lags` rows).
@@ -355,15 +396,23 @@ std::vector<BlockedCvTerm> blockedCv(const Library& L, const Eigen::VectorXd& y,
                                      const Eigen::VectorXd& yv, const std::vector<int>& terms,
                                      int lags) {
   const Eigen::Index nf = y.size(), n = nf + yv.size();
-  Eigen::MatrixXd A(n, terms.size());
-  A.topRows(nf) = L.design(terms);
-  A.bottomRows(yv.size()) = Lv.design(terms);
+  // Rows [r0, r1) of the fit rows' design followed by the validation rows' (made per block).
+  auto rows = [&](Eigen::Index r0, Eigen::Index r1) {
+    Eigen::MatrixXd A(r1 - r0, terms.size());
+    const Eigen::Index a = std::min(r1, nf) - std::min(r0, nf);
+    if (a > 0) A.topRows(a) = L.block(terms, static_cast<int>(r0), static_cast<int>(a));
+    if (r1 - r0 > a)
+      A.bottomRows(r1 - r0 - a) =
+          Lv.block(terms, static_cast<int>(std::max(r0, nf) - nf), static_cast<int>(r1 - r0 - a));
+    return A;
+  };
   Eigen::VectorXd Y(n);
   Y.head(nf) = y;
   Y.tail(yv.size()) = yv;
   std::vector<BlockedCvTerm> r;
   for (size_t k = 0; k < terms.size(); ++k)
-    r.push_back(blockedCvTerm(A, Y, static_cast<int>(k), 10, std::max(1, lags)));
+    r.push_back(blockedCvTerm(rows, n, static_cast<Eigen::Index>(terms.size()), Y,
+                              static_cast<int>(k), 10, std::max(1, lags)));
   return r;
 }
 
@@ -372,10 +421,7 @@ using Predictor = std::function<Eigen::VectorXd(const std::vector<int>&)>;
 
 /// Fit on L's rows, predict Lv's (the held-out part).
 Predictor heldOutPredictor(const Library& L, const Eigen::VectorXd& y, const Library& Lv) {
-  return [&L, &y, &Lv](const std::vector<int>& t) {
-    const Eigen::VectorXd b = L.design(t).colPivHouseholderQr().solve(y);
-    return Eigen::VectorXd(Lv.design(t) * b);
-  };
+  return [&L, &y, &Lv](const std::vector<int>& t) { return Lv.times(t, L.solve(t, y)); };
 }
 
 /// Blocked K-fold cross-validation on the fit rows: each of K contiguous blocks predicted by
@@ -383,16 +429,16 @@ Predictor heldOutPredictor(const Library& L, const Eigen::VectorXd& y, const Lib
 /// the last 30 % of a `square` drive does not turn).
 Predictor crossValidationPredictor(const Library& L, const Eigen::VectorXd& y, int K) {
   return [&L, &y, K](const std::vector<int>& t) {
-    const Eigen::MatrixXd A = L.design(t);
-    const Eigen::Index n = A.rows();
+    const int n = L.rows;
     Eigen::VectorXd p(n);
     for (int k = 0; k < K; ++k) {
-      const Eigen::Index a = n * k / K, b = n * (k + 1) / K;
-      Eigen::MatrixXd At(n - (b - a), A.cols());
-      Eigen::VectorXd yt(n - (b - a));
-      At << A.topRows(a), A.bottomRows(n - b);
-      yt << y.head(a), y.tail(n - b);
-      p.segment(a, b - a) = A.middleRows(a, b - a) * At.colPivHouseholderQr().solve(yt);
+      const int a = static_cast<int>(Eigen::Index(n) * k / K);
+      const int b = static_cast<int>(Eigen::Index(n) * (k + 1) / K);
+      const Eigen::VectorXd coef = L.solve(t, y, a, b);
+      for (int r0 = a; r0 < b; r0 += kLibraryBlockRows) {
+        const int nb = std::min(kLibraryBlockRows, b - r0);
+        p.segment(r0, nb).noalias() = L.block(t, r0, nb) * coef;
+      }
     }
     return p;
   };
@@ -433,8 +479,7 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
     double best = std::numeric_limits<double>::infinity(), change_rms = 0;
     std::vector<int> best_t;
     // Each term's contribution on the fit rows (the fit of all terms there).
-    const Eigen::MatrixXd Af = L.design(terms);
-    const Eigen::VectorXd bf = Af.colPivHouseholderQr().solve(y);
+    const Eigen::VectorXd bf = L.solve(terms, y);
     const double nf = std::max<double>(1, y.size());
     for (size_t k = 0; k < terms.size(); ++k) {
       std::vector<int> t = without(terms, terms[k]);
@@ -450,7 +495,7 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
       const bool untestable =
           expected < opt.validation_min_expected_lr || std::sqrt(dn / nv) < min_contribution_rms;
       if (opt.unmodeled_judge_where_excited && untestable &&
-          std::abs(bf(k)) * Af.col(k).norm() / std::sqrt(nf) >= min_contribution_rms)
+          std::abs(bf(k)) * L.col(terms[k]).norm() / std::sqrt(nf) >= min_contribution_rms)
         continue;
       const double rss = (yv - p).squaredNorm();
       if (rss < best) best = rss, best_t = t, change_rms = (p - p_full).norm() / std::sqrt(nv);
@@ -602,7 +647,7 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
   for (int j = 0; j < L.cols; ++j)
     if (j != excluded && L.col(j).norm() > 0) act.push_back(j);
   for (int it = 0; it < 20 && !act.empty(); ++it) {
-    LinearFit f = fitLinear(L.design(act), y, g, lags);
+    LinearFit f = fitLinear(L.blocks(act), static_cast<long>(act.size()), y, g, lags);
     if (!f.ok) {  // drop the column with the smallest norm and retry
       act.pop_back();
       continue;
@@ -677,7 +722,7 @@ SparseResult stlsqWith(const Library& L, const Eigen::VectorXd& y, const Groups&
   }
   if (res.terms.empty()) return res;
   if (!selectionRule(opt, L.cols).reject(res.ev).empty()) return res;
-  if ((L.design(res.terms) * res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) <
+  if (L.times(res.terms, res.coef).norm() / std::sqrt(std::max<double>(1, y.size())) <
       min_contribution_rms)
     return res;
   if (yj.size() > 10) {
@@ -716,7 +761,7 @@ SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, 
   if (!cv.accepted) return res;
   cv.cross_validated = true;
   cv.cv_lr = cv.lr_val, cv.cv_rms_before = cv.rms_before_val, cv.cv_rms_after = cv.rms_after_val;
-  heldOutGain(Lv.design(cv.terms) * cv.coef, yv, gv, lags, cv);
+  heldOutGain(Lv.times(cv.terms, cv.coef), yv, gv, lags, cv);
   return cv;
 }
 
@@ -863,7 +908,7 @@ DelayRefit<Rows> refineDelay(Selection& sel, int di, const std::vector<Candidate
   for (int it = 0; it < 4; ++it) {
     r.delay += sel.fit.beta(sel.ranges[di].first);
     r.fit = rows(true, r.delay);
-    sel.fit = fitLinear(acceptedDesign(r.fit.X, cands, sel.accepted), r.fit.y, r.fit.groups, lags);
+    sel.fit = fitAccepted(r.fit.X, r.fit.y, cands, sel.accepted, r.fit.groups, lags);
   }
   r.delay += sel.fit.beta(sel.ranges[di].first);
   r.fit = rows(true, r.delay);
@@ -877,7 +922,7 @@ DelayRefit<Rows> refineDelay(Selection& sel, int di, const std::vector<Candidate
   r.delay += sel.fit.beta(sel.ranges[0].first);
   r.fit = rows(true, r.delay);
   r.val = rows(false, r.delay);
-  sel.fit = fitLinear(acceptedDesign(r.fit.X, cands, sel.accepted), r.fit.y, r.fit.groups, lags);
+  sel.fit = fitAccepted(r.fit.X, r.fit.y, cands, sel.accepted, r.fit.groups, lags);
   return r;
 }
 
@@ -995,8 +1040,9 @@ void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows&
   const Eigen::VectorXd& rf = sel.fit.residual;
   const Eigen::MatrixXd Lf = lib(kf2), Lv = lib(kv2);
   auto view = [](const Eigen::MatrixXd& L) {
-    return Library{static_cast<int>(L.rows()), static_cast<int>(L.cols()),
-                   [&L](int j) -> Eigen::VectorXd { return L.col(j); }};
+    return Library{
+        static_cast<int>(L.rows()), static_cast<int>(L.cols()),
+        [&L](int j, int r0, int n) -> Eigen::VectorXd { return L.col(j).segment(r0, n); }};
   };
   SparseResult sr = stlsq(view(Lf), rf, kf2.groups, view(Lv), rv_after, kv2.groups, lags, opt,
                           opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
@@ -1296,8 +1342,11 @@ std::array<SparseResult, 2> dynamicUnmodeled(const DynRows& df2, const DynRows& 
     // noise): as a regressor it borrows that error instead of describing a physical term, so it
     // is kept out as well (issue 16; its physics - the coupling through the chassis - is spanned
     // by vdot and omegadot).
-    const Library L{nRf, nlib, [&](int j) { return unmodeledColumn(df2, j, s2 * nRf, nRf); }};
-    const Library Lv{nRv2, nlib, [&](int j) { return unmodeledColumn(dv2, j, s2 * nRv2, nRv2); }};
+    const Library L{
+        nRf, nlib, [&](int j, int r0, int n) { return unmodeledColumn(df2, j, s2 * nRf + r0, n); }};
+    const Library Lv{nRv2, nlib, [&](int j, int r0, int n) {
+                       return unmodeledColumn(dv2, j, s2 * nRv2 + r0, n);
+                     }};
     out[s2] = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
                     rv.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags, opt,
                     opt.min_relevance * cfg.motors.current_noise_A, 12, df2.noise_var, [](int j) {
@@ -1345,12 +1394,13 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
                                 const DiagnosisOptions& opt) {
   JointDynamicFit j{sel.fit.beta, sel.fit.cov, {}};
   const int nR = static_cast<int>(df2.y.size() / 2);
+  // Df's QR (an n x k copy) is made after the search, not held through it (memory).
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrD;
-  if (Df.cols() > 0) qrD.compute(Df);
   for (int pass = 0; pass < 2; ++pass) {
     const Eigen::VectorXd rf = df2.y - Df * j.beta, rv = dv2.y - Dv * j.beta;
     j.unmodeled = dynamicUnmodeled(df2, dv2, rf, rv, lags, cfg, opt);
     if (Df.cols() == 0 || !(j.unmodeled[0].accepted || j.unmodeled[1].accepted)) break;
+    if (pass == 0) qrD.compute(Df);
     // The unmodeled columns: (library column, sides) with sides 0 right, 1 left, 2 antisymmetric.
     struct Col {
       int lib, sides;
@@ -1380,16 +1430,30 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
         for (int s2 = 0; s2 < 2; ++s2)
           if ((s2 == 0 ? r : l) && !inSpan(qrD, Df, sideCol(s2, lib))) cols.push_back({lib, s2});
     }
-    auto colOf = [&](const Col& c) -> Eigen::VectorXd {
-      return c.sides == 2 ? Eigen::VectorXd(sideCol(0, c.lib) - sideCol(1, c.lib))
-                          : sideCol(c.sides, c.lib);
+    // Rows [r0, r0 + nb) of the joint design [Df, the unmodeled columns] (never stored whole):
+    // a column of sides 0 or 1 is sideCol(sides, lib), of sides 2 sideCol(0) - sideCol(1).
+    auto jointRows = [&](long r0, long nb, Eigen::MatrixXd& A) {
+      A.resize(nb, Df.cols() + static_cast<Eigen::Index>(cols.size()));
+      A.leftCols(Df.cols()) = Df.middleRows(r0, nb);
+      for (size_t c = 0; c < cols.size(); ++c) {
+        auto x = A.col(Df.cols() + static_cast<Eigen::Index>(c));
+        x.setZero();
+        for (int s2 = 0; s2 < 2; ++s2) {  // this block's rows of motor s2
+          if (cols[c].sides != 2 && cols[c].sides != s2) continue;
+          const long a = std::max<long>(r0, s2 * nR), b = std::min<long>(r0 + nb, (s2 + 1) * nR);
+          if (a >= b) continue;
+          const Eigen::VectorXd lib =
+              df2.libColumn(cols[c].lib, static_cast<int>(a), static_cast<int>(b - a));
+          if (cols[c].sides == 2 && s2 == 1)
+            x.segment(a - r0, b - a) = Eigen::VectorXd::Zero(b - a) - lib;  // 0 - x
+          else
+            x.segment(a - r0, b - a) = lib;
+        }
+      }
     };
     LinearFit f;
     for (;;) {  // joint fit; the weakest unmodeled column below the threshold goes
-      Eigen::MatrixXd A(Df.rows(), Df.cols() + cols.size());
-      A.leftCols(Df.cols()) = Df;
-      for (size_t c = 0; c < cols.size(); ++c) A.col(Df.cols() + c) = colOf(cols[c]);
-      f = fitLinear(std::move(A), df2.y, df2.groups, lags);
+      f = fitLinear(jointRows, Df.cols() + static_cast<long>(cols.size()), df2.y, df2.groups, lags);
       if (!f.ok) {
         if (cols.empty()) break;
         cols.pop_back();

@@ -59,8 +59,14 @@ nlohmann::json BlockedCvTerm::toJson() const {
 
 BlockedCvTerm blockedCvTerm(const Eigen::MatrixXd& A, const Eigen::VectorXd& y, int j, int blocks,
                             int boot_block) {
+  return blockedCvTerm(
+      [&A](Eigen::Index r0, Eigen::Index r1) { return Eigen::MatrixXd(A.middleRows(r0, r1 - r0)); },
+      A.rows(), A.cols(), y, j, blocks, boot_block);
+}
+
+BlockedCvTerm blockedCvTerm(const CvRows& rowsOf, Eigen::Index n, Eigen::Index k,
+                            const Eigen::VectorXd& y, int j, int blocks, int boot_block) {
   BlockedCvTerm r;
-  const Eigen::Index n = A.rows(), k = A.cols();
   const int K = std::max(2, blocks);
   if (j < 0 || j >= k || n != y.size() || n < 20 * K * std::max<Eigen::Index>(1, k)) return r;
   std::vector<Eigen::MatrixXd> Gb(K);
@@ -72,7 +78,7 @@ BlockedCvTerm blockedCvTerm(const Eigen::MatrixXd& A, const Eigen::VectorXd& y, 
   };
   for (int b = 0; b < K; ++b) {
     const auto [r0, r1] = rows(b);
-    const auto Ab = A.middleRows(r0, r1 - r0);
+    const Eigen::MatrixXd Ab = rowsOf(r0, r1);
     Gb[b] = Ab.transpose() * Ab;
     hb[b] = Ab.transpose() * y.segment(r0, r1 - r0);
     G += Gb[b], h += hb[b];
@@ -95,8 +101,9 @@ BlockedCvTerm blockedCvTerm(const Eigen::MatrixXd& A, const Eigen::VectorXd& y, 
       const Eigen::VectorXd s = solveSub(Go, ho, without);
       for (size_t c = 0; c < without.size(); ++c) b0(without[c]) = s(c);
     }
+    const Eigen::MatrixXd A = rowsOf(r0, r1);  // this block's rows (row i: A.row(i - r0))
     for (Eigen::Index i = r0; i < r1; ++i) {
-      const double e1 = y(i) - A.row(i).dot(b1), e0 = y(i) - A.row(i).dot(b0);
+      const double e1 = y(i) - A.row(i - r0).dot(b1), e0 = y(i) - A.row(i - r0).dot(b0);
       d[i] = e0 * e0 - e1 * e1;
     }
   }

@@ -46,6 +46,7 @@
 
 #include <Eigen/Core>
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -67,6 +68,12 @@ struct BlockedCvTerm {
 
 BlockedCvTerm blockedCvTerm(const Eigen::MatrixXd& A, const Eigen::VectorXd& y, int j,
                             int blocks = 10, int boot_block = 1);
+/// Rows [r0, r1) of the design (r1 - r0 rows), made on demand.
+using CvRows = std::function<Eigen::MatrixXd(Eigen::Index r0, Eigen::Index r1)>;
+/// The same on an n x k design that is never stored whole: `rows` gives one time block of it at
+/// a time (twice per block; memory: one block's rows, n / blocks x k). Same numbers as on A.
+BlockedCvTerm blockedCvTerm(const CvRows& rows, Eigen::Index n, Eigen::Index k,
+                            const Eigen::VectorXd& y, int j, int blocks = 10, int boot_block = 1);
 
 /// Keys of fit_before / fit_after that are held-out predictions (larger = worse).
 const std::vector<std::string>& heldOutKeys();

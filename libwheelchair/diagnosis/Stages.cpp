@@ -381,6 +381,9 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
       double fc2 = std::min(2.5 * fc, 0.45 * fs);
       auto uR2 = sensors::filtfiltButter2(seg.u[0], fc2, fs);
       auto uL2 = sensors::filtfiltButter2(seg.u[1], fc2, fs);
+      // What the rows no longer read goes before the next temporaries (memory: the segment of
+      // a ten-hour drive is ~1.3 M grid steps, 10 MB per signal).
+      for (auto* x : {&seg.u[0], &seg.u[1]}) std::vector<double>().swap(*x);
       // nonlinear columns from lightly filtered signals, then filtered like everything else
       std::vector<double> sgR(n), sgL(n), cph(n), sph(n), phi(n);
       for (int i = 0; i < n; ++i) {
@@ -390,6 +393,7 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
         cph[i] = std::cos(phi[i]);
         sph[i] = std::sin(phi[i]);
       }
+      for (auto* x : {&seg.p[0], &seg.p[1], &uR2, &uL2}) std::vector<double>().swap(*x);
       sgR = sensors::filtfiltButter2(sgR, fc, fs);
       sgL = sensors::filtfiltButter2(sgL, fc, fs);
       cph = sensors::filtfiltButter2(cph, fc, fs);
@@ -482,6 +486,46 @@ Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candi
   return D;
 }
 
+Eigen::MatrixXd acceptedSelector(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+                                 const std::vector<int>& accepted) {
+  int k = 0;
+  for (int a : accepted) k += static_cast<int>(cands[a].S.cols());
+  Eigen::MatrixXd S(X.cols(), k);
+  int c = 0;
+  for (int a : accepted) {
+    S.middleCols(c, cands[a].S.cols()) = cands[a].S;
+    c += static_cast<int>(cands[a].S.cols());
+  }
+  return S;
+}
+
+stats::DesignRows acceptedRows(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+                               const std::vector<int>& accepted) {
+  return [&X, S = acceptedSelector(X, cands, accepted)](long r0, long nb, Eigen::MatrixXd& out) {
+    out.noalias() = X.middleRows(r0, nb) * S;
+  };
+}
+
+LinearFit fitAccepted(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                      const std::vector<Candidate>& cands, const std::vector<int>& accepted,
+                      const stats::Groups& groups, int lags) {
+  long k = 0;
+  for (int a : accepted) k += static_cast<long>(cands[a].S.cols());
+  return fitLinear(acceptedRows(X, cands, accepted), k, y, groups, lags);
+}
+
+Eigen::VectorXd acceptedPrediction(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+                                   const std::vector<int>& accepted, const Eigen::VectorXd& coef) {
+  const Eigen::MatrixXd S = acceptedSelector(X, cands, accepted);
+  Eigen::VectorXd p(X.rows());
+  constexpr Eigen::Index kBlock = 2048;
+  for (Eigen::Index r0 = 0; r0 < X.rows(); r0 += kBlock) {
+    const Eigen::Index nb = std::min(kBlock, X.rows() - r0);
+    p.segment(r0, nb).noalias() = Eigen::MatrixXd(X.middleRows(r0, nb) * S) * coef;
+  }
+  return p;
+}
+
 stats::SelectionRule selectionRule(const DiagnosisOptions& opt, std::size_t m) {
   return {opt.alpha, static_cast<int>(m), opt.min_bic_drop};
 }
@@ -500,18 +544,17 @@ bool conflictsWith(const Candidate& c, const std::vector<int>& acc,
   return false;
 }
 
-/// The held-out check of a trial term: the validation rows' RSS without it (design D0v,
-/// coefficients b0, RSS rss0v) and with it (D1v, b1), the realised and the predicted
-/// likelihood-ratio gain (n_eff log(rss0 / rss1); n_eff log(1 + |D1v b1 - D0v b0|^2 / rss1)),
-/// recorded in `st`. Empty, or why the term is rejected.
-std::string heldOutCheck(const SelectionData& d, const Eigen::MatrixXd& D0v,
-                         const Eigen::VectorXd& b0, double rss0v, const Eigen::MatrixXd& D1v,
-                         const Eigen::VectorXd& b1, const DiagnosisOptions& opt,
+/// The held-out check of a trial term: the validation rows' RSS without it (prediction p0v =
+/// D0v b0 of the validation rows, RSS rss0v) and with it (p1v = D1v b1), the realised and the
+/// predicted likelihood-ratio gain (n_eff log(rss0 / rss1); n_eff log(1 + |p1v - p0v|^2 /
+/// rss1)), recorded in `st`. Empty, or why the term is rejected.
+std::string heldOutCheck(const SelectionData& d, const Eigen::VectorXd& p0v, double rss0v,
+                         const Eigen::VectorXd& p1v, const DiagnosisOptions& opt,
                          SelectionStep& st) {
-  Eigen::VectorXd r1 = d.y_val - D1v * b1;
+  Eigen::VectorXd r1 = d.y_val - p1v;
   double rss1v = r1.squaredNorm();
   double nev = effectiveSampleSize(r1, d.g_val, d.lags);
-  Eigen::VectorXd delta = D1v * b1 - D0v * b0;
+  Eigen::VectorXd delta = p1v - p0v;
   st.rss0_val = rss0v, st.rss1_val = rss1v, st.n_eff_val = nev;
   st.lr_val = nev * std::log(rss0v / std::max(1e-300, rss1v));
   st.lr_val_expected = nev * std::log(1.0 + delta.squaredNorm() / std::max(1e-300, rss1v));
@@ -533,15 +576,15 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
   };
   // Forward steps: the fit of the accepted terms (f0) and each candidate's trial.
   LinearFit f0;
-  Eigen::MatrixXd D0v;
+  Eigen::VectorXd p0v;  // the accepted terms' prediction of the validation rows
   double rss0v = 0;
   std::vector<SelectionStep> trial_step(cands.size());
   std::vector<LinearFit> trial_fit(cands.size());
   stats::SelectionHooks h;
   h.step = [&](const std::vector<int>& acc) {
-    f0 = fitLinear(acceptedDesign(d.X_fit, cands, acc), d.y_fit, d.g_fit, d.lags);
-    D0v = have_val ? acceptedDesign(d.X_val, cands, acc) : Eigen::MatrixXd();
-    rss0v = have_val ? (d.y_val - D0v * f0.beta).squaredNorm() : 0;
+    f0 = fitAccepted(d.X_fit, d.y_fit, cands, acc, d.g_fit, d.lags);
+    p0v = have_val ? acceptedPrediction(d.X_val, cands, acc, f0.beta) : Eigen::VectorXd();
+    rss0v = have_val ? (d.y_val - p0v).squaredNorm() : 0;
   };
   h.evaluate = [&](int ci, const std::vector<int>& acc) {
     stats::Trial t;
@@ -551,7 +594,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     std::vector<int> trial = acc;
     trial.push_back(ci);
     LinearFit& f1 = trial_fit[ci];
-    f1 = fitLinear(acceptedDesign(d.X_fit, cands, trial), d.y_fit, d.g_fit, d.lags);
+    f1 = fitAccepted(d.X_fit, d.y_fit, cands, trial, d.g_fit, d.lags);
     if (!f1.ok) {
       t.reject = "not identifiable on this data";
       return t;
@@ -580,8 +623,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     const LinearFit& f1 = trial_fit[ci];
     std::vector<int> trial = sel.accepted;
     trial.push_back(ci);
-    return heldOutCheck(d, D0v, f0.beta, rss0v, acceptedDesign(d.X_val, cands, trial), f1.beta, opt,
-                        st);
+    return heldOutCheck(d, p0v, rss0v, acceptedPrediction(d.X_val, cands, trial, f1.beta), opt, st);
   };
   h.accepted = [&](int ci) {
     sel.accepted.push_back(ci);
@@ -598,7 +640,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
       return t;
     }
     if (f1_of != acc) {
-      f1 = fitLinear(acceptedDesign(d.X_fit, cands, acc), d.y_fit, d.g_fit, d.lags);
+      f1 = fitAccepted(d.X_fit, d.y_fit, cands, acc, d.g_fit, d.lags);
       ne1 = effectiveSampleSize(f1.residual, d.g_fit, d.lags);
       f1_of = acc;
     }
@@ -608,7 +650,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     int k = static_cast<int>(c.S.cols());
     std::vector<int> rest = acc;
     rest.erase(rest.begin() + a);
-    LinearFit r0 = fitLinear(acceptedDesign(d.X_fit, cands, rest), d.y_fit, d.g_fit, d.lags);
+    LinearFit r0 = fitAccepted(d.X_fit, d.y_fit, cands, rest, d.g_fit, d.lags);
     t.evidence = compareNested(r0.rss, f1.rss, k, ne1);
     Eigen::VectorXd coef = f1.beta.segment(col, k);
     if (contributionRms(c, coef) < d.min_contribution_rms || (c.plausible && !c.plausible(coef)))
@@ -623,8 +665,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
   std::vector<std::pair<int, std::string>> log;
   stats::selectTerms(static_cast<int>(cands.size()), rule, h, forced, &log);
   for (auto& [ci, why] : log) sel.log.push_back(cands[ci].name + ": " + why);
-  Eigen::MatrixXd Df = acceptedDesign(d.X_fit, cands, sel.accepted);
-  sel.fit = fitLinear(Df, d.y_fit, d.g_fit, d.lags);
+  sel.fit = fitAccepted(d.X_fit, d.y_fit, cands, sel.accepted, d.g_fit, d.lags);
   int c = 0;
   for (int a : sel.accepted) {
     int k = static_cast<int>(cands[a].S.cols());

@@ -168,5 +168,20 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
 /// Design of the accepted candidates, in order.
 Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
                                const std::vector<int>& accepted);
+/// The same design as X * S: S (X.cols() x k) stacks the accepted candidates' S, in order.
+Eigen::MatrixXd acceptedSelector(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+                                 const std::vector<int>& accepted);
+/// The same design made block of rows by block (never stored; memory, docs/benchmarks.md) for
+/// stats::fitLinear(DesignRows, ...). X must outlive the result.
+stats::DesignRows acceptedRows(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+                               const std::vector<int>& accepted);
+/// fitLinear(acceptedDesign(X, cands, accepted), y, groups, lags) without the design (same
+/// numbers up to rounding: the column norms are summed block by block).
+stats::LinearFit fitAccepted(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+                             const std::vector<Candidate>& cands, const std::vector<int>& accepted,
+                             const stats::Groups& groups, int lags);
+/// acceptedDesign(X, cands, accepted) * coef, block of rows by block.
+Eigen::VectorXd acceptedPrediction(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+                                   const std::vector<int>& accepted, const Eigen::VectorXd& coef);
 
 }  // namespace wheelchair::diagnosis

@@ -220,12 +220,15 @@ constexpr long kFitBlockRows = 2048;
 
 // The (p + 1) x (p + 1) triangle [R c; 0 rho] of the equilibrated [X D^-1, y] (TsqrAccumulator),
 // kFitBlockRows rows at a time.
-Eigen::MatrixXd blockedQr(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+// `rows(r0, nb)`: rows [r0, r0 + nb) of the n x p design (a view of a stored matrix, or a
+// block made on demand: fitLinear(DesignRows, ...)).
+template <class Rows>
+Eigen::MatrixXd blockedQr(const Rows& rows, long n, const Eigen::VectorXd& y,
                           const Eigen::VectorXd& inv_scale) {
   TsqrAccumulator acc(inv_scale);
-  for (long r0 = 0, n = X.rows(); r0 < n; r0 += kFitBlockRows) {
+  for (long r0 = 0; r0 < n; r0 += kFitBlockRows) {
     const long nb = std::min(kFitBlockRows, n - r0);
-    acc.add(X.middleRows(r0, nb), y.segment(r0, nb));
+    acc.add(rows(r0, nb), y.segment(r0, nb));
   }
   return acc.triangle();
 }
@@ -234,9 +237,10 @@ Eigen::MatrixXd blockedQr(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
 // group, lags never cross a group boundary; a row in no group is its own series), made block
 // of rows by block: the p x (lags + block) window holds the block's scores and the `lags`
 // before it. The same sums as hacScoreCovariance() with one row per time step, in another order.
-Eigen::MatrixXd blockedHac(const Eigen::MatrixXd& X, const Eigen::VectorXd& e,
+template <class Rows>
+Eigen::MatrixXd blockedHac(const Rows& rows, long n, long p, const Eigen::VectorXd& e,
                            const Eigen::VectorXd& inv_scale, const Groups& groups, int lags) {
-  const long n = X.rows(), p = X.cols(), L = std::max(0, lags);
+  const long L = std::max(0, lags);
   Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p, p), G(p, L + kFitBlockRows), C;
   std::vector<char> in_group(static_cast<std::size_t>(n), 0);
   for (const auto& [a0, b0] : groups) {
@@ -245,8 +249,8 @@ Eigen::MatrixXd blockedHac(const Eigen::MatrixXd& X, const Eigen::VectorXd& e,
     G.leftCols(L).setZero();  // no scores before the group's first row
     for (long c0 = a; c0 < b; c0 += kFitBlockRows) {
       const long nb = std::min(kFitBlockRows, b - c0);
-      G.middleCols(L, nb) = (X.middleRows(c0, nb) * inv_scale.asDiagonal()).transpose() *
-                            e.segment(c0, nb).asDiagonal();
+      G.middleCols(L, nb) =
+          (rows(c0, nb) * inv_scale.asDiagonal()).transpose() * e.segment(c0, nb).asDiagonal();
       const auto Gc = G.middleCols(L, nb);
       S.noalias() += Gc * Gc.transpose();
       for (long l = 1; l <= L; ++l) {  // pairs (t - l, t), t in this block
@@ -259,7 +263,7 @@ Eigen::MatrixXd blockedHac(const Eigen::MatrixXd& X, const Eigen::VectorXd& e,
   }
   for (long i = 0; i < n; ++i)
     if (!in_group[static_cast<std::size_t>(i)]) {
-      const Eigen::VectorXd g = X.row(i).transpose().cwiseProduct(inv_scale) * e(i);
+      const Eigen::VectorXd g = rows(i, 1).row(0).transpose().cwiseProduct(inv_scale) * e(i);
       S.noalias() += g * g.transpose();
     }
   return S;
@@ -267,10 +271,15 @@ Eigen::MatrixXd blockedHac(const Eigen::MatrixXd& X, const Eigen::VectorXd& e,
 
 }  // namespace
 
-LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
-                    int lags) {
+namespace {
+
+// fitLinear on the design whose rows `rows(r0, nb)` gives and whose column 2-norms are `scale`;
+// `subtractFit(beta, residual)` takes X beta from the residual (y on entry).
+template <class Rows, class SubtractFit>
+LinearFit fitLinearRows(const Rows& rows, long n, long p, Eigen::VectorXd scale,
+                        const Eigen::VectorXd& y, const Groups& groups, int lags,
+                        const SubtractFit& subtractFit) {
   LinearFit f;
-  const long n = y.size(), p = X.cols();
   f.residual = y;
   f.rss = y.squaredNorm();
   if (p == 0) {
@@ -282,14 +291,12 @@ LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Gr
   f.beta = Eigen::VectorXd::Zero(p);
   f.cov = Eigen::MatrixXd::Identity(p, p) * 1e300;
   if (n <= p) return f;
-  if (X.rows() != n) throw std::invalid_argument("fitLinear: inconsistent input sizes");
   // Column equilibration (unit 2-norm columns; an all-zero column keeps scale 1).
-  Eigen::VectorXd scale = X.colwise().norm().transpose();
   for (long j = 0; j < p; ++j)
     if (!(scale(j) > 0)) scale(j) = 1.0;
   const Eigen::VectorXd inv_scale = scale.cwiseInverse();
   // X D^-1 = Q R, R = U diag(s) V': the singular values and V of X D^-1 are those of R.
-  const Eigen::MatrixXd Rc = blockedQr(X, y, inv_scale);
+  const Eigen::MatrixXd Rc = blockedQr(rows, n, y, inv_scale);
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Rc.topLeftCorner(p, p),
                                               Eigen::ComputeFullU | Eigen::ComputeFullV);
   const Eigen::VectorXd& sv = svd.singularValues();
@@ -302,15 +309,55 @@ LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Gr
   const Eigen::VectorXd beta_s =
       V * (sv.cwiseInverse().asDiagonal() * (svd.matrixU().transpose() * Rc.col(p).head(p)));
   f.beta = beta_s.cwiseProduct(inv_scale);
-  f.residual.noalias() -= X * f.beta;
+  subtractFit(f.beta, f.residual);
   f.rss = f.residual.squaredNorm();
   // HAC sandwich in the equilibrated metric, (X_s'X_s)^-1 S (X_s'X_s)^-1, mapped back.
   const Eigen::MatrixXd P = V * sv.array().pow(-2).matrix().asDiagonal() * V.transpose();
-  const Eigen::MatrixXd S = blockedHac(X, f.residual, inv_scale, groups, lags);
+  const Eigen::MatrixXd S = blockedHac(rows, n, p, f.residual, inv_scale, groups, lags);
   const double small_sample = double(n) / double(n - r);
   f.cov = inv_scale.asDiagonal() * (small_sample * P * S * P) * inv_scale.asDiagonal();
   f.ok = true;
   return f;
+}
+
+}  // namespace
+
+LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Groups& groups,
+                    int lags) {
+  const long n = y.size(), p = X.cols();
+  if (p > 0 && n > p && X.rows() != n)
+    throw std::invalid_argument("fitLinear: inconsistent input sizes");
+  auto rows = [&X](long r0, long nb) { return X.middleRows(r0, nb); };
+  const Eigen::VectorXd scale =
+      p > 0 && n > p ? Eigen::VectorXd(X.colwise().norm().transpose()) : Eigen::VectorXd();
+  return fitLinearRows(
+      rows, n, p, scale, y, groups, lags,
+      [&X](const Eigen::VectorXd& beta, Eigen::VectorXd& e) { e.noalias() -= X * beta; });
+}
+
+LinearFit fitLinear(const DesignRows& rows, long p, const Eigen::VectorXd& y, const Groups& groups,
+                    int lags) {
+  const long n = y.size();
+  Eigen::MatrixXd block;
+  auto view = [&](long r0, long nb) -> const Eigen::MatrixXd& {
+    rows(r0, nb, block);
+    if (block.rows() != nb || block.cols() != p)
+      throw std::invalid_argument("fitLinear: design block of the wrong size");
+    return block;
+  };
+  Eigen::VectorXd scale = Eigen::VectorXd::Zero(std::max<long>(p, 0));
+  if (p > 0 && n > p) {  // column 2-norms, block by block
+    for (long r0 = 0; r0 < n; r0 += kFitBlockRows)
+      scale += view(r0, std::min(kFitBlockRows, n - r0)).colwise().squaredNorm().transpose();
+    scale = scale.cwiseSqrt();
+  }
+  return fitLinearRows(view, n, p, scale, y, groups, lags,
+                       [&](const Eigen::VectorXd& beta, Eigen::VectorXd& e) {
+                         for (long r0 = 0; r0 < n; r0 += kFitBlockRows) {
+                           const long nb = std::min(kFitBlockRows, n - r0);
+                           e.segment(r0, nb).noalias() -= view(r0, nb) * beta;
+                         }
+                       });
 }
 
 LinearFit fitLinear(Eigen::MatrixXd&& X, const Eigen::VectorXd& y, const Groups& groups, int lags) {

@@ -3,6 +3,7 @@
 // dynLibNames() says it is, on the rows of a simulated drive, and the rows must stay laid out
 // as before (right motor rows, then left, in groups covering both halves).
 #include "DiagnoseTestUtil.h"
+#include "libwheelchair/diagnosis/HeldOut.h"
 #include "libwheelchair/diagnosis/Stages.h"
 
 #include <gtest/gtest.h>
@@ -100,4 +101,48 @@ TEST(DynRowsLibrary, JoinedCropsAreTheWholeStreams) {
   const auto j = diagnosis::joinStreams({&before, &s, &after}, true);
   EXPECT_EQ(j.tg, s.tg);
   EXPECT_EQ(j.te, s.te);
+}
+
+// Stage 2's catalogue fits and held-out predictions are made on designs built block of rows by
+// block (fitAccepted, acceptedPrediction; memory, docs/benchmarks.md): on the rows of a
+// simulated drive they give the stored design's fit and prediction up to rounding, and the
+// blocked cross-validation of a design made block by block is that of the stored design.
+TEST(DynRowsLibrary, BlockwiseCatalogueStatisticsEqualTheStoredDesigns) {
+  const auto sim = diagnosis::testutil::simulateWith("excite", 5, 120.0, {});
+  config::WheelchairConfig cfg;
+  diagnosis::DiagnosisOptions opt;
+  const auto s = diagnosis::makeStreams(sim.recording, cfg);
+  const diagnosis::DynRows d = diagnosis::dynamicRows({s}, {}, cfg, opt);
+  ASSERT_GT(d.y.size(), 2 * 2048);  // several blocks
+  const auto cands =
+      diagnosis::stageCandidates(effects::Stage::dynamic, {cfg.vehicle.geom.body_mass_kg, false});
+  std::vector<int> acc;  // every one-column candidate of the right motor or both
+  for (int c = 0; c < static_cast<int>(cands.size()); ++c)
+    if (cands[c].name.find("left") == std::string::npos && acc.size() < 4) acc.push_back(c);
+  ASSERT_GE(acc.size(), 2u);
+  const Eigen::MatrixXd D = diagnosis::acceptedDesign(d.X, cands, acc);
+  const stats::LinearFit a = stats::fitLinear(D, d.y, d.groups, 5);
+  const stats::LinearFit b = diagnosis::fitAccepted(d.X, d.y, cands, acc, d.groups, 5);
+  ASSERT_TRUE(a.ok);
+  ASSERT_TRUE(b.ok);
+  for (int k = 0; k < a.beta.size(); ++k) {
+    EXPECT_NEAR(b.beta(k), a.beta(k), 1e-10 * std::abs(a.beta(k)) + 1e-300) << k;
+    EXPECT_NEAR(b.cov(k, k), a.cov(k, k), 1e-9 * a.cov(k, k)) << k;
+  }
+  EXPECT_NEAR(b.rss, a.rss, 1e-12 * a.rss);
+  const Eigen::VectorXd p = diagnosis::acceptedPrediction(d.X, cands, acc, a.beta);
+  EXPECT_LT((p - D * a.beta).norm(), 1e-12 * p.norm());
+  const auto rows = [&](Eigen::Index r0, Eigen::Index r1) {
+    return Eigen::MatrixXd(D.middleRows(r0, r1 - r0));
+  };
+  for (int j = 0; j < static_cast<int>(D.cols()); ++j) {
+    const diagnosis::BlockedCvTerm m = diagnosis::blockedCvTerm(D, d.y, j, 10, 25);
+    const diagnosis::BlockedCvTerm r =
+        diagnosis::blockedCvTerm(rows, D.rows(), D.cols(), d.y, j, 10, 25);
+    ASSERT_TRUE(m.testable);
+    EXPECT_EQ(r.coef, m.coef);
+    EXPECT_EQ(r.coef_se, m.coef_se);
+    EXPECT_EQ(r.mean_gain, m.mean_gain);
+    EXPECT_EQ(r.p_not_positive, m.p_not_positive);
+  }
 }

@@ -205,6 +205,54 @@ TEST(LeastSquares, FitLinearBlockedEqualsTheUnblockedSolver) {
   EXPECT_EQ(d.residual, y);
 }
 
+// fitLinear on a design made block by block (DesignRows: diagnose's library and catalogue fits
+// never store their designs) gives fitLinear on the stored design up to rounding (the column
+// norms summed by blocks), with groups straddling the 2048-row blocks and rows in no group;
+// a rank-deficient made design is refused the same way.
+TEST(LeastSquares, FitLinearOnMadeRowsEqualsTheStoredDesign) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> N(0, 1);
+  const int n = 9001, p = 4;
+  Eigen::MatrixXd X(n, p);
+  Eigen::VectorXd y(n);
+  double e = 0;
+  for (int i = 0; i < n; ++i) {
+    X.row(i) << 1.0, N(rng), 1e3 * std::cos(0.003 * i), 1e-3 * N(rng);
+    e = 0.8 * e + N(rng);
+    y(i) = -1 + 0.7 * X(i, 1) + 2e-3 * X(i, 2) + 100 * X(i, 3) + e;
+  }
+  const stats::Groups groups{{0, 3000}, {3000, 8000}, {8100, n}};
+  const int lags = 25;
+  int calls = 0;
+  const stats::DesignRows rows = [&](long r0, long nb, Eigen::MatrixXd& out) {
+    ASSERT_LE(nb, 2048);
+    out = X.middleRows(r0, nb);
+    ++calls;
+  };
+  const stats::LinearFit a = stats::fitLinear(X, y, groups, lags);
+  const stats::LinearFit b = stats::fitLinear(rows, p, y, groups, lags);
+  ASSERT_TRUE(a.ok);
+  ASSERT_TRUE(b.ok);
+  EXPECT_GT(calls, 4 * (n / 2048));  // never the whole design at once
+  EXPECT_EQ(b.rank, a.rank);
+  for (int k = 0; k < p; ++k) {
+    EXPECT_NEAR(b.beta(k), a.beta(k), 1e-12 * std::abs(a.beta(k))) << k;
+    for (int j = 0; j < p; ++j)
+      EXPECT_NEAR(b.cov(k, j), a.cov(k, j), 1e-11 * std::sqrt(a.cov(k, k) * a.cov(j, j)));
+  }
+  EXPECT_NEAR(b.rss, a.rss, 1e-12 * a.rss);
+  EXPECT_LT((b.residual - a.residual).norm(), 1e-11 * a.residual.norm());
+  Eigen::MatrixXd Xd(n, p + 1);
+  Xd << X, 2 * X.col(1);
+  const stats::LinearFit d =
+      stats::fitLinear([&](long r0, long nb, Eigen::MatrixXd& out) { out = Xd.middleRows(r0, nb); },
+                       p + 1, y, groups, lags);
+  EXPECT_FALSE(d.ok);
+  EXPECT_EQ(d.rank, p);
+  EXPECT_EQ(d.residual, y);
+  EXPECT_THROW(stats::fitLinear(rows, p + 1, y, groups, lags), std::invalid_argument);
+}
+
 // solveLeastSquaresBlocked (identify on long drives): the LsSolution of solveLeastSquares up to
 // rounding, on a rank-deficient design with two rows per time step (as identify's theta
 // regression), time steps without rows, several blocks (one longer than the HAC window of 2048
