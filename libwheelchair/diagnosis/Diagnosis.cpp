@@ -1370,9 +1370,16 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
     // moment, load both motors: they enter when found on both (before, they were dropped here
     // whenever the catalogue had a term, and a forward quadratic drag read as Coulomb friction;
     // found on one motor only, on MuJoCo v*|v| stood in for the centre of mass' v*omega).
+    // cos(phi) (10) and sin(phi) (11) are one heading-dependent term (amplitude and phase, as
+    // in stlsqWith): found on a motor by either half, both enter, so that the world frame's
+    // orientation does not decide which half a motor carries (a slope's centre-of-mass current
+    // -A sin(h - phi) on one motor, +A sin(h - phi) on the other).
+    auto found = [&](int s2, int lib) {
+      return (lib == 10 || lib == 11) ? has(s2, 10) || has(s2, 11) : has(s2, lib);
+    };
     for (int lib = 0; lib < static_cast<int>(dynLibNames().size()); ++lib) {
       if (lib == 12 || lib == 13) continue;
-      const bool r = has(0, lib), l = has(1, lib);
+      const bool r = found(0, lib), l = found(1, lib);
       if (lib >= 14 && !(r && l)) continue;
       if (r && l && inSpan(qrD, Df, sideCol(0, lib) + sideCol(1, lib)))
         cols.push_back({lib, 2});
