@@ -1381,7 +1381,12 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
       if (lib == 12 || lib == 13) continue;
       const bool r = found(0, lib), l = found(1, lib);
       if (lib >= 14 && !(r && l)) continue;
-      if (r && l && inSpan(qrD, Df, sideCol(0, lib) + sideCol(1, lib)))
+      // A heading term on one motor only, next to a catalogue term of both motors with that
+      // heading dependence (a slope): gravity on the chair is a forward force (both motors
+      // alike: the slope's) and a yaw moment (opposite), never one motor's load; a one-motor
+      // column, half of each, would move part of the slope into one motor.
+      const bool pair = (r && l) || ((lib == 10 || lib == 11) && (r || l));
+      if (pair && inSpan(qrD, Df, sideCol(0, lib) + sideCol(1, lib)))
         cols.push_back({lib, 2});
       else
         for (int s2 = 0; s2 < 2; ++s2)
