@@ -197,4 +197,21 @@ TEST(UnmodeledPhysics, MujocoSlopeTurnMomentIsOneHeadingTermOnBothMotors) {
   EXPECT_NEAR(motor["current_right"]["sin(phi)"].get<double>(), 0.671, 0.1);
 }
 
+TEST(UnmodeledPhysics, MujocoSlopeHeadingTermOnOneMotorIsTheYawMomentNotPartOfTheSlope) {
+  // The search found the slope's turn moment on the left motor only; as a one-motor column
+  // (half forward, half yaw) it took part of the slope: `cos(phi)` -1.42 on the left motor,
+  // slope towards -95.5 deg (truth -83.5). Next to the slope it is the yaw moment.
+  const auto j = diagnoseWith(
+      "ground_slope:angle_deg=2.14949,downhill_heading_deg=-83.5413 --effect "
+      "encoder_scale:scale=1.02375,side=right",
+      567332, "square --engine mujoco");
+  const auto s = findingOf(j, "ground_slope");
+  ASSERT_FALSE(s.is_null()) << j["findings"].dump();
+  EXPECT_NEAR(s["parameters"]["angle_deg"].get<double>(), 2.149, 0.11);
+  EXPECT_NEAR(s["parameters"]["downhill_heading_deg"].get<double>(), -83.54, 3);
+  for (const auto& u : j["findings"])
+    for (const auto& p : u.value("physics", nlohmann::json::array()))
+      if (p["dependence"] == "heading") EXPECT_EQ(p["channel"], "yaw") << p.dump();
+}
+
 }  // namespace
