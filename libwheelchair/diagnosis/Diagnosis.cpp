@@ -1420,11 +1420,23 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
     // moment, load both motors: they enter when found on both (before, they were dropped here
     // whenever the catalogue had a term, and a forward quadratic drag read as Coulomb friction;
     // found on one motor only, on MuJoCo v*|v| stood in for the centre of mass' v*omega).
+    // cos(phi) (10) and sin(phi) (11) are one heading-dependent term (amplitude and phase, as
+    // in stlsqWith): found on a motor by either half, both enter, so that the world frame's
+    // orientation does not decide which half a motor carries (a slope's centre-of-mass current
+    // -A sin(h - phi) on one motor, +A sin(h - phi) on the other).
+    auto found = [&](int s2, int lib) {
+      return (lib == 10 || lib == 11) ? has(s2, 10) || has(s2, 11) : has(s2, lib);
+    };
     for (int lib = 0; lib < static_cast<int>(dynLibNames().size()); ++lib) {
       if (lib == 12 || lib == 13) continue;
-      const bool r = has(0, lib), l = has(1, lib);
+      const bool r = found(0, lib), l = found(1, lib);
       if (lib >= 14 && !(r && l)) continue;
-      if (r && l && inSpan(qrD, Df, sideCol(0, lib) + sideCol(1, lib)))
+      // A heading term on one motor only, next to a catalogue term of both motors with that
+      // heading dependence (a slope): gravity on the chair is a forward force (both motors
+      // alike: the slope's) and a yaw moment (opposite), never one motor's load; a one-motor
+      // column, half of each, would move part of the slope into one motor.
+      const bool pair = (r && l) || ((lib == 10 || lib == 11) && (r || l));
+      if (pair && inSpan(qrD, Df, sideCol(0, lib) + sideCol(1, lib)))
         cols.push_back({lib, 2});
       else
         for (int s2 = 0; s2 < 2; ++s2)
@@ -1665,7 +1677,8 @@ void reportUnmodeled(std::array<SparseResult, 2> srs, const DynRows& df2, const 
 /// rebuilt with them).
 int supersededByOutOfCatalogue(const Selection& sel, const std::vector<Candidate>& cands,
                                const DynRows& df, int lags, double alpha_b,
-                               std::vector<std::string>& log) {
+                               std::vector<std::string>& log,
+                               CatalogueAlternative* found = nullptr) {
   const int nR = static_cast<int>(df.y.size() / 2);
   DynamicTermData td;
   td.column = [&](int j, int side, bool) { return unmodeledColumn(df, j, side * nR, nR); };
@@ -1693,17 +1706,58 @@ int supersededByOutOfCatalogue(const Selection& sel, const std::vector<Candidate
         c.name, dynLibNames()[alt.term],
         alt.pattern == 2 ? "right motor" : (alt.pattern == 3 ? "left motor" : "both motors"),
         alt.lr_alt, alt.lr_c, crit, 100 * alt.r2));
+    if (found) *found = alt;
     return static_cast<int>(a);
   }
   return -1;
 }
 
+/// A catalogue term superseded by an out-of-catalogue library term (selectCatalogue): the
+/// candidate and the alternative (library index; pattern 0 both motors, 2 right, 3 left).
+struct SupersededTerm {
+  Candidate cand;
+  int term = -1, pattern = 0;
+};
+
+/// The spare terms (spareTerms) without the superseded ones whose supersession the unmodeled
+/// search confirmed. betterOutOfCatalogue compares the catalogue column with one library term
+/// on the catalogue's residual, without the other physics the catalogue lacks (on a multibody
+/// the centre of mass' v*omega and omega^2 currents); a one-motor u^2, which carries part of
+/// that load, can then look better than a true motor asymmetry (u of that motor). The joint
+/// search over the whole library (jointDynamicFit) settles it: if it keeps the alternative on
+/// that motor, the load is the alternative's and the catalogue term stays out; if it does not
+/// and describes the catalogue column in full instead (e.g. v and omega of the right motor in
+/// the ratio of u_R = v + omega l_w / 2), the supersession was the comparison's artefact and the
+/// term goes back to addSpannedTerms like any other rejected catalogue term (issue 16 item 4).
+std::vector<SpareTerm> unconfirmedSupersessions(std::vector<SpareTerm> spare,
+                                                const std::vector<Candidate>& cands,
+                                                const std::vector<SupersededTerm>& gone,
+                                                const std::array<SparseResult, 2>& unmodeled) {
+  auto kept = [&](int s2, int lib) {
+    const auto& t = unmodeled[s2].terms;
+    return unmodeled[s2].accepted && std::find(t.begin(), t.end(), lib) != t.end();
+  };
+  spare.erase(std::remove_if(spare.begin(), spare.end(),
+                             [&](const SpareTerm& sp) {
+                               for (const SupersededTerm& g : gone) {
+                                 if (g.cand.name != cands[sp.cand].name) continue;
+                                 const bool r = kept(0, g.term), l = kept(1, g.term);
+                                 return g.pattern == 2 ? r : (g.pattern == 3 ? l : (r || l));
+                               }
+                               return false;
+                             }),
+              spare.end());
+  return spare;
+}
+
 /// Stage 2's catalogue selection (forwardSelect), selected again without a catalogue term the
 /// data show is not that term: a motor asymmetry that is the same on both motors (a load the
 /// catalogue does not have), or a term an out-of-catalogue term predicts better
-/// (supersededByOutOfCatalogue; issue 16 item 3). cands and alpha_b follow the candidates left.
+/// (supersededByOutOfCatalogue; issue 16 item 3). cands and alpha_b follow the candidates left;
+/// the superseded terms and what superseded them go to `gone` (unconfirmedSupersessions).
 Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands, const DynRows& df,
-                          int lags, const DiagnosisOptions& opt, double& alpha_b) {
+                          int lags, const DiagnosisOptions& opt, double& alpha_b,
+                          std::vector<SupersededTerm>& gone) {
   Selection sel = forwardSelect(sd, cands, opt);
   if (symmetricAsymmetry(sel, cands)) {
     // Both motors' viscous friction up by the same amount is no asymmetry: it is a load the
@@ -1720,11 +1774,13 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
   // catalogue (issue 16 item 3): selected again without it; the unmodeled search describes it.
   std::vector<std::string> superseded;
   while (opt.enable_unmodeled) {
-    const int a = supersededByOutOfCatalogue(sel, cands, df, lags, alpha_b, superseded);
+    CatalogueAlternative alt;
+    const int a = supersededByOutOfCatalogue(sel, cands, df, lags, alpha_b, superseded, &alt);
     if (a < 0) break;
-    const std::string gone = cands[sel.accepted[a]].name;
+    const std::string name = cands[sel.accepted[a]].name;
+    gone.push_back({cands[sel.accepted[a]], alt.term, alt.pattern});
     cands.erase(std::remove_if(cands.begin(), cands.end(),
-                               [&](const Candidate& c) { return c.name == gone; }),
+                               [&](const Candidate& c) { return c.name == name; }),
                 cands.end());
     alpha_b = selectionRule(opt, cands.size()).level();
     sel = forwardSelect(sd, cands, opt);
@@ -1746,7 +1802,11 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   if (!(df.y.size() > 50)) return false;
   SelectionData sd{df.y,      dv.y,      df.X, dv.X,
                    df.groups, dv.groups, lags, opt.min_relevance * cfg.motors.current_noise_A};
-  Selection sel = selectCatalogue(sd, cands, df, lags, opt, alpha_b);
+  std::vector<SupersededTerm> superseded;
+  Selection sel = selectCatalogue(sd, cands, df, lags, opt, alpha_b, superseded);
+  // The superseded terms stay candidates for addSpannedTerms (unconfirmedSupersessions),
+  // appended: the selection's indices into cands are unchanged.
+  for (const SupersededTerm& g : superseded) cands.push_back(g.cand);
   // The rows re-built with the re-estimated delay; without a delay df, dv themselves (no
   // copy: the rows are the bulk of diagnose's memory).
   DelayRefit<DynRows> refit;
@@ -1779,11 +1839,16 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
       JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
       sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;
       unmodeled = std::move(joint.unmodeled);
-      if (!joint.refitted) break;
+      // No catalogue term left (e.g. the only one failed the joint fit): the out-of-catalogue
+      // terms may still describe a rejected catalogue term in full (addSpannedTerms).
+      if (!joint.refitted && !(Df.cols() == 0 && !retested)) break;
       int a = failingAfterJointFit(sel, cands, Df, sd.min_contribution_rms, alpha_b);
       if (a < 0 && !retested) {
         retested = true;
-        if (addSpannedTerms(sel, cands, spare, unmodeled, Df, Dv, df2, lags)) continue;
+        if (addSpannedTerms(sel, cands,
+                            unconfirmedSupersessions(spare, cands, superseded, unmodeled),
+                            unmodeled, Df, Dv, df2, lags))
+          continue;
       }
       if (a < 0) break;
       sel.log.push_back(cands[sel.accepted[a]].name +
