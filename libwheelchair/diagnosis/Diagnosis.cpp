@@ -838,14 +838,21 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs, std::size_t n
 
 /// Fills data.all: each fit recording's streams (without motor currents) joined from the
 /// samples before its fit part, the fit part, its held-out part (without --validate) and the
-/// samples after: the streams makeStreams() made of it, sample for sample.
+/// samples after: the streams makeStreams() made of it, sample for sample. After the stages
+/// nothing reads the motor currents nor the fit parts (the checks that follow read `all` and
+/// `val`): they are released first, each fit part once joined (memory, docs/benchmarks.md).
 void makeWholeStreams(StageData& data) {
   data.all.clear();
+  for (auto* parts : {&data.fit, &data.val})
+    for (Streams& s : *parts)
+      for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
   for (std::size_t i = 0; i < data.fit.size(); ++i) {
     std::vector<const Streams*> parts{&data.beyond[i][0], &data.fit[i]};
     if (data.fit_fraction < 1.0) parts.push_back(&data.val[i]);
     parts.push_back(&data.beyond[i][1]);
     data.all.push_back(joinStreams(parts, false));
+    data.fit[i] = Streams();
+    data.beyond[i] = {};
   }
   std::vector<std::array<Streams, 2>>().swap(data.beyond);
 }
