@@ -13,7 +13,9 @@
 #include "libwheelchair/diagnosis/Comparisons.h"
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/diagnosis/HeldOut.h"
+#include "libwheelchair/diagnosis/RawlogInput.h"
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/util/AtomicFile.h"
 #include "libwheelchair/util/Memory.h"
 #include "libwheelchair/util/OutputDir.h"
@@ -39,29 +41,68 @@ struct DiagnoseOptions {
   bool no_progress = false;
 };
 
-// The fit and validation recordings, and the configuration text the first input records.
+// The fit and validation rawlogs, scanned (io::scanRawlogSalvaging: the salvage rule, the
+// counts per stream), and the configuration text the first input records. Recordings with
+// motor currents are read as streams later, once the configuration is known
+// (analyseStreamed(), diagnosis/RawlogInput.h: memory); the others (command-driven recordings
+// such as MRCLAM imports, drives without motor currents) are loaded whole here.
 struct Inputs {
-  std::vector<io::Recording> fit, val;
+  std::vector<io::RecordingSummary> fit_sums, val_sums;
+  std::vector<io::Recording> fit, val;  ///< loaded whole (!streamed)
+  bool streamed = false;
   std::string recorded_config;
 };
 
 Inputs readInputs(const DiagnoseOptions& o, Progress& progress) {
   Inputs in;
-  auto read = [&](const std::string& p, io::RawlogReadReport* rr) {
-    return readRawlogFor("diagnose", p, o.salvage, rr);
+  const double n_steps = 2.0 * double(o.inputs.size() + o.validate.size());
+  double step = 0;
+  auto scan = [&](const std::string& p) {
+    progress.update(step++ / n_steps, "reading");
+    std::string warning;
+    io::RecordingSummary sum = io::scanRawlogSalvaging(p, o.salvage, &warning);
+    if (!warning.empty()) std::cerr << "wheelchair diagnose: warning: " << warning << "\n";
+    return sum;
   };
-  const double n_files = double(o.inputs.size() + o.validate.size());
-  for (const auto& p : o.inputs) {
-    progress.update(double(in.fit.size()) / n_files, "reading");
-    io::RawlogReadReport rr;
-    in.fit.push_back(read(p, &rr));
-    if (in.fit.size() == 1) in.recorded_config = io::headerConfigText(rr.header_text);
-  }
-  for (const auto& p : o.validate) {
-    progress.update(double(in.fit.size() + in.val.size()) / n_files, "reading");
-    in.val.push_back(read(p, nullptr));
-  }
+  for (const auto& p : o.inputs) in.fit_sums.push_back(scan(p));
+  for (const auto& p : o.validate) in.val_sums.push_back(scan(p));
+  if (!in.fit_sums.empty())
+    in.recorded_config = io::headerConfigText(in.fit_sums.front().report.header_text);
+  for (const auto& s : in.fit_sums) in.streamed |= s.count(io::StreamKind::Motors) > 0;
+  if (in.streamed) return in;
+  // The scan applied the salvage rule (and warned): the same rule again, without a warning.
+  auto load = [&](const std::string& p) {
+    progress.update(step++ / n_steps, "reading");
+    return io::readRawlogSalvaging(p, o.salvage, nullptr);
+  };
+  for (const auto& p : o.inputs) in.fit.push_back(load(p));
+  for (const auto& p : o.validate) in.val.push_back(load(p));
   return in;
+}
+
+// Recordings with motor currents (never command-driven: the wheelchair stages alone), read as
+// streams into what the diagnosis reads (diagnosis/RawlogInput.h), one after the other: the
+// same report as analyse() on the loaded recordings.
+diagnosis::DiagnosisReport analyseStreamed(const DiagnoseOptions& o, const Inputs& in,
+                                           const config::WheelchairConfig& cfg,
+                                           const diagnosis::DiagnosisOptions& opt,
+                                           Progress& progress) {
+  const auto streams = diagnosis::sensorStreams(in.fit_sums);
+  const double n_files = double(o.inputs.size() + o.validate.size());
+  diagnosis::DiagnosisInput fit, val;
+  for (std::size_t i = 0; i < o.inputs.size(); ++i) {
+    progress.update(0.5 + 0.5 * double(i) / n_files, "reading");
+    diagnosis::readForDiagnosis(o.inputs[i], in.fit_sums[i], cfg, fit);
+  }
+  for (std::size_t i = 0; i < o.validate.size(); ++i) {
+    progress.update(0.5 + 0.5 * double(o.inputs.size() + i) / n_files, "reading");
+    diagnosis::readForDiagnosis(o.validate[i], in.val_sums[i], cfg, val);
+  }
+  progress.tick("diagnosing");
+  diagnosis::DiagnosisReport rep = diagnosis::diagnose(std::move(fit), std::move(val), cfg, opt);
+  diagnosis::enforceHeldOutRule(rep);       // every analyser: held-out prediction never worse
+  diagnosis::addComparisons(streams, rep);  // what could and could not be tested (issue 16)
+  return rep;
 }
 
 // The wheelchair stages and, for command-driven recordings (JOYSTICK + GROUND_TRUTH, no motor
@@ -226,7 +267,7 @@ int runDiagnose(const DiagnoseOptions& o) {
   util::returnLargeBlocksToSystem();  // a long drive's arrays, stage after stage (memory)
   Progress progress(!o.no_progress && isatty(STDERR_FILENO));
   Inputs in = readInputs(o, progress);
-  progress.tick("diagnosing");
+  if (!in.streamed) progress.tick("diagnosing");
   // Without --config: the configuration recorded in the first input (e.g. the geometry an
   // importer took from the dataset's metadata), else the nominal vehicle.
   const auto cfg = !o.config_path.empty() ? config::WheelchairConfig::load(o.config_path)
@@ -235,7 +276,8 @@ int runDiagnose(const DiagnoseOptions& o) {
                        : config::WheelchairConfig();
   diagnosis::DiagnosisOptions opt;
   opt.loadFromConfig(cfg.ini());
-  diagnosis::DiagnosisReport rep = analyse(in, cfg, opt);
+  diagnosis::DiagnosisReport rep =
+      in.streamed ? analyseStreamed(o, in, cfg, opt, progress) : analyse(in, cfg, opt);
   util::RemoveUnlessKept outputs;  // a failed later write removes the earlier outputs
   if (!o.write_config.empty()) {
     diagnosis::correctedConfig(cfg, rep).save(o.write_config);

@@ -18,6 +18,21 @@ SensorStreams sensorStreams(const std::vector<io::Recording>& recs) {
   return s;
 }
 
+SensorStreams sensorStreams(const std::vector<io::RecordingSummary>& sums) {
+  using io::StreamKind;
+  SensorStreams s;
+  for (const auto& r : sums) {
+    s.encoders |= r.count(StreamKind::Encoders) > 0;
+    s.gyro |= r.count(StreamKind::Imu) > 0;
+    s.motors |= r.count(StreamKind::Motors) > 0;
+    s.ground_truth |= r.count(StreamKind::GroundTruth) > 0;
+    s.commands |= r.count(StreamKind::Joystick) > 0;
+    s.pozyx |= r.count(StreamKind::Pozyx) > 0;
+    s.sonar |= r.count(StreamKind::Sonar) > 0;
+  }
+  return s;
+}
+
 namespace {
 
 /// "no X and no Y" for the missing streams of a pair, empty when both are present.

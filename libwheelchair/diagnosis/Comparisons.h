@@ -28,6 +28,7 @@
 #pragma once
 
 #include "libwheelchair/diagnosis/Finding.h"
+#include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/io/Recording.h"
 
 #include <string>
@@ -42,6 +43,8 @@ struct SensorStreams {
 };
 
 SensorStreams sensorStreams(const std::vector<io::Recording>& recs);
+/// The same from the recordings' scans (io::scanRawlog: their counts per stream).
+SensorStreams sensorStreams(const std::vector<io::RecordingSummary>& sums);
 
 /// rep.info["comparisons"] (and "insufficient_data" when nothing was compared); see header.
 void addComparisons(const SensorStreams& s, DiagnosisReport& rep);

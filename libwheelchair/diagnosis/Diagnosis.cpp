@@ -1,6 +1,7 @@
 #include "libwheelchair/diagnosis/Diagnosis.h"
 #include "libwheelchair/diagnosis/EncoderSide.h"
 #include "libwheelchair/diagnosis/HeldOut.h"
+#include "libwheelchair/diagnosis/RawlogInput.h"
 #include "libwheelchair/stats/Statistics.h"
 
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
@@ -839,51 +840,64 @@ struct StageData {
   double fit_fraction = 1.0;  ///< part of each fit recording in `fit` (1: --validate given)
 };
 
-/// `made(fit, i)`, if given, is called once the streams of fit (true) or validation recording
-/// i are made (diagnose() on recordings it may release).
-StageData splitStreams(const std::vector<io::Recording>& fit_recs,
-                       const std::vector<io::Recording>& val_recs,
-                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
-                       const std::function<void(bool, std::size_t)>& made = {}) {
+/// `make(fit, i)`: the streams of fit (true) or validation recording i (makeStreams of it, or
+/// made as its rawlog was read); `fit_recs`: the fit recordings, `n_val` validation recordings.
+StageData splitStreams(const std::vector<io::Recording>& fit_recs, std::size_t n_val,
+                       const DiagnosisOptions& opt,
+                       const std::function<Streams(bool, std::size_t)>& make) {
   StageData d;
   d.fit_recs = &fit_recs;
-  d.fit_fraction = val_recs.empty() ? opt.fit_fraction : 1.0;
+  d.fit_fraction = n_val == 0 ? opt.fit_fraction : 1.0;
   for (std::size_t i = 0; i < fit_recs.size(); ++i) {
-    Streams s = makeStreams(fit_recs[i], cfg);
-    if (made) made(true, i);
+    Streams s = make(true, i);
     d.any_enc |= s.hasEncoders(), d.any_gyro |= s.hasGyro(), d.any_mot |= s.hasMotors();
     // `all` serves the trajectory check and the Pozyx fault check (encoders, gyro, Pozyx,
     // ground truth); until makeWholeStreams() only what fit / val do not hold is kept.
     constexpr double kInf = std::numeric_limits<double>::infinity();
-    d.beyond.push_back({cropStreams(s, -kInf, std::nextafter(s.t_begin, -kInf)),
-                        cropStreams(s, std::nextafter(s.t_end, kInf), kInf)});
+    std::vector<std::pair<double, double>> ranges{{-kInf, std::nextafter(s.t_begin, -kInf)},
+                                                  {std::nextafter(s.t_end, kInf), kInf}};
+    const double tc = s.t_begin + opt.fit_fraction * (s.t_end - s.t_begin);
+    if (n_val == 0) ranges.push_back({s.t_begin, tc}), ranges.push_back({tc, s.t_end});
+    // The crops made column by column from s, which they consume (memory); with --validate
+    // the fit part is s itself.
+    std::vector<Streams> parts;
+    if (n_val == 0) {
+      parts = cropStreams(std::move(s), ranges);
+    } else {
+      for (std::size_t r = 0; r < 2; ++r)
+        parts.push_back(cropStreams(s, ranges[r].first, ranges[r].second));
+    }
+    d.beyond.push_back({std::move(parts[0]), std::move(parts[1])});
     for (Streams& b : d.beyond.back())
       for (auto* v : {&b.tm, &b.iR, &b.iL}) std::vector<double>().swap(*v);
-    if (val_recs.empty()) {
-      double tc = s.t_begin + opt.fit_fraction * (s.t_end - s.t_begin);
-      d.fit.push_back(cropStreams(s, s.t_begin, tc));
-      d.val.push_back(cropStreams(s, tc, s.t_end));
+    if (n_val == 0) {
+      d.fit.push_back(std::move(parts[2]));
+      d.val.push_back(std::move(parts[3]));
     } else {
       d.fit.push_back(std::move(s));
     }
   }
-  for (std::size_t i = 0; i < val_recs.size(); ++i) {
-    d.val.push_back(makeStreams(val_recs[i], cfg));
-    if (made) made(false, i);
-  }
+  for (std::size_t i = 0; i < n_val; ++i) d.val.push_back(make(false, i));
   return d;
 }
 
 /// Fills data.all: each fit recording's streams (without motor currents) joined from the
 /// samples before its fit part, the fit part, its held-out part (without --validate) and the
-/// samples after: the streams makeStreams() made of it, sample for sample.
+/// samples after: the streams makeStreams() made of it, sample for sample. After the stages
+/// nothing reads the motor currents nor the fit parts (the checks that follow read `all` and
+/// `val`): they are released first, each fit part once joined (memory, docs/benchmarks.md).
 void makeWholeStreams(StageData& data) {
   data.all.clear();
+  for (auto* parts : {&data.fit, &data.val})
+    for (Streams& s : *parts)
+      for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
   for (std::size_t i = 0; i < data.fit.size(); ++i) {
     std::vector<const Streams*> parts{&data.beyond[i][0], &data.fit[i]};
     if (data.fit_fraction < 1.0) parts.push_back(&data.val[i]);
     parts.push_back(&data.beyond[i][1]);
     data.all.push_back(joinStreams(parts, false));
+    data.fit[i] = Streams();
+    data.beyond[i] = {};
   }
   std::vector<std::array<Streams, 2>>().swap(data.beyond);
 }
@@ -1982,7 +1996,9 @@ DiagnosisReport diagnose(const std::vector<io::Recording>& fit_recs,
                          const std::vector<io::Recording>& val_recs,
                          const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
   const auto tstart = std::chrono::steady_clock::now();
-  StageData data = splitStreams(fit_recs, val_recs, cfg, opt);
+  StageData data = splitStreams(fit_recs, val_recs.size(), opt, [&](bool fit, std::size_t i) {
+    return makeStreams(fit ? fit_recs[i] : val_recs[i], cfg);
+  });
   return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart);
 }
 
@@ -1990,10 +2006,24 @@ DiagnosisReport diagnose(std::vector<io::Recording>&& fit_recs,
                          std::vector<io::Recording>&& val_recs, const config::WheelchairConfig& cfg,
                          const DiagnosisOptions& opt) {
   const auto tstart = std::chrono::steady_clock::now();
-  StageData data = splitStreams(fit_recs, val_recs, cfg, opt, [&](bool fit, std::size_t i) {
-    releaseStreamSamples(fit ? fit_recs[i] : val_recs[i]);
+  StageData data = splitStreams(fit_recs, val_recs.size(), opt, [&](bool fit, std::size_t i) {
+    io::Recording& r = fit ? fit_recs[i] : val_recs[i];
+    Streams s = makeStreams(r, cfg);
+    releaseStreamSamples(r);
+    return s;
   });
   return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart);
+}
+
+DiagnosisReport diagnose(DiagnosisInput&& fit, DiagnosisInput&& val,
+                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+  const auto tstart = std::chrono::steady_clock::now();
+  if (fit.streams.size() != fit.recs.size() || val.streams.size() != val.recs.size())
+    throw std::logic_error("diagnose: a DiagnosisInput needs one Streams per recording");
+  StageData data = splitStreams(fit.recs, val.recs.size(), opt, [&](bool f, std::size_t i) {
+    return std::move((f ? fit : val).streams[i]);
+  });
+  return diagnoseStreams(fit.recs, val.recs, data, cfg, opt, tstart);
 }
 
 namespace {

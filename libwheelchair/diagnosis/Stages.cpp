@@ -114,6 +114,20 @@ double filteredNoiseFactor(double fc, double fs) {
 
 }  // namespace
 
+namespace {
+
+/// The Pozyx and ground-truth streams of `rec` and the span of `s` (its encoders' first and
+/// last time, else the recording's `start_s`, `end_s`).
+void finishStreams(const io::Recording& rec, double start_s, double end_s, Streams& s) {
+  s.pozyx = sortedUnique(rec.pozyx, [](const io::PozyxSample& a) { return a.t_s; });
+  s.gt = sortedUnique(rec.ground_truth, [](const io::GroundTruthPoseSample& a) { return a.t_s; });
+  s.t_begin = start_s;
+  s.t_end = end_s;
+  if (!s.te.empty()) s.t_begin = s.te.front(), s.t_end = s.te.back();
+}
+
+}  // namespace
+
 Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cfg) {
   Streams s;
   signals::DriveStreams d = signals::driveStreams(rec, cfg);
@@ -126,11 +140,25 @@ Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cf
     const io::ImuSample& g = rec.imu[k];
     if (std::isfinite(g.gyro_z_rad_s)) s.tg.push_back(g.t_s), s.gz.push_back(g.gyro_z_rad_s);
   }
-  s.pozyx = sortedUnique(rec.pozyx, [](const io::PozyxSample& a) { return a.t_s; });
-  s.gt = sortedUnique(rec.ground_truth, [](const io::GroundTruthPoseSample& a) { return a.t_s; });
-  s.t_begin = rec.startTime();
-  s.t_end = rec.endTime();
-  if (!s.te.empty()) s.t_begin = s.te.front(), s.t_end = s.te.back();
+  finishStreams(rec, rec.startTime(), rec.endTime(), s);
+  return s;
+}
+
+Streams makeStreams(const io::Recording& rec, StreamColumns&& cols,
+                    const config::WheelchairConfig& cfg) {
+  Streams s;
+  {
+    signals::DriveStreams d;
+    signals::encoderDistances(rec.encoders, cfg, d);
+    s.te = std::move(d.te), s.sR = std::move(d.s[0]), s.sL = std::move(d.s[1]);
+  }
+  // The rule driveStreams applies to the motor samples and the gyro's above (stable time
+  // order, first sample of a stamp, non-finite values dropped), on the columns themselves.
+  signals::sortUniqueFinite(cols.tm, {&cols.iR, &cols.iL});
+  s.tm = std::move(cols.tm), s.iR = std::move(cols.iR), s.iL = std::move(cols.iL);
+  signals::sortUniqueFinite(cols.tg, {&cols.gz});
+  s.tg = std::move(cols.tg), s.gz = std::move(cols.gz);
+  finishStreams(rec, cols.start_s, cols.end_s, s);
   return s;
 }
 
@@ -165,35 +193,67 @@ Streams joinStreams(const std::vector<const Streams*>& parts, bool with_motors) 
   return o;
 }
 
+namespace {
+
+/// The crops of `s` for `ranges` (cropStreams); with `release` (= &s) each column of s is
+/// freed once its crops are made (the time column of a stream last).
+std::vector<Streams> cropInto(const Streams& s,
+                              const std::vector<std::pair<double, double>>& ranges,
+                              Streams* release) {
+  std::vector<Streams> out(ranges.size());
+  using Column = std::vector<double> Streams::*;
+  // A stream's columns (time first) cropped to every range: every output sized once to what
+  // it receives (push_back alone leaves up to as much again unused on a long drive: memory,
+  // docs/benchmarks.md).
+  auto crop = [&](std::initializer_list<Column> cols) {
+    const std::vector<double>& t = s.*(*cols.begin());
+    std::vector<std::size_t> n(ranges.size());
+    for (std::size_t r = 0; r < ranges.size(); ++r) {
+      const auto [a, b] = ranges[r];
+      n[r] = static_cast<std::size_t>(
+          std::count_if(t.begin(), t.end(), [&](double x) { return x >= a && x <= b; }));
+    }
+    for (auto c = std::rbegin(cols); c != std::rend(cols); ++c) {  // the time column last
+      for (std::size_t r = 0; r < ranges.size(); ++r) {
+        const auto [a, b] = ranges[r];
+        std::vector<double>& o = out[r].*(*c);
+        o.reserve(n[r]);
+        for (std::size_t k = 0; k < t.size(); ++k)
+          if (t[k] >= a && t[k] <= b) o.push_back((s.*(*c))[k]);
+      }
+      if (release) std::vector<double>().swap(release->*(*c));
+    }
+  };
+  crop({&Streams::te, &Streams::sR, &Streams::sL});
+  crop({&Streams::tg, &Streams::gz});
+  crop({&Streams::tm, &Streams::iR, &Streams::iL});
+  for (std::size_t r = 0; r < ranges.size(); ++r) {
+    const auto [a, b] = ranges[r];
+    auto in = [&](const auto& p) { return p.t_s >= a && p.t_s <= b; };
+    Streams& o = out[r];
+    o.pozyx.reserve(static_cast<std::size_t>(std::count_if(s.pozyx.begin(), s.pozyx.end(), in)));
+    o.gt.reserve(static_cast<std::size_t>(std::count_if(s.gt.begin(), s.gt.end(), in)));
+    for (auto& p : s.pozyx)
+      if (in(p)) o.pozyx.push_back(p);
+    for (auto& p : s.gt)
+      if (in(p)) o.gt.push_back(p);
+    o.t_begin = std::max(a, s.t_begin);
+    o.t_end = std::min(b, s.t_end);
+  }
+  return out;
+}
+
+}  // namespace
+
 Streams cropStreams(const Streams& s, double a, double b) {
-  Streams o;
-  auto in = [&](double t) { return t >= a && t <= b; };
-  // Every output sized once to what it receives (push_back alone leaves up to as much again
-  // unused on a long drive: memory, docs/benchmarks.md).
-  auto count = [&](const std::vector<double>& t) {
-    return static_cast<std::size_t>(std::count_if(t.begin(), t.end(), in));
-  };
-  for (auto* v : {&o.te, &o.sR, &o.sL}) v->reserve(count(s.te));
-  for (auto* v : {&o.tg, &o.gz}) v->reserve(count(s.tg));
-  for (auto* v : {&o.tm, &o.iR, &o.iL}) v->reserve(count(s.tm));
-  for (size_t k = 0; k < s.te.size(); ++k)
-    if (in(s.te[k])) o.te.push_back(s.te[k]), o.sR.push_back(s.sR[k]), o.sL.push_back(s.sL[k]);
-  for (size_t k = 0; k < s.tg.size(); ++k)
-    if (in(s.tg[k])) o.tg.push_back(s.tg[k]), o.gz.push_back(s.gz[k]);
-  for (size_t k = 0; k < s.tm.size(); ++k)
-    if (in(s.tm[k])) o.tm.push_back(s.tm[k]), o.iR.push_back(s.iR[k]), o.iL.push_back(s.iL[k]);
-  auto countT = [&](const auto& v) {
-    return static_cast<std::size_t>(
-        std::count_if(v.begin(), v.end(), [&](const auto& p) { return in(p.t_s); }));
-  };
-  o.pozyx.reserve(countT(s.pozyx)), o.gt.reserve(countT(s.gt));
-  for (auto& p : s.pozyx)
-    if (in(p.t_s)) o.pozyx.push_back(p);
-  for (auto& p : s.gt)
-    if (in(p.t_s)) o.gt.push_back(p);
-  o.t_begin = std::max(a, s.t_begin);
-  o.t_end = std::min(b, s.t_end);
-  return o;
+  return std::move(cropInto(s, {{a, b}}, nullptr).front());
+}
+
+std::vector<Streams> cropStreams(Streams&& s,
+                                 const std::vector<std::pair<double, double>>& ranges) {
+  std::vector<Streams> out = cropInto(s, ranges, &s);
+  s = Streams();
+  return out;
 }
 
 KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,

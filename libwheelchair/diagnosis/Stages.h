@@ -34,8 +34,27 @@ struct Streams {
 };
 
 Streams makeStreams(const io::Recording& rec, const config::WheelchairConfig& cfg);
+
+/// What makeStreams reads of a recording's IMU and motor samples, as columns in stored order
+/// (16 and 24 B a sample instead of the recording's 64 and 40: a rawlog read as a stream,
+/// diagnosis/RawlogInput.h), and the recording's first and last time over all its streams
+/// (io::Recording::startTime / endTime, e.g. io::RecordingSummary::start_s / end_s).
+struct StreamColumns {
+  std::vector<double> tg, gz;      ///< gyro z (s, rad/s)
+  std::vector<double> tm, iR, iL;  ///< motor currents (s, A)
+  double start_s = 0, end_s = 0;
+};
+/// makeStreams of a recording whose IMU and motor samples are `cols` (rec.imu and rec.motors
+/// are not read): the same streams, sample for sample; the columns become the streams (no
+/// copy when they are in time order).
+Streams makeStreams(const io::Recording& rec, StreamColumns&& cols,
+                    const config::WheelchairConfig& cfg);
+
 /// Samples with t in [a, b] of every stream.
 Streams cropStreams(const Streams& s, double a, double b);
+/// cropStreams(s, a, b) for each range [a, b] of `ranges`, consuming `s`: each column of s is
+/// released once its crops are made, so the crops and s are never both held whole (memory).
+std::vector<Streams> cropStreams(Streams&& s, const std::vector<std::pair<double, double>>& ranges);
 /// The parts (each sorted by time, in time order, e.g. adjacent crops of one recording's
 /// streams) as one: of each stream, a part's samples later than every sample taken so far, so
 /// a sample two parts share (a crop boundary) is taken once. Without `with_motors` the motor

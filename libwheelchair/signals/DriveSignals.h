@@ -42,6 +42,17 @@ struct DriveStreams {
 /// wheel (model::Geometry::odometryRadius) and [encoders]' ticks per revolution.
 DriveStreams driveStreams(const io::Recording& rec, const config::WheelchairConfig& cfg);
 
+/// Step 1's encoder part: `out.te`, `out.s` from the encoder samples (as driveStreams).
+void encoderDistances(const std::vector<io::EncoderSample>& enc,
+                      const config::WheelchairConfig& cfg, DriveStreams& out);
+
+/// Step 1's rule for samples held as columns in stored order (time `t_s` and `values`, e.g. the
+/// motor currents read from a rawlog as a stream): stable time order, the first sample of
+/// each repeated stamp, a sample with a non-finite value dropped -- the samples driveStreams
+/// keeps of the motor currents. In place (no copy) when the stamps never decrease.
+/// E.g. t = {0, 1, 1, 2}, i = {5, 6, 7, NaN} -> t = {0, 1}, i = {5, 6}.
+void sortUniqueFinite(std::vector<double>& t_s, const std::vector<std::vector<double>*>& values);
+
 struct DriveSignalOptions {
   double grid_rate_hz = 50.0;  ///< grid (Hz)
   double cutoff_hz = 2.0;      ///< zero-phase low-pass (Hz)
