@@ -1122,9 +1122,10 @@ void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
   const double bg = fit.value("gyro_scale"), g = 1 + bg;
   const GyroTruthDecision gyro_truth =
       gyroScaleByTruth(data, sel, cands, kf2, refit.delay, sd.min_contribution_rms, alpha_b, rep);
-  corr.gyro_scale = !gyro_truth.tested ? g : !gyro_truth.report ? 1.0
-                                         : gyro_truth.use_truth_value ? 1 + gyro_truth.b
-                                                                      : g;
+  corr.gyro_scale = !gyro_truth.tested           ? g
+                    : !gyro_truth.report         ? 1.0
+                    : gyro_truth.use_truth_value ? 1 + gyro_truth.b
+                                                 : g;
   corr.gyro_bias = fit.value("gyro_bias");
   corr.enc_scale[0] = g / (1 + bg + fit.value("encoder_scale/right"));
   corr.enc_scale[1] = g / (1 + bg + fit.value("encoder_scale/left"));

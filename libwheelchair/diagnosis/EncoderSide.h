@@ -88,10 +88,10 @@ EncoderSideDecision resolveEncoderSide(const std::vector<io::Recording>& fit, do
 /// +- 0.00003: not the gyro.
 inline constexpr double kGyroTruthWindow_s = 1.0;
 struct GyroTruthDecision {
-  bool tested = false;          ///< ground truth with enough turning in the fit recordings
-  double b = 0, sd_b = 0;       ///< gyro scale - 1 against the truth, its 1-sigma
-  double b_stage1 = 0;          ///< stage 1's gyro-vs-encoder coefficient
-  bool report = false;          ///< a gyro scale is reported
+  bool tested = false;           ///< ground truth with enough turning in the fit recordings
+  double b = 0, sd_b = 0;        ///< gyro scale - 1 against the truth, its 1-sigma
+  double b_stage1 = 0;           ///< stage 1's gyro-vs-encoder coefficient
+  bool report = false;           ///< a gyro scale is reported
   bool use_truth_value = false;  ///< ... with the truth's value b (stage 1's b1 otherwise)
   nlohmann::json evidence = nlohmann::json::object();  ///< rep.info["gyro_scale_by_truth"]
 };

@@ -529,9 +529,10 @@ std::string heldOutCheck(const SelectionData& d, const Eigen::MatrixXd& D0v,
     return "does not improve the held-out data as predicted";
   if (!st.val_tested && st.lr_val < -stats::chi2Quantile(1 - alpha, 1)) {
     st.val_tested = true;  // the held-out rows did test it: it failed
-    return fmt::format("makes the held-out prediction significantly worse (realised likelihood "
-                       "ratio {:.1f} < -{:.1f}, predicted {:.1f})",
-                       st.lr_val, stats::chi2Quantile(1 - alpha, 1), st.lr_val_expected);
+    return fmt::format(
+        "makes the held-out prediction significantly worse (realised likelihood "
+        "ratio {:.1f} < -{:.1f}, predicted {:.1f})",
+        st.lr_val, stats::chi2Quantile(1 - alpha, 1), st.lr_val_expected);
   }
   return {};
 }

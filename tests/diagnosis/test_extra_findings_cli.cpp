@@ -47,8 +47,7 @@ const nlohmann::json* findingOf(const nlohmann::json& j, const std::string& effe
 
 // Every radius / track change a wheel_geometry finding reports lies in the multibody's measured
 // effective geometry (range widened by 25 %, as the campaign scores it).
-void expectEngineGeometry(const nlohmann::json& f,
-                          const wheelchair::simulation::MujocoTruth& t) {
+void expectEngineGeometry(const nlohmann::json& f, const wheelchair::simulation::MujocoTruth& t) {
   auto within = [](double x, double lo, double hi) {
     const double tol = 0.25 * std::max(std::abs(lo), std::abs(hi));
     return x >= lo - tol && x <= hi + tol;
