@@ -1055,9 +1055,8 @@ GyroTruthDecision gyroScaleByTruth(const StageData& data, const Selection& sel,
   const Eigen::VectorXd col = kf2.X * cands[G].S;
   GyroTruthDecision d = gyroScaleAgainstTruth(data.fit, std::max(0.0, delay_s), b1, sd1, col,
                                               min_contribution_rms, alpha_b);
-  if (d.tested) {
-    rep.info["gyro_scale_by_truth"] = d.evidence;
-  } else {
+  if (!d.evidence.empty()) rep.info["gyro_scale_by_truth"] = d.evidence;
+  if (!d.tested) {
     rep.info["cannot_tell"].push_back(fmt::format(
         "the gyro reads {:.4f} x the encoders' yaw rate; the gyro scale and the encoders' "
         "effective geometry (rolling radius, track) off by the same fraction look the same to "

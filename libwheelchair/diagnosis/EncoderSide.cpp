@@ -246,7 +246,8 @@ GyroTruthDecision gyroScaleAgainstTruth(const std::vector<Streams>& fit, double 
   const int n = static_cast<int>(y.size());
   double turned = 0;
   for (double p : dpsi) turned += std::abs(p);
-  if (n < 20 || turned < 2 * M_PI) return d;  // too little turning to measure a scale
+  // too little turning to measure a scale at all (how well it is measured: sd_b)
+  if (n < 20 || turned < kGyroTruthMinTurn_rad) return d;
   Eigen::MatrixXd X(n, 2);
   Eigen::VectorXd yy(n);
   for (int k = 0; k < n; ++k) X(k, 0) = dpsi[k], X(k, 1) = T[k], yy(k) = y[k];
@@ -265,15 +266,21 @@ GyroTruthDecision gyroScaleAgainstTruth(const std::vector<Streams>& fit, double 
       gyro_col.size() ? std::abs(d.b) * gyro_col.norm() / std::sqrt(double(gyro_col.size())) : 0;
   const bool significant = std::abs(d.b) >= z * d.sd_b;
   const bool relevant = contribution >= min_contribution_rms;
+  // the truth can tell "the gyro is off by b1" from "the gyro is right" only if b1 is
+  // outside the difference's uncertainty; otherwise stage 1 stands (and the ambiguity is said)
+  const bool informative = std::abs(b_stage1) >= z * sd_diff;
   std::string verdict;
-  if (consistent) {
+  if (!informative) {
+    d.tested = false;
+    verdict = "truth_not_informative";
+  } else if (!(significant && relevant)) {
+    verdict = "encoder_geometry";
+  } else if (consistent) {
     d.report = true;
     verdict = "confirmed";
-  } else if (significant && relevant) {
+  } else {
     d.report = true, d.use_truth_value = true;
     verdict = "gyro_and_encoder_geometry";
-  } else {
-    verdict = "encoder_geometry";
   }
   d.evidence = {{"windows", n},
                 {"window_s", kGyroTruthWindow_s},
