@@ -4,7 +4,7 @@
 //    gyroScaleAgainstTruth): with a concealed encoder scale, stage 1 (gyro vs encoders) reads
 //    the multibody's effective odometric yaw scale (-0.18 %: tyre creep) as a gyro scale; the
 //    truth says the gyro is right, so no `gyro_scale` is named. Without ground truth the
-//    ambiguity is stated in info.cannot_tell.
+//    ambiguity is stated in info.cannot_tell. A real gyro scale is confirmed and named.
 //  - `wheel_geometry` reports only parameters outside their own uncertainty
 //    (KinematicCalibration.h, kEstablishedZ): on a clean drive the radii -0.05 % +- 0.06 % are
 //    not reported; what is reported lies in the engine's measured effective geometry.
@@ -122,4 +122,17 @@ TEST(ExtraFindingsCli, SignificantlyNegativeHeldOutGainRejectsAnUntestableCatalo
     }
   }
   EXPECT_TRUE(rejected) << j["channels"].dump();
+}
+
+// A real gyro scale (-1.6 %) on the same engine is still named: the truth confirms it.
+TEST(ExtraFindingsCli, MujocoConcealedGyroScaleIsConfirmedByTheTruth) {
+  const auto j = simulateAndDiagnose(
+      "--engine mujoco --scenario square --seed 871605 --effect gyro_scale:scale=0.98379 "
+      "--ground-truth-stream");
+  const auto* g = findingOf(j, "gyro_scale");
+  ASSERT_NE(g, nullptr) << j["findings"].dump();
+  EXPECT_NEAR((*g)["parameters"]["scale"].get<double>(), 0.98379, 0.25 * 0.01621);
+  const auto& t = j["info"]["gyro_scale_by_truth"];
+  EXPECT_NE(t["verdict"], "encoder_geometry");
+  EXPECT_NEAR(t["scale_vs_truth"].get<double>(), 0.98379, 0.001);
 }
