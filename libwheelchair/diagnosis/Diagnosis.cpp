@@ -1035,8 +1035,6 @@ std::string delayBelowSampling(const std::vector<Streams>& recs, double delay_s)
       delay_s > 0 ? "gyro" : "encoder", 1e3 * period_s);
 }
 
-/// Stage 1: the gyro integral over encoder windows against the odometric heading change.
-/// Sets the sensor corrections (gyro, encoder scales, delay) in `corr`.
 /// Stage 1's accepted gyro scale checked against the ground-truth heading
 /// (gyroScaleAgainstTruth, EncoderSide.h), evidence in rep.info["gyro_scale_by_truth"]; what
 /// the truth does not give the gyro is the encoders' effective geometry, which the kinematic
@@ -1085,6 +1083,8 @@ void describeGyroByTruth(Finding& f, const Candidate& c, const Selection& sel, s
       1 + d.b_stage1);
 }
 
+/// Stage 1: the gyro integral over encoder windows against the odometric heading change.
+/// Sets the sensor corrections (gyro, encoder scales, delay) in `corr`.
 void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
                     const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep) {
   const int lags = 5;
