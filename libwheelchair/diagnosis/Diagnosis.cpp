@@ -1095,6 +1095,54 @@ std::string delayBelowSampling(const std::vector<Streams>& recs, double delay_s)
       delay_s > 0 ? "gyro" : "encoder", 1e3 * period_s);
 }
 
+/// Stage 1's accepted gyro scale checked against the ground-truth heading
+/// (gyroScaleAgainstTruth, EncoderSide.h), evidence in rep.info["gyro_scale_by_truth"]; what
+/// the truth does not give the gyro is the encoders' effective geometry, which the kinematic
+/// calibration fits against the truth poses. Without ground truth the ambiguity is said
+/// (rep.info["cannot_tell"]). Not tested: no gyro scale accepted, or no ground truth.
+GyroTruthDecision gyroScaleByTruth(const StageData& data, const Selection& sel,
+                                   const std::vector<Candidate>& cands, const KinRows& kf2,
+                                   double delay_s, double min_contribution_rms, double alpha_b,
+                                   DiagnosisReport& rep) {
+  const int G = candidateIndex(cands, "gyro_scale");
+  const auto it = std::find(sel.accepted.begin(), sel.accepted.end(), G);
+  if (G < 0 || it == sel.accepted.end()) return {};
+  const auto& range = sel.ranges[static_cast<std::size_t>(it - sel.accepted.begin())];
+  const double b1 = sel.fit.beta(range.first);
+  const double sd1 = std::sqrt(std::max(0.0, sel.fit.cov(range.first, range.first)));
+  const Eigen::VectorXd col = kf2.X * cands[G].S;
+  GyroTruthDecision d = gyroScaleAgainstTruth(data.fit, std::max(0.0, delay_s), b1, sd1, col,
+                                              min_contribution_rms, alpha_b);
+  if (!d.evidence.empty()) rep.info["gyro_scale_by_truth"] = d.evidence;
+  if (!d.tested) {
+    rep.info["cannot_tell"].push_back(fmt::format(
+        "the gyro reads {:.4f} x the encoders' yaw rate; the gyro scale and the encoders' "
+        "effective geometry (rolling radius, track) off by the same fraction look the same to "
+        "the gyro-vs-encoder comparison. To tell: ground-truth poses (motion capture) or turns "
+        "of a known angle",
+        1 + b1));
+  }
+  return d;
+}
+
+/// The gyro-scale finding with the value the ground truth measured (GyroTruthDecision::b).
+void describeGyroByTruth(Finding& f, const Candidate& c, const Selection& sel, std::size_t a,
+                         const effects::TermFit& fit, const GyroTruthDecision& d) {
+  Selection s = sel;
+  s.fit.residual = Eigen::VectorXd();
+  const int i = s.ranges[a].first;
+  s.fit.beta(i) = d.b;
+  s.fit.cov.row(i).setZero(), s.fit.cov.col(i).setZero();
+  s.fit.cov(i, i) = d.sd_b * d.sd_b;
+  effects::TermFit ft = fit;
+  ft.coef[c.name] = d.b, ft.sigma[c.name] = d.sd_b;
+  describeFinding(f, c, s, a, ft);
+  f.description += fmt::format(
+      " (measured against the ground-truth heading; the gyro-vs-encoder comparison reads "
+      "{:.4f}: the rest is the encoders' effective geometry)",
+      1 + d.b_stage1);
+}
+
 /// Stage 1: the gyro integral over encoder windows against the odometric heading change.
 /// Sets the sensor corrections (gyro, encoder scales, delay) in `corr`.
 void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
@@ -1131,7 +1179,12 @@ void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
   if (!side_truth.evidence.empty()) rep.info["encoder_side"] = side_truth.evidence;
   const effects::TermFit fit = termFit(sel, cands, cfg, refit.delay);
   const double bg = fit.value("gyro_scale"), g = 1 + bg;
-  corr.gyro_scale = g;
+  const GyroTruthDecision gyro_truth =
+      gyroScaleByTruth(data, sel, cands, kf2, refit.delay, sd.min_contribution_rms, alpha_b, rep);
+  corr.gyro_scale = !gyro_truth.tested           ? g
+                    : !gyro_truth.report         ? 1.0
+                    : gyro_truth.use_truth_value ? 1 + gyro_truth.b
+                                                 : g;
   corr.gyro_bias = fit.value("gyro_bias");
   corr.enc_scale[0] = g / (1 + bg + fit.value("encoder_scale/right"));
   corr.enc_scale[1] = g / (1 + bg + fit.value("encoder_scale/left"));
@@ -1184,6 +1237,12 @@ void kinematicStage(const StageData& data, const config::WheelchairConfig& cfg,
         corr.enc_scale[0] = corr.enc_scale[1] = 1.0;  // none written, so none applied after
         continue;
       }
+    }
+    if (c.name == "gyro_scale" && gyro_truth.tested && !gyro_truth.report) continue;
+    if (c.name == "gyro_scale" && gyro_truth.use_truth_value) {
+      describeGyroByTruth(f, c, sel, a, fit, gyro_truth);
+      rep.addFinding(f);
+      continue;
     }
     if (c.effect == "sensor_delay") {
       if (const std::string why = delayBelowSampling(data.fit, refit.delay); !why.empty()) {

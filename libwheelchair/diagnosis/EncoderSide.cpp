@@ -191,4 +191,109 @@ EncoderSideDecision resolveEncoderSide(const std::vector<io::Recording>& fit, do
   return d;
 }
 
+namespace {
+
+/// Cumulative trapezoid integral of x over the sorted times t, read at time q (linear inside a
+/// sample interval; clamped to the ends).
+struct CumulativeIntegral {
+  std::vector<double> t, I;
+  CumulativeIntegral(const std::vector<double>& tt, const std::vector<double>& x) : t(tt) {
+    I.assign(t.size(), 0.0);
+    for (std::size_t k = 1; k < t.size(); ++k)
+      I[k] = I[k - 1] + 0.5 * (x[k] + x[k - 1]) * (t[k] - t[k - 1]);
+  }
+  double at(double q) const {
+    auto it = std::upper_bound(t.begin(), t.end(), q);
+    if (it == t.begin()) return I.front();
+    if (it == t.end()) return I.back();
+    const std::size_t k = static_cast<std::size_t>(it - t.begin());
+    const double w = (q - t[k - 1]) / std::max(1e-12, t[k] - t[k - 1]);
+    return I[k - 1] + w * (I[k] - I[k - 1]);
+  }
+};
+
+}  // namespace
+
+GyroTruthDecision gyroScaleAgainstTruth(const std::vector<Streams>& fit, double delay_imu_s,
+                                        double b_stage1, double sd_stage1,
+                                        const Eigen::VectorXd& gyro_col,
+                                        double min_contribution_rms, double alpha_b) {
+  GyroTruthDecision d;
+  d.b_stage1 = b_stage1;
+  std::vector<double> y, dpsi, T;
+  stats::Groups groups;
+  for (const Streams& s : fit) {
+    if (s.gt.size() < 8 || !s.hasGyro()) continue;
+    const CumulativeIntegral G(s.tg, s.gz);
+    const int first = static_cast<int>(y.size());
+    std::size_t i = 0;
+    for (std::size_t j = 1; j < s.gt.size(); ++j) {
+      const double t0 = s.gt[i].t_s, t1 = s.gt[j].t_s;
+      if (t1 - t0 < kGyroTruthWindow_s) continue;
+      const double q0 = t0 + delay_imu_s, q1 = t1 + delay_imu_s;
+      if (q0 >= s.tg.front() && q1 <= s.tg.back()) {
+        double dp = 0;  // unwrapped truth heading change over the window
+        for (std::size_t k = i + 1; k <= j; ++k)
+          dp += std::remainder(s.gt[k].phi_rad - s.gt[k - 1].phi_rad, 2 * M_PI);
+        y.push_back(G.at(q1) - G.at(q0) - dp);
+        dpsi.push_back(dp);
+        T.push_back(t1 - t0);
+      }
+      i = j;
+    }
+    if (static_cast<int>(y.size()) > first) groups.push_back({first, static_cast<int>(y.size())});
+  }
+  const int n = static_cast<int>(y.size());
+  double turned = 0;
+  for (double p : dpsi) turned += std::abs(p);
+  // too little turning to measure a scale at all (how well it is measured: sd_b)
+  if (n < 20 || turned < kGyroTruthMinTurn_rad) return d;
+  Eigen::MatrixXd X(n, 2);
+  Eigen::VectorXd yy(n);
+  for (int k = 0; k < n; ++k) X(k, 0) = dpsi[k], X(k, 1) = T[k], yy(k) = y[k];
+  const LinearFit f = fitLinear(X, yy, groups, 5);
+  if (!f.ok) return d;
+  d.tested = true;
+  d.b = f.beta(0);
+  d.sd_b = std::sqrt(std::max(0.0, f.cov(0, 0)));
+  const double z = std::sqrt(stats::chi2Quantile(1 - alpha_b, 1));
+  // The two estimates are independent measurements of different things only under the
+  // alternative; under "stage 1 measured the gyro" both estimate b: their difference has the
+  // variance of both.
+  const double sd_diff = std::hypot(d.sd_b, sd_stage1);
+  const bool consistent = std::abs(d.b - b_stage1) < z * sd_diff;
+  const double contribution =
+      gyro_col.size() ? std::abs(d.b) * gyro_col.norm() / std::sqrt(double(gyro_col.size())) : 0;
+  const bool significant = std::abs(d.b) >= z * d.sd_b;
+  const bool relevant = contribution >= min_contribution_rms;
+  // the truth can tell "the gyro is off by b1" from "the gyro is right" only if b1 is
+  // outside the difference's uncertainty; otherwise stage 1 stands (and the ambiguity is said)
+  const bool informative = std::abs(b_stage1) >= z * sd_diff;
+  std::string verdict;
+  if (!informative) {
+    d.tested = false;
+    verdict = "truth_not_informative";
+  } else if (!(significant && relevant)) {
+    verdict = "encoder_geometry";
+  } else if (consistent) {
+    d.report = true;
+    verdict = "confirmed";
+  } else {
+    d.report = true, d.use_truth_value = true;
+    verdict = "gyro_and_encoder_geometry";
+  }
+  d.evidence = {{"windows", n},
+                {"window_s", kGyroTruthWindow_s},
+                {"turned_rad", turned},
+                {"scale_vs_truth", 1 + d.b},
+                {"scale_vs_truth_sd", d.sd_b},
+                {"scale_vs_encoders", 1 + b_stage1},
+                {"scale_vs_encoders_sd", sd_stage1},
+                {"z_needed", z},
+                {"contribution_rms_rad", contribution},
+                {"min_contribution_rms_rad", min_contribution_rms},
+                {"verdict", verdict}};
+  return d;
+}
+
 }  // namespace wheelchair::diagnosis

@@ -66,4 +66,44 @@ EncoderSideDecision resolveEncoderSide(const std::vector<io::Recording>& fit, do
                                        const std::vector<Streams>* dyn_fit = nullptr,
                                        const DiagnosisOptions* opt = nullptr);
 
+/// The gyro scale decided against the ground-truth heading (issue 16: "use the ground truth to
+/// break the gyro-vs-encoder scale ambiguity"). Stage 1 compares the gyro with the encoders'
+/// yaw r (dpsi_R - dpsi_L) / l_w and so observes only g / k_yaw: a gyro scale g and an
+/// effective odometric geometry (rolling radius, track) off by the same fraction give the same
+/// residual. The ground truth's heading measures g alone: over windows of kGyroTruthWindow_s
+/// of the truth samples (per fit recording, the gyro time stamps shifted by the stage-1 gyro
+/// delay `delay_imu_s` > 0: gyro stamps lag the truth),
+///     y_w = int gz dt - dpsi_truth = b dpsi_truth + bias T_w      (rad; g = 1 + b)
+/// fitted by least squares with the Newey-West covariance (5 lags). With stage 1's gyro-scale
+/// coefficient b1 (the gyro-vs-encoder yaw ratio - 1; sigma_1) and z = sqrt(chi2_1(1 -
+/// alpha_b)), sigma_d = hypot(sigma_b, sigma_1):
+///   - |b1| < z sigma_d: the truth cannot tell "the gyro is off by b1" from "the gyro is
+///     right": nothing decided (`tested` false, verdict "truth_not_informative");
+///   - else a gyro scale is reported only if the truth's b is significant (|b| >= z sigma_b)
+///     and relevant (its contribution to the stage-1 rows, rms, >= `min_contribution_rms`);
+///     otherwise b1 is the encoders' effective geometry, left to the kinematic calibration
+///     against the truth poses ("encoder_geometry");
+///   - reported: with stage 1's value when consistent (|b - b1| < z sigma_d, "confirmed"),
+///     else with the truth's b ("gyro_and_encoder_geometry": the rest of b1 is geometry).
+/// Without ground truth (or < kGyroTruthMinTurn_rad of turning in it, or < 20 windows)
+/// nothing is decided (`tested` false).
+/// E.g. MuJoCo, a concealed encoder scale: b1 = -0.0018 (the effective track), b = 0.00001
+/// +- 0.00003: not the gyro.
+inline constexpr double kGyroTruthWindow_s = 1.0;
+/// Below this total |truth heading change| (rad) over the windows nothing is decided.
+inline constexpr double kGyroTruthMinTurn_rad = 1.0;
+struct GyroTruthDecision {
+  bool tested = false;           ///< ground truth with enough turning in the fit recordings
+  double b = 0, sd_b = 0;        ///< gyro scale - 1 against the truth, its 1-sigma
+  double b_stage1 = 0;           ///< stage 1's gyro-vs-encoder coefficient
+  bool report = false;           ///< a gyro scale is reported
+  bool use_truth_value = false;  ///< ... with the truth's value b (stage 1's b1 otherwise)
+  nlohmann::json evidence = nlohmann::json::object();  ///< rep.info["gyro_scale_by_truth"]
+};
+/// `gyro_col`: stage 1's gyro-scale column of the fit rows (rad per window), for relevance.
+GyroTruthDecision gyroScaleAgainstTruth(const std::vector<Streams>& fit, double delay_imu_s,
+                                        double b_stage1, double sd_stage1,
+                                        const Eigen::VectorXd& gyro_col,
+                                        double min_contribution_rms, double alpha_b);
+
 }  // namespace wheelchair::diagnosis

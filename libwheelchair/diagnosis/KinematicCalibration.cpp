@@ -229,6 +229,56 @@ void judgeRefit(KinematicCalibration& kc) {
         kc.model, 100 * kMinRelativeChange, 100 * change);
 }
 
+/// Name of a whole-run candidate with these free parameters (right, left, track).
+const char* restrictedName(const TrajectoryFit& f) {
+  const bool wheels = f.free[0] || f.free[1], track = f.free[2];
+  if (!wheels) return track ? "track" : "travel_angle";
+  if (f.common_scale) return track ? "scale+track" : "scale";
+  return track ? "wheels+track" : "wheels";
+}
+
+/// The chosen whole-run candidate without the geometry parameters its own fold fits do not
+/// establish (|relative change| < kEstablishedZ x its jackknife 1-sigma: inside the
+/// uncertainty, so the held-out gain is not theirs): refitted on all fit data with those
+/// parameters at the nominal geometry (the travel angle stays free), its fold fits redone for
+/// the uncertainty, and judged again (judgeRefit). Increment-domain candidates are left as
+/// they are. E.g. "wheels" with radii -0.05 % +- 0.05 % and a travel angle 0.12 deg: the
+/// travel angle alone ("travel_angle"). Returns false when nothing was restricted.
+bool restrictToEstablished(const CandidateModel& chosen, const std::vector<OdometryRun>& fitRuns,
+                           const std::vector<OdometryRun>& valRuns,
+                           const std::vector<std::vector<OdometryRun>>& train,
+                           KinematicCalibration& kc) {
+  if (chosen.heading_first) return false;
+  const auto& n = kc.nominal;
+  const double d[3] = {rel(kc.fitted.m_per_tick_right, n.m_per_tick_right),
+                       rel(kc.fitted.m_per_tick_left, n.m_per_tick_left),
+                       rel(kc.fitted.track_m, n.track_m)};
+  CandidateModel m = chosen;
+  bool restricted = false;
+  for (int p = 0; p < 3; ++p) {
+    if (!m.fit.free[p] || std::abs(d[p]) >= kEstablishedZ * kc.sd_rel[p]) continue;
+    m.fit.free[p] = false, restricted = true;
+  }
+  if (!restricted) return false;
+  if (m.fit.common_scale && !(m.fit.free[0] && m.fit.free[1]))
+    m.fit.free[0] = m.fit.free[1] = false, m.fit.common_scale = false;
+  m.name = restrictedName(m.fit);
+  kc.rejected_parameters = fmt::format(
+      "{}: radius right {:+.3f} % (+- {:.3f} %), left {:+.3f} % (+- {:.3f} %), track {:+.3f} % "
+      "(+- {:.3f} %); the parameters within {:.0f} sigma are left at the configured geometry "
+      "({})",
+      kc.model, 100 * d[0], 100 * kc.sd_rel[0], 100 * d[1], 100 * kc.sd_rel[1], 100 * d[2],
+      100 * kc.sd_rel[2], kEstablishedZ, m.name);
+  kc.model = m.name;
+  kc.fitted = fitModel(m, fitRuns, n);
+  kc.heldout_after = identification::meanOdometryError(valRuns, kc.fitted);
+  kc.rejected.clear();
+  judgeRefit(kc);
+  std::vector<OdometryGeometry> folds;
+  for (const auto& t : train) folds.push_back(fitModel(m, t, n));
+  jackknifeUncertainty(folds, kc);
+  return true;
+}
 
 }  // namespace
 
@@ -290,6 +340,7 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   kc.heldout_after = identification::meanOdometryError(valRuns, kc.fitted);
   judgeRefit(kc);
   jackknifeUncertainty(foldFits[best], kc);
+  if (kc.accepted) restrictToEstablished(models[best], fitRuns, valRuns, train, kc);
   return kc;
 }
 
@@ -329,6 +380,7 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
                              {"whole_run_misspecified", kc.whole_run_misspecified}};
   info["accepted"] = kc.accepted;
   if (!kc.rejected.empty()) info["rejected"] = kc.rejected;
+  if (!kc.rejected_parameters.empty()) info["not_established"] = kc.rejected_parameters;
   rep.info["kinematic_calibration"] = info;
   if (!kc.accepted) return;
 
@@ -343,7 +395,7 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   if (kc.model == "scale" || kc.model == "scale+track")
     what = fmt::format("both wheels' effective radius is {} than configured",
                        percentText(dR, kc.sd_rel[0], "larger", "smaller"));
-  else if (kc.model != "track")  // wheels, wheels+track, heading-ls, heading+scale
+  else if (kc.model != "track" && kc.model != "travel_angle")  // wheels(+track), heading-*
     what = fmt::format(
         "the right wheel's effective radius is {} and the left wheel's {} than configured "
         "(ratio right/left {:.4f})",
@@ -356,10 +408,10 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   const double beta = g.travel_angle_rad - n.travel_angle_rad;
   if (std::abs(beta) >= kMinRelativeChange)
     what += fmt::format(
-        "; the body travels {:.2f} deg (+- {:.2f} deg) to the {} of the heading the ground truth "
+        "{}the body travels {:.2f} deg (+- {:.2f} deg) to the {} of the heading the ground truth "
         "measures (a motion-capture body frame rotated off the axle, or an axle not square to "
         "the body: the same in these data)",
-        std::abs(beta) * 180 / M_PI, kc.sd_travel_angle_rad * 180 / M_PI,
+        what.empty() ? "" : "; ", std::abs(beta) * 180 / M_PI, kc.sd_travel_angle_rad * 180 / M_PI,
         beta > 0 ? "left" : "right");
   std::string why;
   if (kc.whole_run_misspecified)

@@ -39,6 +39,9 @@
 //               position error on the validation data (the --validate recordings, else the
 //               held-out last part of each recording); otherwise nothing is reported.
 //   uncertainty jackknife over the folds (1 sigma).
+//   established a whole-run candidate's radius / track change within kEstablishedZ sigma of
+//               the configured value is not reported: the candidate is refitted without it
+//               (at the configured value) and judged again (`keep`).
 // The finding (effect "wheel_geometry") says it in words ("the right wheel's effective radius
 // is 0.40 % larger than configured (+- 0.05 %) ...; the body travels 0.55 deg (+- 0.03 deg) to
 // the left of the heading the ground truth measures ...") and sets [vehicle]
@@ -85,6 +88,9 @@ struct KinematicCalibration {
   double gain_difference_rel = 0, gain_difference_sd = 0;
   /// |difference| > kMaxGainDisagreementZ sigma and >= kMinRelativeChange
   bool whole_run_misspecified = false;
+  /// The chosen candidate's parameters inside their uncertainty (kEstablishedZ), left at the
+  /// configured geometry: what was dropped and why (empty: none)
+  std::string rejected_parameters;
 };
 
 /// A candidate must lower the cross-validated error by this fraction of the nominal
@@ -98,6 +104,11 @@ inline constexpr double kMinRelativeChange = 1e-3;
 /// Whole-run and increment-domain fits disagree on the turn gain by more than this many
 /// jackknife sigmas: the wheel kinematics are misspecified for whole-run fitting (see above).
 inline constexpr double kMaxGainDisagreementZ = 3.0;
+/// A geometry parameter (relative radius or track change) is reported only when it is at least
+/// this many jackknife sigmas from the configured value; inside, it stays at the configured
+/// value and the chosen candidate is refitted and judged without it (the travel angle alone
+/// when no geometry parameter is established: model "travel_angle").
+inline constexpr double kEstablishedZ = 2.0;
 
 /// Runs the stage. `val` empty: fit on the first opt.fit_fraction of each recording.
 /// `stage1`: encoder scales already found against the gyro (stage 1); the stage then tests

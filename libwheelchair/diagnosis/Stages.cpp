@@ -13,6 +13,8 @@
 #include <numeric>
 #include <stdexcept>
 
+#include <fmt/format.h>
+
 namespace wheelchair::diagnosis {
 
 using stats::compareNested;
@@ -608,8 +610,15 @@ bool conflictsWith(const Candidate& c, const std::vector<int>& acc,
 /// D0v b0 of the validation rows, RSS rss0v) and with it (p1v = D1v b1), the realised and the
 /// predicted likelihood-ratio gain (n_eff log(rss0 / rss1); n_eff log(1 + |p1v - p0v|^2 /
 /// rss1)), recorded in `st`. Empty, or why the term is rejected.
+/// A term the held-out rows cannot test by its predicted gain (expected LR below
+/// validation_min_expected_lr) is still judged by what it does there: a realised LR below
+/// -chi2_1(1 - alpha) (`alpha`: the selection's per-candidate level) makes the held-out
+/// prediction significantly worse, so it counts as tested and failed (if the term were right,
+/// the realised LR would scatter about the expected one, sd ~ 2 sqrt(expected): below
+/// -chi2_1(0.99) = -6.6 at expected 9 is beyond 2.6 sd). E.g. expected 8.2, realised -19:
+/// rejected.
 std::string heldOutCheck(const SelectionData& d, const Eigen::VectorXd& p0v, double rss0v,
-                         const Eigen::VectorXd& p1v, const DiagnosisOptions& opt,
+                         const Eigen::VectorXd& p1v, const DiagnosisOptions& opt, double alpha,
                          SelectionStep& st) {
   Eigen::VectorXd r1 = d.y_val - p1v;
   double rss1v = r1.squaredNorm();
@@ -621,6 +630,13 @@ std::string heldOutCheck(const SelectionData& d, const Eigen::VectorXd& p0v, dou
   st.val_tested = st.lr_val_expected >= opt.validation_min_expected_lr;
   if (st.val_tested && st.lr_val < opt.validation_fraction_of_expected * st.lr_val_expected)
     return "does not improve the held-out data as predicted";
+  if (!st.val_tested && st.lr_val < -stats::chi2Quantile(1 - alpha, 1)) {
+    st.val_tested = true;  // the held-out rows did test it: it failed
+    return fmt::format(
+        "makes the held-out prediction significantly worse (realised likelihood "
+        "ratio {:.1f} < -{:.1f}, predicted {:.1f})",
+        st.lr_val, stats::chi2Quantile(1 - alpha, 1), st.lr_val_expected);
+  }
   return {};
 }
 
@@ -683,7 +699,8 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     const LinearFit& f1 = trial_fit[ci];
     std::vector<int> trial = sel.accepted;
     trial.push_back(ci);
-    return heldOutCheck(d, p0v, rss0v, acceptedPrediction(d.X_val, cands, trial, f1.beta), opt, st);
+    return heldOutCheck(d, p0v, rss0v, acceptedPrediction(d.X_val, cands, trial, f1.beta), opt,
+                        rule.level(), st);
   };
   h.accepted = [&](int ci) {
     sel.accepted.push_back(ci);
