@@ -73,8 +73,10 @@ bool engineTruthFinding(const Finding& f, const nlohmann::json& truth);
 /// component also has the effect's dependence class. Catalogue findings never count (naming
 /// an unknown effect after the catalogue is a false finding); on MuJoCo the engine's own
 /// centre-of-mass components (terms v*omega, omega^2) are set aside. `findings`: the
-/// CaseResult's. JSON: {located, described, truth {channel, dependence, physics}, components,
-/// catalogue_names}.
+/// CaseResult's. A component's `ambiguous_with` readings (one collinear group,
+/// UnmodeledPhysics.h) count too: then `described_in_group` says the effect's reading was one
+/// of an ambiguous group's. JSON: {located, described, [described_in_group], truth {channel,
+/// dependence, physics}, components, catalogue_names}.
 nlohmann::json unknownEffectScore(const std::vector<effects::EffectSpec>& truth,
                                   const nlohmann::json& findings, const std::string& engine);
 
