@@ -131,7 +131,9 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
 /// "clean": {runs, false_alarms, named_false_alarms, engine_false_alarms,
 /// catalogue_false_alarms (drives with a catalogue name other than unmodeled /
 /// wheel_geometry)}, "unknown": {runs, flagged, located, described, located_rate,
-/// described_rate, by_effect {id: {runs, located, described}}, named} (if unknown_runs),
+/// described_rate, by_effect {id: {runs, traced, located, described}}, named,
+/// described_in_group, traced, located_traced, described_traced, described_traced_rate,
+/// no_trace [effect (scenario)]} (if unknown_runs; each unknown case with its effectTrace),
 /// "cases": [...]}.
 nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOptions& opt,
                            const DiagnosisOptions& dopt);
