@@ -73,10 +73,33 @@ bool engineTruthFinding(const Finding& f, const nlohmann::json& truth);
 /// component also has the effect's dependence class. Catalogue findings never count (naming
 /// an unknown effect after the catalogue is a false finding); on MuJoCo the engine's own
 /// centre-of-mass components (terms v*omega, omega^2) are set aside. `findings`: the
-/// CaseResult's. JSON: {located, described, truth {channel, dependence, physics}, components,
-/// catalogue_names}.
+/// CaseResult's. A component's `ambiguous_with` readings (one collinear group,
+/// UnmodeledPhysics.h) count too: then `described_in_group` says the effect's reading was one
+/// of an ambiguous group's. JSON: {located, described, [described_in_group], truth {channel,
+/// dependence, physics}, components, catalogue_names}.
 nlohmann::json unknownEffectScore(const std::vector<effects::EffectSpec>& truth,
                                   const nlohmann::json& findings, const std::string& engine);
+
+/// The TRACE of an out-of-catalogue effect (scoring honestly, issue 16 item 3): the drive
+/// simulated twice with the same seed, with and without `effects` (every noise stream is its
+/// own seeded stream, simulation/Random.h, so the two recordings differ by what the effect
+/// does and nothing else), and per sensor stream the diagnosis sees the change d measured
+/// against that stream's configured noise sigma (currents [motors] current_noise_A, gyro
+/// [imu] gyro_noise_rad_s, encoder increments per sample: tick quantisation sqrt(1/6)
+/// ticks): rms_ratio = rms(d) / sigma and lr = sum(d^2) / sigma^2 (the likelihood ratio of
+/// the known change in white noise). `traced`: some stream's change is both significant
+/// (lr >= chi2_1(1 - alpha)) and relevant (rms_ratio >= min_relevance: the floor any finding
+/// must pass, DiagnosisOptions); an effect without a trace leaves nothing to find.
+/// `realised`: the law the engine realised, measured on the noise-free true currents (half
+/// sum: forward, half difference: yaw) regressed on each dependence class of the truth's v
+/// or omega alone (sign_of_rate sgn(x), rate x, rate_squared x|x|, acceleration xdot,
+/// constant 1): uncentred R^2 per class and the best one, on the channel that carries more
+/// of the change (null when the true currents do not change: a sensor effect).
+/// JSON: {traced, strongest, streams {name: {rms_ratio, lr}}, realised}.
+nlohmann::json effectTrace(const config::WheelchairConfig& cfg, const std::string& scenario,
+                           uint64_t seed, double duration_s,
+                           const std::vector<effects::EffectSpec>& effects,
+                           const DiagnosisOptions& dopt, const std::string& engine);
 
 struct CaseResult {
   std::vector<effects::EffectSpec> truth;
@@ -108,7 +131,9 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
 /// "clean": {runs, false_alarms, named_false_alarms, engine_false_alarms,
 /// catalogue_false_alarms (drives with a catalogue name other than unmodeled /
 /// wheel_geometry)}, "unknown": {runs, flagged, located, described, located_rate,
-/// described_rate, by_effect {id: {runs, located, described}}, named} (if unknown_runs),
+/// described_rate, by_effect {id: {runs, traced, located, described}}, named,
+/// described_in_group, traced, located_traced, described_traced, described_traced_rate,
+/// no_trace [effect (scenario)]} (if unknown_runs; each unknown case with its effectTrace),
 /// "cases": [...]}.
 nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOptions& opt,
                            const DiagnosisOptions& dopt);

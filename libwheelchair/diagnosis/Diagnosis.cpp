@@ -495,8 +495,14 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
       const double expected = nev * std::log(1 + dn / std::max(1e-300, r_full.squaredNorm()));
       const bool untestable =
           expected < opt.validation_min_expected_lr || std::sqrt(dn / nv) < min_contribution_rms;
-      if (opt.unmodeled_judge_where_excited && untestable &&
-          std::abs(bf(k)) * L.col(terms[k]).norm() / std::sqrt(nf) >= min_contribution_rms)
+      // Relevant over ALL rows (fit and held-out: a term that matters only in a short burst
+      // does not pass because the burst lies in the fit part), and judged below by the blocked
+      // cross-validation over all rows.
+      const double all_rms =
+          std::abs(bf(k)) *
+          std::sqrt(L.col(terms[k]).squaredNorm() + Lv.col(terms[k]).squaredNorm()) /
+          std::sqrt(nf + Lv.rows);
+      if (opt.unmodeled_judge_where_excited && untestable && all_rms >= min_contribution_rms)
         continue;
       const double rss = (yv - p).squaredNorm();
       if (rss < best) best = rss, best_t = t, change_rms = (p - p_full).norm() / std::sqrt(nv);

@@ -52,13 +52,12 @@ struct DiagnosisOptions {
   /// cross-validation of the fit data (false: they are not reported).
   bool unmodeled_cross_validation = true;
   /// Unmodeled terms judged where the drive excites them (issue 16 item 3): the held-out
-  /// pruning skips a term the held-out rows cannot test (blocked CV over all rows judges it),
-  /// and the misspecification bound is measured out of sample on all rows. Finds a yaw inertia
-  /// or a heading moment on `square` drives (model engine: 15/15 out-of-catalogue effects
-  /// described instead of 12/15), but on MuJoCo `square` drives it also reports the
-  /// multibody's own unverified terms (clean drives with an extra term 6 -> 12 of 12,
-  /// docs/discovery.md): off by default.
-  bool unmodeled_judge_where_excited = false;
+  /// pruning skips a term the held-out rows cannot test if it is relevant over ALL rows (its
+  /// fitted contribution's RMS over fit and held-out rows >= the relevance floor; blocked CV
+  /// over all rows then judges it), and the misspecification bound is measured out of sample
+  /// on all rows. Finds a yaw inertia, a heading moment or a drag on `square` drives
+  /// (docs/discovery.md, "Out of catalogue: traces, realised laws, where excited").
+  bool unmodeled_judge_where_excited = true;
   double stlsq_threshold_sigma = 4.0;  ///< STLSQ keeps terms with |coef| > this x HAC sigma
   bool enable_delay = true;
 

@@ -3,7 +3,9 @@
 #include "libwheelchair/stats/Statistics.h"
 
 #include <fmt/format.h>
+
 #include <Eigen/QR>
+#include <algorithm>
 
 #include <cmath>
 #include <map>
@@ -36,6 +38,10 @@ std::string dependenceWords(const std::string& d) {
 }
 
 namespace {
+
+/// Uncentred R^2 from which two readings of a component are one ambiguous group (as
+/// betterOutOfCatalogue's span condition).
+constexpr double kCollinearR2 = 0.9;
 
 bool perSideTerm(const std::string& t) {
   return t == "sgn(u)" || t == "|u|" || t == "u^2";
@@ -160,6 +166,65 @@ nlohmann::json headingComponent(int mode, const nlohmann::json& h, double kF, do
 
 }  // namespace
 
+namespace {
+/// Channel word of library term `term` in column pattern `mode` (as describeDynamicTerms).
+std::string channelOf(const std::string& term, int mode) {
+  if (mode == 2) return "current_right";
+  if (mode == 3) return "current_left";
+  if (perSideTerm(term)) return "wheels";
+  return mode == 1 ? "yaw" : "forward";
+}
+
+/// Readings the data cannot tell from kept[k] (issue 16 item 5): library terms j outside
+/// `kept`, in the forward or yaw pattern (one motor's pattern for a one-motor column), of
+/// another channel or dependence class, that span kept[k]'s column together with the other
+/// kept columns (uncentred R^2 >= min_r2 over fit and validation rows). Per reading: {channel,
+/// dependence, term, r2}, the best first (at most two).
+nlohmann::json collinearReadings(const std::vector<Col>& kept, std::size_t k,
+                                 const std::vector<std::string>& names, const DynamicTermData& d,
+                                 double min_r2) {
+  auto allRows = [&](const Col& c) {
+    const Eigen::VectorXd a = stacked(d, c, true), b = stacked(d, c, false);
+    Eigen::VectorXd x(a.size() + b.size());
+    x << a, b;
+    return x;
+  };
+  const Col& c = kept[k];
+  const Eigen::VectorXd target = allRows(c);
+  const double tt = target.squaredNorm();
+  const std::string ch = channelOf(names[c.term], c.mode), dep = dependenceOf(names[c.term]);
+  std::vector<std::pair<double, nlohmann::json>> found;
+  if (!(tt > 0)) return nlohmann::json::array();
+  for (int j = 0; j < static_cast<int>(names.size()); ++j) {
+    const std::string dj = dependenceOf(names[j]);
+    if (dj == "command") continue;  // a measured current is not a reading of a load
+    bool in_kept = false;
+    for (const Col& o : kept) in_kept |= o.term == j;
+    if (in_kept) continue;
+    for (int mode : c.mode >= 2 ? std::vector<int>{c.mode} : std::vector<int>{0, 1}) {
+      const std::string cj = channelOf(names[j], mode);
+      if (cj == ch && dj == dep) continue;
+      std::vector<Col> others{{j, mode}};
+      for (std::size_t o = 0; o < kept.size(); ++o)
+        if (o != k) others.push_back(kept[o]);
+      Eigen::MatrixXd A(target.size(), others.size());
+      for (std::size_t o = 0; o < others.size(); ++o) A.col(o) = allRows(others[o]);
+      if (!(A.col(0).norm() > 0)) continue;
+      const Eigen::VectorXd r = target - A * A.colPivHouseholderQr().solve(target);
+      const double r2 = 1 - r.squaredNorm() / tt;
+      if (r2 >= min_r2)
+        found.push_back(
+            {r2, {{"channel", cj}, {"dependence", dj}, {"term", names[j]}, {"r2", r2}}});
+    }
+  }
+  std::sort(found.begin(), found.end(),
+            [](const auto& a, const auto& b) { return a.first > b.first; });
+  nlohmann::json out = nlohmann::json::array();
+  for (std::size_t i = 0; i < found.size() && i < 2; ++i) out.push_back(found[i].second);
+  return out;
+}
+}  // namespace
+
 nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
                                     const std::vector<std::string>& names, const DynamicTermData& d,
                                     const config::WheelchairConfig& cfg) {
@@ -222,6 +287,16 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
         {"unit",
          "A per motor" + (termUnit(term).empty() ? std::string() : " per " + termUnit(term))},
         {"heldout_gain_A", gain}};
+    if (const nlohmann::json alt = collinearReadings(kept, k, names, d, kCollinearR2);
+        !alt.empty()) {
+      comp["ambiguous_with"] = alt;
+      comp["ambiguity"] = fmt::format(
+          "on these data {} ({}) and {} ({}, R^2 {:.2f}) are nearly collinear: one ambiguous "
+          "group; a drive exciting them differently (reversing, turning at several rates, "
+          "in place and while driving) tells them apart",
+          term, channel, alt[0]["term"].get<std::string>(), alt[0]["channel"].get<std::string>(),
+          alt[0]["r2"].get<double>());
+    }
     if (dep == "heading" && (channel == "forward" || channel == "yaw")) {
       auto& h = heading[c.mode];
       h[term == "cos(phi)" ? "cos" : "sin"] = b;

@@ -18,6 +18,12 @@
 // Held-out gain of a component: validation RMS of the joint fit without it (refitted on the
 // fit rows) minus with it (A).
 // Stage 1 (gyro_vs_encoders): each kept term is a component of that channel.
+// Collinear readings (issue 16 item 5): a stage-2 component whose column is spanned (uncentred
+// R^2 >= 0.9 over fit and validation rows, with the other kept columns) by a library term of
+// another channel or dependence class lists those readings in `ambiguous_with` [{channel,
+// dependence, term, r2}] (at most two, best first) and says in `ambiguity` what to drive to
+// tell them apart: one ambiguous group, not a confident single reading (e.g. on a `square`
+// drive at one speed, v and v*|v|).
 //
 // Vocabulary (shared with simulation/UnknownEffects.h, the campaign's truth):
 //   channel    forward | yaw | wheels | current_right | current_left | gyro_vs_encoders
