@@ -562,6 +562,36 @@ void CdEkf::initCvode(Cvode& cv, double tau0) {
   if (opt_.max_order > 0) check(CVodeSetMaxOrd(mem, opt_.max_order), "CVodeSetMaxOrd");
 }
 
+/// Adds the interval's CVODE work (steps, f-evaluations, error-test failures, nonlinear
+/// iterations since the set-up's last call) to stats_, and after a restart scores the first
+/// step for the next restart's initial step hint.
+void CdEkf::countSteps(Cvode& cv, double dt, double scale) {
+  long nst = 0, nfe = 0, netf = 0, nni = 0;
+  CVodeGetNumSteps(cv.mem, &nst);
+  CVodeGetNumRhsEvals(cv.mem, &nfe);
+  CVodeGetNumErrTestFails(cv.mem, &netf);
+  CVodeGetNumNonlinSolvIters(cv.mem, &nni);
+  stats_.steps += nst - cv.nst;
+  stats_.rhs_evals += nfe - cv.nfe;
+  stats_.error_test_fails += netf - cv.netf;
+  stats_.nonlin_iters += nni - cv.nni;
+  if (cv.scoring_h0) {
+    // Restarts come every few ms in similar conditions, so the first step that worked last
+    // time is a better guess than CVHin's conservative estimate (which also costs
+    // f-evaluations): grow it by 10 % after a restart interval without error-test failure,
+    // halve it after one with failures. The error test still decides every step.
+    double h0 = 0;
+    CVodeGetActualInitStep(cv.mem, &h0);
+    const double next = netf == cv.netf ? std::min(1.1 * h0, 1.1 * dt) : 0.5 * h0;
+    cv.h0_hint_s = next > 1e-12 * scale ? next : 0.0;
+    cv.scoring_h0 = false;
+  }
+  cv.nst = nst;
+  cv.nfe = nfe;
+  cv.netf = netf;
+  cv.nni = nni;
+}
+
 void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
   if (!(t1_s >= t_)) throw std::invalid_argument("CdEkf::propagate: time goes backwards");
   const double dt = t1_s - t_;
@@ -652,30 +682,7 @@ void CdEkf::integrate(double t1_s, const CdInput& u, bool continuous) {
         "CVODE failed ({}) integrating from t = {:.6f} s to {:.6f} s (reached {:.6f} s)",
         flagName(flag), t_, t1_s, t_ref_ + tret));
   }
-  long nst = 0, nfe = 0, netf = 0, nni = 0;
-  CVodeGetNumSteps(mem, &nst);
-  CVodeGetNumRhsEvals(mem, &nfe);
-  CVodeGetNumErrTestFails(mem, &netf);
-  CVodeGetNumNonlinSolvIters(mem, &nni);
-  stats_.steps += nst - cv_->nst;
-  stats_.rhs_evals += nfe - cv_->nfe;
-  stats_.error_test_fails += netf - cv_->netf;
-  stats_.nonlin_iters += nni - cv_->nni;
-  if (cv_->scoring_h0) {
-    // Restarts come every few ms in similar conditions, so the first step that worked last
-    // time is a better guess than CVHin's conservative estimate (which also costs
-    // f-evaluations): grow it by 10 % after a restart interval without error-test failure,
-    // halve it after one with failures. The error test still decides every step.
-    double h0 = 0;
-    CVodeGetActualInitStep(mem, &h0);
-    const double next = netf == cv_->netf ? std::min(1.1 * h0, 1.1 * dt) : 0.5 * h0;
-    cv_->h0_hint_s = next > 1e-12 * scale ? next : 0.0;
-    cv_->scoring_h0 = false;
-  }
-  cv_->nst = nst;
-  cv_->nfe = nfe;
-  cv_->netf = netf;
-  cv_->nni = nni;
+  countSteps(*cv_, dt, scale);
   ++stats_.intervals;
   unpack(y, m);
   if (cross) propagateConsiderCross(dt, t1_s, wF0_);

@@ -210,6 +210,7 @@ class CdEkf {
   std::unique_ptr<Cvode> newCvode(int m) const;
   /// CVodeInit and the solver set-up of the first integration, at CVODE time tau0 (s).
   void initCvode(Cvode& cv, double tau0);
+  void countSteps(Cvode& cv, double dt, double scale);
   /// The held tail is declared and its rows and columns of P are exactly zero.
   bool heldTailIsZero() const;
   /// P_xc <- Phi P_xc over [t0, t1] for a consider tail (setHeldTail), from F at the state
