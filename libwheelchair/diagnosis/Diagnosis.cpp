@@ -498,11 +498,13 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
       // Relevant over ALL rows (fit and held-out: a term that matters only in a short burst
       // does not pass because the burst lies in the fit part), and judged below by the blocked
       // cross-validation over all rows.
-      const double all_rms =
-          std::abs(bf(k)) *
-          std::sqrt(L.col(terms[k]).squaredNorm() + Lv.col(terms[k]).squaredNorm()) /
-          std::sqrt(nf + Lv.rows);
-      if (opt.unmodeled_judge_where_excited && untestable && all_rms >= min_contribution_rms)
+      // (made only when it decides: two whole library columns)
+      auto all_rms = [&] {
+        return std::abs(bf(k)) *
+               std::sqrt(L.col(terms[k]).squaredNorm() + Lv.col(terms[k]).squaredNorm()) /
+               std::sqrt(nf + Lv.rows);
+      };
+      if (opt.unmodeled_judge_where_excited && untestable && all_rms() >= min_contribution_rms)
         continue;
       const double rss = (yv - p).squaredNorm();
       if (rss < best) best = rss, best_t = t, change_rms = (p - p_full).norm() / std::sqrt(nv);
