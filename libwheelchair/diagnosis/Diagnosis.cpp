@@ -358,6 +358,8 @@ struct Library {
     };
   }
   Eigen::VectorXd times(const std::vector<int>& which, const Eigen::VectorXd& coef) const;
+  void timesRows(const std::vector<int>& which, const Eigen::VectorXd& coef, int a, int b,
+                 Eigen::VectorXd& p) const;
   Eigen::VectorXd solve(const std::vector<int>& which, const Eigen::VectorXd& y, int skip0 = 0,
                         int skip1 = 0) const;
 };
@@ -367,11 +369,17 @@ constexpr int kLibraryBlockRows = 2048;  // rows per block of a library design
 /// The design of `which` times coef (a prediction on every row), block by block.
 Eigen::VectorXd Library::times(const std::vector<int>& which, const Eigen::VectorXd& coef) const {
   Eigen::VectorXd p(rows);
-  for (int r0 = 0; r0 < rows; r0 += kLibraryBlockRows) {
-    const int nb = std::min(kLibraryBlockRows, rows - r0);
+  timesRows(which, coef, 0, rows, p);
+  return p;
+}
+
+/// The same on rows [a, b) only, into p.segment(a, b - a).
+void Library::timesRows(const std::vector<int>& which, const Eigen::VectorXd& coef, int a, int b,
+                        Eigen::VectorXd& p) const {
+  for (int r0 = a; r0 < b; r0 += kLibraryBlockRows) {
+    const int nb = std::min(kLibraryBlockRows, b - r0);
     p.segment(r0, nb).noalias() = block(which, r0, nb) * coef;
   }
-  return p;
 }
 
 /// The least-squares coefficients of y on the columns `which` over all rows but [skip0, skip1),
@@ -435,11 +443,7 @@ Predictor crossValidationPredictor(const Library& L, const Eigen::VectorXd& y, i
     for (int k = 0; k < K; ++k) {
       const int a = static_cast<int>(Eigen::Index(n) * k / K);
       const int b = static_cast<int>(Eigen::Index(n) * (k + 1) / K);
-      const Eigen::VectorXd coef = L.solve(t, y, a, b);
-      for (int r0 = a; r0 < b; r0 += kLibraryBlockRows) {
-        const int nb = std::min(kLibraryBlockRows, b - r0);
-        p.segment(r0, nb).noalias() = L.block(t, r0, nb) * coef;
-      }
+      L.timesRows(t, L.solve(t, y, a, b), a, b, p);
     }
     return p;
   };
