@@ -358,6 +358,8 @@ struct Library {
     };
   }
   Eigen::VectorXd times(const std::vector<int>& which, const Eigen::VectorXd& coef) const;
+  void timesRows(const std::vector<int>& which, const Eigen::VectorXd& coef, int a, int b,
+                 Eigen::VectorXd& p) const;
   Eigen::VectorXd solve(const std::vector<int>& which, const Eigen::VectorXd& y, int skip0 = 0,
                         int skip1 = 0) const;
 };
@@ -367,11 +369,17 @@ constexpr int kLibraryBlockRows = 2048;  // rows per block of a library design
 /// The design of `which` times coef (a prediction on every row), block by block.
 Eigen::VectorXd Library::times(const std::vector<int>& which, const Eigen::VectorXd& coef) const {
   Eigen::VectorXd p(rows);
-  for (int r0 = 0; r0 < rows; r0 += kLibraryBlockRows) {
-    const int nb = std::min(kLibraryBlockRows, rows - r0);
+  timesRows(which, coef, 0, rows, p);
+  return p;
+}
+
+/// The same on rows [a, b) only, into p.segment(a, b - a).
+void Library::timesRows(const std::vector<int>& which, const Eigen::VectorXd& coef, int a, int b,
+                        Eigen::VectorXd& p) const {
+  for (int r0 = a; r0 < b; r0 += kLibraryBlockRows) {
+    const int nb = std::min(kLibraryBlockRows, b - r0);
     p.segment(r0, nb).noalias() = block(which, r0, nb) * coef;
   }
-  return p;
 }
 
 /// The least-squares coefficients of y on the columns `which` over all rows but [skip0, skip1),
@@ -435,11 +443,7 @@ Predictor crossValidationPredictor(const Library& L, const Eigen::VectorXd& y, i
     for (int k = 0; k < K; ++k) {
       const int a = static_cast<int>(Eigen::Index(n) * k / K);
       const int b = static_cast<int>(Eigen::Index(n) * (k + 1) / K);
-      const Eigen::VectorXd coef = L.solve(t, y, a, b);
-      for (int r0 = a; r0 < b; r0 += kLibraryBlockRows) {
-        const int nb = std::min(kLibraryBlockRows, b - r0);
-        p.segment(r0, nb).noalias() = L.block(t, r0, nb) * coef;
-      }
+      L.timesRows(t, L.solve(t, y, a, b), a, b, p);
     }
     return p;
   };
@@ -498,11 +502,13 @@ std::vector<int> heldOutPrune(const Predictor& valPrediction, const Eigen::Vecto
       // Relevant over ALL rows (fit and held-out: a term that matters only in a short burst
       // does not pass because the burst lies in the fit part), and judged below by the blocked
       // cross-validation over all rows.
-      const double all_rms =
-          std::abs(bf(k)) *
-          std::sqrt(L.col(terms[k]).squaredNorm() + Lv.col(terms[k]).squaredNorm()) /
-          std::sqrt(nf + Lv.rows);
-      if (opt.unmodeled_judge_where_excited && untestable && all_rms >= min_contribution_rms)
+      // (made only when it decides: two whole library columns)
+      auto all_rms = [&] {
+        return std::abs(bf(k)) *
+               std::sqrt(L.col(terms[k]).squaredNorm() + Lv.col(terms[k]).squaredNorm()) /
+               std::sqrt(nf + Lv.rows);
+      };
+      if (opt.unmodeled_judge_where_excited && untestable && all_rms() >= min_contribution_rms)
         continue;
       const double rss = (yv - p).squaredNorm();
       if (rss < best) best = rss, best_t = t, change_rms = (p - p_full).norm() / std::sqrt(nv);

@@ -535,11 +535,20 @@ Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
   return c;
 }
 
-Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
-                               const std::vector<int>& accepted) {
+namespace {
+
+/// The number of design columns of the accepted terms (the sum of their selectors' widths).
+int acceptedWidth(const std::vector<Candidate>& cands, const std::vector<int>& accepted) {
   int k = 0;
   for (int a : accepted) k += static_cast<int>(cands[a].S.cols());
-  Eigen::MatrixXd D(X.rows(), k);
+  return k;
+}
+
+}  // namespace
+
+Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+                               const std::vector<int>& accepted) {
+  Eigen::MatrixXd D(X.rows(), acceptedWidth(cands, accepted));
   int c = 0;
   for (int a : accepted) {
     D.middleCols(c, cands[a].S.cols()) = X * cands[a].S;
@@ -550,9 +559,7 @@ Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candi
 
 Eigen::MatrixXd acceptedSelector(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
                                  const std::vector<int>& accepted) {
-  int k = 0;
-  for (int a : accepted) k += static_cast<int>(cands[a].S.cols());
-  Eigen::MatrixXd S(X.cols(), k);
+  Eigen::MatrixXd S(X.cols(), acceptedWidth(cands, accepted));
   int c = 0;
   for (int a : accepted) {
     S.middleCols(c, cands[a].S.cols()) = cands[a].S;
@@ -571,9 +578,8 @@ stats::DesignRows acceptedRows(const Eigen::MatrixXd& X, const std::vector<Candi
 LinearFit fitAccepted(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
                       const std::vector<Candidate>& cands, const std::vector<int>& accepted,
                       const stats::Groups& groups, int lags) {
-  long k = 0;
-  for (int a : accepted) k += static_cast<long>(cands[a].S.cols());
-  return fitLinear(acceptedRows(X, cands, accepted), k, y, groups, lags);
+  return fitLinear(acceptedRows(X, cands, accepted), acceptedWidth(cands, accepted), y, groups,
+                   lags);
 }
 
 Eigen::VectorXd acceptedPrediction(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,

@@ -195,6 +195,10 @@ nlohmann::json collinearReadings(const std::vector<Col>& kept, std::size_t k,
   const std::string ch = channelOf(names[c.term], c.mode), dep = dependenceOf(names[c.term]);
   std::vector<std::pair<double, nlohmann::json>> found;
   if (!(tt > 0)) return nlohmann::json::array();
+  // The other kept columns, made once (the same in every candidate's design).
+  std::vector<Eigen::VectorXd> rest;
+  for (std::size_t o = 0; o < kept.size(); ++o)
+    if (o != k) rest.push_back(allRows(kept[o]));
   for (int j = 0; j < static_cast<int>(names.size()); ++j) {
     const std::string dj = dependenceOf(names[j]);
     if (dj == "command") continue;  // a measured current is not a reading of a load
@@ -204,12 +208,10 @@ nlohmann::json collinearReadings(const std::vector<Col>& kept, std::size_t k,
     for (int mode : c.mode >= 2 ? std::vector<int>{c.mode} : std::vector<int>{0, 1}) {
       const std::string cj = channelOf(names[j], mode);
       if (cj == ch && dj == dep) continue;
-      std::vector<Col> others{{j, mode}};
-      for (std::size_t o = 0; o < kept.size(); ++o)
-        if (o != k) others.push_back(kept[o]);
-      Eigen::MatrixXd A(target.size(), others.size());
-      for (std::size_t o = 0; o < others.size(); ++o) A.col(o) = allRows(others[o]);
+      Eigen::MatrixXd A(target.size(), 1 + rest.size());
+      A.col(0) = allRows(Col{j, mode});
       if (!(A.col(0).norm() > 0)) continue;
+      for (std::size_t o = 0; o < rest.size(); ++o) A.col(1 + o) = rest[o];
       const Eigen::VectorXd r = target - A * A.colPivHouseholderQr().solve(target);
       const double r2 = 1 - r.squaredNorm() / tt;
       if (r2 >= min_r2)
