@@ -364,7 +364,7 @@ struct Library {
                         int skip1 = 0) const;
 };
 
-constexpr int kLibraryBlockRows = 2048;  // rows per block of a library design
+constexpr int kLibraryBlockRows = static_cast<int>(stats::kDesignBlockRows);  // rows per block
 
 /// The design of `which` times coef (a prediction on every row), block by block.
 Eigen::VectorXd Library::times(const std::vector<int>& which, const Eigen::VectorXd& coef) const {

@@ -586,7 +586,7 @@ Eigen::VectorXd acceptedPrediction(const Eigen::MatrixXd& X, const std::vector<C
                                    const std::vector<int>& accepted, const Eigen::VectorXd& coef) {
   const Eigen::MatrixXd S = acceptedSelector(X, cands, accepted);
   Eigen::VectorXd p(X.rows());
-  constexpr Eigen::Index kBlock = 2048;
+  constexpr Eigen::Index kBlock = stats::kDesignBlockRows;
   for (Eigen::Index r0 = 0; r0 < X.rows(); r0 += kBlock) {
     const Eigen::Index nb = std::min(kBlock, X.rows() - r0);
     p.segment(r0, nb).noalias() = Eigen::MatrixXd(X.middleRows(r0, nb) * S) * coef;

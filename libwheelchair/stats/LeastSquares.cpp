@@ -216,7 +216,7 @@ Groups singleGroup(int n) {
 namespace {
 
 // Rows per block of the blocked fit (work matrices of a few (block + p) x p doubles).
-constexpr long kFitBlockRows = 2048;
+constexpr long kFitBlockRows = kDesignBlockRows;
 
 // The (p + 1) x (p + 1) triangle [R c; 0 rho] of the equilibrated [X D^-1, y] (TsqrAccumulator),
 // kFitBlockRows rows at a time.

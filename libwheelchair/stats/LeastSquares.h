@@ -171,8 +171,12 @@ LinearFit fitLinear(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, const Gr
 /// The same on a design the caller no longer needs (a temporary): freed when the fit returns.
 LinearFit fitLinear(Eigen::MatrixXd&& X, const Eigen::VectorXd& y, const Groups& groups, int lags);
 
-/// Fills `out` with rows [r0, r0 + nb) of an n x p design (nb <= 2048; `out` is resized by the
-/// callee), the same rows on every call.
+/// Rows per block of a design made block by block (fitLinear(DesignRows, ...) asks for blocks
+/// of at most this many rows; the diagnosis makes its library designs in the same blocks).
+constexpr long kDesignBlockRows = 2048;
+
+/// Fills `out` with rows [r0, r0 + nb) of an n x p design (nb <= kDesignBlockRows; `out` is resized
+/// by the callee), the same rows on every call.
 using DesignRows = std::function<void(long r0, long nb, Eigen::MatrixXd& out)>;
 /// The same fit on a design that is never stored: made block of rows by block by `rows` (p
 /// columns, n = y.size() rows; each block asked for several times: column norms, QR, residual,
