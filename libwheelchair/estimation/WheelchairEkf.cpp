@@ -380,13 +380,14 @@ void WheelchairEkf::nextEncoderInterval(const Eigen::Vector2d& z, double dt, dou
   xs_.segment<2>(kIdxSv) = alpha * (x.segment<2>(kIdxSv) - dt * Minv * z);
   ekf_.setState(xs_);
   // G P G' with G = I + E, E nonzero only in the s rows: s rows <- alpha s rows + dsdk k rows.
+  // In place in the scratch Pw_ (no allocation per interval): the k rows and columns read by
+  // the second term are not among the s rows and columns scaled by the first.
   Pw_ = ekf_.P();
-  Eigen::MatrixXd rows = alpha * Pw_.middleRows<2>(kIdxSv);
-  if (n > kPhysicsStateDim) rows += dsdk * Pw_.middleRows<2>(kIdxEncScaleS);
-  Pw_.middleRows<2>(kIdxSv) = rows;
-  rows = alpha * Pw_.middleCols<2>(kIdxSv);
-  if (n > kPhysicsStateDim) rows += Pw_.middleCols<2>(kIdxEncScaleS) * dsdk.transpose();
-  Pw_.middleCols<2>(kIdxSv) = rows;
+  Pw_.middleRows<2>(kIdxSv) *= alpha;
+  if (n > kPhysicsStateDim) Pw_.middleRows<2>(kIdxSv) += dsdk * Pw_.middleRows<2>(kIdxEncScaleS);
+  Pw_.middleCols<2>(kIdxSv) *= alpha;
+  if (n > kPhysicsStateDim)
+    Pw_.middleCols<2>(kIdxSv) += Pw_.middleCols<2>(kIdxEncScaleS) * dsdk.transpose();
   const double lw2 = track_width_m_ * track_width_m_;
   const Eigen::Matrix2d Qu = (1.0 - alpha) * q * Eigen::Vector2d(0.5, 2.0 / lw2).asDiagonal();
   Pw_.block<2, 2>(kIdxSv, kIdxSv) += Minv * Qu * Minv.transpose();
