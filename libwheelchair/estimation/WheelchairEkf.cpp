@@ -317,8 +317,7 @@ void WheelchairEkf::resetAccumulators(double t) {
     // s = -e, e the count's error per wheel (uniform, tick^2 / 12): s_v = -(e_R + e_L) / 2,
     // s_omega = -(e_R - e_L) / l_w.
     Pw_ = ekf_.P();
-    Pw_(kIdxSv, kIdxSv) = 0.5 * q;
-    Pw_(kIdxSomega, kIdxSomega) = 2.0 * q / (track_width_m_ * track_width_m_);
+    Pw_.block<2, 2>(kIdxSv, kIdxSv) = wheelSpeedNoise(q);  // (the block was zeroed above)
     ekf_.setCovariance(Pw_);
   }
   acc_start_s_ = t;
@@ -338,11 +337,7 @@ Eigen::Matrix2d WheelchairEkf::encoderIntervalNoise(double dt) const {
   // (Estimator::encoderNoise, the baseline's model).
   const bool carry =
       opt_.encoder_quantisation_carry && opt_.encoder_model == EncoderMeasurementModel::Mean;
-  const double var_u = (carry ? 1.0 : 2.0) * tickVarianceM2() / (dt * dt) + slip_var_m2_s2_;
-  Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
-  R(0, 0) = 0.5 * var_u;                                      // v = (uR + uL) / 2
-  R(1, 1) = 2.0 * var_u / (track_width_m_ * track_width_m_);  // omega = (uR - uL) / l_w
-  return R;
+  return wheelSpeedNoise((carry ? 1.0 : 2.0) * tickVarianceM2() / (dt * dt) + slip_var_m2_s2_);
 }
 
 void WheelchairEkf::nextEncoderInterval(const Eigen::Vector2d& z, double dt, double t, bool carry) {
