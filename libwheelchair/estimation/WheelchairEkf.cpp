@@ -386,7 +386,7 @@ void WheelchairEkf::nextEncoderInterval(const Eigen::Vector2d& z, double dt, dou
   const double lw2 = track_width_m_ * track_width_m_;
   const Eigen::Matrix2d Qu = (1.0 - alpha) * q * Eigen::Vector2d(0.5, 2.0 / lw2).asDiagonal();
   Pw_.block<2, 2>(kIdxSv, kIdxSv) += Minv * Qu * Minv.transpose();
-  ekf_.setCovariance(0.5 * (Pw_ + Pw_.transpose()));
+  ekf_.setCovariance(Pw_);  // (which symmetrises it)
   acc_start_s_ = t;
   acc_valid_ = true;
 }
