@@ -312,8 +312,7 @@ void WheelchairEkf::resetAccumulators(double t) {
   ekf_.setState(xs_);
   ekf_.zeroCovarianceRowsCols(kIdxSv, 2);
   const double q = tickVarianceM2();
-  if (opt_.encoder_quantisation_carry && q > 0 &&
-      opt_.encoder_model == EncoderMeasurementModel::Mean) {
+  if (quantisationCarried() && q > 0) {
     // s = -e, e the count's error per wheel (uniform, tick^2 / 12): s_v = -(e_R + e_L) / 2,
     // s_omega = -(e_R - e_L) / l_w.
     Pw_ = ekf_.P();
@@ -322,6 +321,10 @@ void WheelchairEkf::resetAccumulators(double t) {
   }
   acc_start_s_ = t;
   acc_valid_ = true;
+}
+
+bool WheelchairEkf::quantisationCarried() const {
+  return opt_.encoder_quantisation_carry && opt_.encoder_model == EncoderMeasurementModel::Mean;
 }
 
 double WheelchairEkf::tickVarianceM2() const {
@@ -335,9 +338,8 @@ Eigen::Matrix2d WheelchairEkf::encoderIntervalNoise(double dt) const {
   // error e_k enters once, through the accumulators' restart value (-e_{k-1}, in P) and the
   // new count (+e_k, here): tick^2 / 12 / dt^2. White: both, tick^2 / 6 / dt^2
   // (Estimator::encoderNoise, the baseline's model).
-  const bool carry =
-      opt_.encoder_quantisation_carry && opt_.encoder_model == EncoderMeasurementModel::Mean;
-  return wheelSpeedNoise((carry ? 1.0 : 2.0) * tickVarianceM2() / (dt * dt) + slip_var_m2_s2_);
+  return wheelSpeedNoise((quantisationCarried() ? 1.0 : 2.0) * tickVarianceM2() / (dt * dt) +
+                         slip_var_m2_s2_);
 }
 
 void WheelchairEkf::nextEncoderInterval(const Eigen::Vector2d& z, double dt, double t, bool carry) {
@@ -351,8 +353,7 @@ void WheelchairEkf::nextEncoderInterval(const Eigen::Vector2d& z, double dt, dou
   // P' = G P G' + var(M^-1 u), G = I except the s rows (alpha, and d s' / d k with the scales).
   // alpha = 1 (no slip): the exact telescoping; alpha = 0: the white model's restart at 0.
   const double q = tickVarianceM2();
-  if (!carry || q <= 0 || !opt_.encoder_quantisation_carry ||
-      opt_.encoder_model != EncoderMeasurementModel::Mean) {
+  if (!carry || q <= 0 || !quantisationCarried()) {
     resetAccumulators(t);
     return;
   }
