@@ -6,6 +6,7 @@
 #pragma once
 
 #include "libwheelchair/io/RawlogIO.h"
+#include "libwheelchair/io/RawlogStream.h"
 
 #include <iostream>
 
@@ -35,6 +36,16 @@ inline io::Recording readRawlogFor(const char* command, const std::string& path,
   io::Recording rec = io::readRawlogSalvaging(path, salvage, &warning, report);
   if (!warning.empty()) std::cerr << "wheelchair " << command << ": warning: " << warning << "\n";
   return rec;
+}
+
+/// readRawlogFor's rule for a rawlog read as a stream: its summary (io::scanRawlogSalvaging),
+/// a damaged file refused with one line, or with `salvage` a warning on stderr.
+inline io::RecordingSummary scanRawlogFor(const char* command, const std::string& path,
+                                          bool salvage) {
+  std::string warning;
+  io::RecordingSummary sum = io::scanRawlogSalvaging(path, salvage, &warning);
+  if (!warning.empty()) std::cerr << "wheelchair " << command << ": warning: " << warning << "\n";
+  return sum;
 }
 
 struct Command {

@@ -36,9 +36,7 @@ int runReport(const ReportCliOptions& o) {
   ro.scene3d = !o.no_3d;
   ro.truth_path = o.truth;
   // The rawlog read as a stream: the figures' series, not the recording nor every estimate.
-  std::string warning;
-  const io::RecordingSummary sum = io::scanRawlogSalvaging(o.file, o.salvage, &warning);
-  if (!warning.empty()) std::cerr << "wheelchair report: warning: " << warning << "\n";
+  const io::RecordingSummary sum = scanRawlogFor("report", o.file, o.salvage);
   const auto d = visualization::loadDriveStreamed(o.file, sum, cfg, ro.metrics, o.truth, o.at_s);
   if (std::isfinite(o.at_s)) ro.at_s = d.t0_s + o.at_s;
   const auto r = visualization::writeReport(d, ro);

@@ -197,6 +197,10 @@ Eigen::Matrix2d Estimator::encoderNoise(double dt) const {
     const double tick_m = wheel_radius_m_ * wheel_rad_per_tick_;
     var_u += tick_m * tick_m / 6.0 / (dt * dt);
   }
+  return wheelSpeedNoise(var_u);
+}
+
+Eigen::Matrix2d Estimator::wheelSpeedNoise(double var_u) const {
   Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
   R(0, 0) = 0.5 * var_u;                                      // v = (uR + uL) / 2
   R(1, 1) = 2.0 * var_u / (track_width_m_ * track_width_m_);  // omega = (uR - uL) / l_w

@@ -142,6 +142,9 @@ class Estimator {
   /// tick quantisation (difference of two uniform errors, var = 1/6 tick^2 per wheel) plus the
   /// configured per-wheel noise.
   Eigen::Matrix2d encoderNoise(double dt_s) const;
+  /// (v, omega) covariance of independent per-wheel rim-speed errors of variance var_u
+  /// (m^2/s^2 each): diag(var_u / 2, 2 var_u / l_w^2), v = (uR + uL) / 2, omega = (uR - uL) / l_w.
+  Eigen::Matrix2d wheelSpeedNoise(double var_u_m2_s2) const;
   /// Sonar body-frame mount and the obstacle covariance (body frame, Cartesian) of a sonar
   /// reading: along the beam sonar_noise_m, across it range * bearing sigma.
   Eigen::Vector2d sonarPointBody(double range_m) const;

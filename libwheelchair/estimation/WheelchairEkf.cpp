@@ -312,17 +312,19 @@ void WheelchairEkf::resetAccumulators(double t) {
   ekf_.setState(xs_);
   ekf_.zeroCovarianceRowsCols(kIdxSv, 2);
   const double q = tickVarianceM2();
-  if (opt_.encoder_quantisation_carry && q > 0 &&
-      opt_.encoder_model == EncoderMeasurementModel::Mean) {
+  if (quantisationCarried() && q > 0) {
     // s = -e, e the count's error per wheel (uniform, tick^2 / 12): s_v = -(e_R + e_L) / 2,
     // s_omega = -(e_R - e_L) / l_w.
     Pw_ = ekf_.P();
-    Pw_(kIdxSv, kIdxSv) = 0.5 * q;
-    Pw_(kIdxSomega, kIdxSomega) = 2.0 * q / (track_width_m_ * track_width_m_);
+    Pw_.block<2, 2>(kIdxSv, kIdxSv) = wheelSpeedNoise(q);  // (the block was zeroed above)
     ekf_.setCovariance(Pw_);
   }
   acc_start_s_ = t;
   acc_valid_ = true;
+}
+
+bool WheelchairEkf::quantisationCarried() const {
+  return opt_.encoder_quantisation_carry && opt_.encoder_model == EncoderMeasurementModel::Mean;
 }
 
 double WheelchairEkf::tickVarianceM2() const {
@@ -336,13 +338,8 @@ Eigen::Matrix2d WheelchairEkf::encoderIntervalNoise(double dt) const {
   // error e_k enters once, through the accumulators' restart value (-e_{k-1}, in P) and the
   // new count (+e_k, here): tick^2 / 12 / dt^2. White: both, tick^2 / 6 / dt^2
   // (Estimator::encoderNoise, the baseline's model).
-  const bool carry =
-      opt_.encoder_quantisation_carry && opt_.encoder_model == EncoderMeasurementModel::Mean;
-  const double var_u = (carry ? 1.0 : 2.0) * tickVarianceM2() / (dt * dt) + slip_var_m2_s2_;
-  Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
-  R(0, 0) = 0.5 * var_u;                                      // v = (uR + uL) / 2
-  R(1, 1) = 2.0 * var_u / (track_width_m_ * track_width_m_);  // omega = (uR - uL) / l_w
-  return R;
+  return wheelSpeedNoise((quantisationCarried() ? 1.0 : 2.0) * tickVarianceM2() / (dt * dt) +
+                         slip_var_m2_s2_);
 }
 
 void WheelchairEkf::nextEncoderInterval(const Eigen::Vector2d& z, double dt, double t, bool carry) {
@@ -356,8 +353,7 @@ void WheelchairEkf::nextEncoderInterval(const Eigen::Vector2d& z, double dt, dou
   // P' = G P G' + var(M^-1 u), G = I except the s rows (alpha, and d s' / d k with the scales).
   // alpha = 1 (no slip): the exact telescoping; alpha = 0: the white model's restart at 0.
   const double q = tickVarianceM2();
-  if (!carry || q <= 0 || !opt_.encoder_quantisation_carry ||
-      opt_.encoder_model != EncoderMeasurementModel::Mean) {
+  if (!carry || q <= 0 || !quantisationCarried()) {
     resetAccumulators(t);
     return;
   }
@@ -380,17 +376,18 @@ void WheelchairEkf::nextEncoderInterval(const Eigen::Vector2d& z, double dt, dou
   xs_.segment<2>(kIdxSv) = alpha * (x.segment<2>(kIdxSv) - dt * Minv * z);
   ekf_.setState(xs_);
   // G P G' with G = I + E, E nonzero only in the s rows: s rows <- alpha s rows + dsdk k rows.
+  // In place in the scratch Pw_ (no allocation per interval): the k rows and columns read by
+  // the second term are not among the s rows and columns scaled by the first.
   Pw_ = ekf_.P();
-  Eigen::MatrixXd rows = alpha * Pw_.middleRows<2>(kIdxSv);
-  if (n > kPhysicsStateDim) rows += dsdk * Pw_.middleRows<2>(kIdxEncScaleS);
-  Pw_.middleRows<2>(kIdxSv) = rows;
-  rows = alpha * Pw_.middleCols<2>(kIdxSv);
-  if (n > kPhysicsStateDim) rows += Pw_.middleCols<2>(kIdxEncScaleS) * dsdk.transpose();
-  Pw_.middleCols<2>(kIdxSv) = rows;
+  Pw_.middleRows<2>(kIdxSv) *= alpha;
+  if (n > kPhysicsStateDim) Pw_.middleRows<2>(kIdxSv) += dsdk * Pw_.middleRows<2>(kIdxEncScaleS);
+  Pw_.middleCols<2>(kIdxSv) *= alpha;
+  if (n > kPhysicsStateDim)
+    Pw_.middleCols<2>(kIdxSv) += Pw_.middleCols<2>(kIdxEncScaleS) * dsdk.transpose();
   const double lw2 = track_width_m_ * track_width_m_;
   const Eigen::Matrix2d Qu = (1.0 - alpha) * q * Eigen::Vector2d(0.5, 2.0 / lw2).asDiagonal();
   Pw_.block<2, 2>(kIdxSv, kIdxSv) += Minv * Qu * Minv.transpose();
-  ekf_.setCovariance(0.5 * (Pw_ + Pw_.transpose()));
+  ekf_.setCovariance(Pw_);  // (which symmetrises it)
   acc_start_s_ = t;
   acc_valid_ = true;
 }

@@ -144,6 +144,8 @@ class WheelchairEkf : public Estimator {
   /// the quantisation chain: s = -e with e the unknown error of the count at t_s, variance
   /// tickVarianceM2() mapped to (s_v, s_omega), uncorrelated with the rest.
   void resetAccumulators(double t_s);
+  /// encoder_quantisation_carry applies: it is set and encoder_model is Mean.
+  bool quantisationCarried() const;
   /// Per-wheel variance of a count's quantisation error as a rim distance (m^2): tick^2 / 12;
   /// 0 with encoder_quantisation off.
   double tickVarianceM2() const;

@@ -169,11 +169,14 @@ class SeriesThinner {
       bin_ = b, key_now_ = k, first_ = s;
       lo_.assign(values_.size(), {0, s});
       hi_.assign(values_.size(), {0, s});
+      lo_x_.resize(values_.size());
+      hi_x_.resize(values_.size());
     }
     for (std::size_t j = 0; j < values_.size(); ++j) {
       const double x = values_[j](s);
-      if (x < values_[j](lo_[j].second)) lo_[j] = {n_, s};
-      if (x > values_[j](hi_[j].second)) hi_[j] = {n_, s};
+      if (n_ == 0) lo_x_[j] = hi_x_[j] = x;
+      if (x < lo_x_[j]) lo_[j] = {n_, s}, lo_x_[j] = x;
+      if (x > hi_x_[j]) hi_[j] = {n_, s}, hi_x_[j] = x;
     }
     last_ = {n_, s};
     ++n_;
@@ -187,7 +190,8 @@ class SeriesThinner {
   }
   void flush() {
     if (n_ == 0) return;
-    std::vector<std::pair<std::size_t, T>> keep{{0, first_}, last_};
+    std::vector<std::pair<std::size_t, T>>& keep = keep_;  // (scratch: no allocation per bin)
+    keep.assign({{0, first_}, last_});
     keep.insert(keep.end(), lo_.begin(), lo_.end());
     keep.insert(keep.end(), hi_.begin(), hi_.end());
     std::stable_sort(keep.begin(), keep.end(),
@@ -205,7 +209,8 @@ class SeriesThinner {
   std::size_t n_ = 0;  // samples in the current bin
   T first_{};
   std::pair<std::size_t, T> last_{};
-  std::vector<std::pair<std::size_t, T>> lo_, hi_;
+  std::vector<std::pair<std::size_t, T>> lo_, hi_, keep_;
+  std::vector<double> lo_x_, hi_x_;  // their values (not recomputed per sample)
 };
 
 /// Bins a figure's time span is cut into by SeriesThinner on a long drive (~3 per 1/3 px

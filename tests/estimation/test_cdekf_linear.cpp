@@ -316,6 +316,24 @@ struct UnicycleWithConsiderTail : CdModel {
     Q(1, 1) = 0.02;
   }
 };
+
+// The consider tests' start: moving and turning, P0 with the correlations a consider update
+// leaves (v with the scale, phi with the bias); a turning, accelerating input.
+struct ConsiderStart {
+  Eigen::VectorXd x0 = (Eigen::VectorXd(6) << 0.6, 0.3, 0.0, 0.0, 1.0, 0.0).finished();
+  Eigen::MatrixXd P0 = [] {
+    Eigen::MatrixXd P = Eigen::MatrixXd::Zero(6, 6);
+    P.diagonal() << 1e-3, 1e-4, 1e-6, 1e-6, 2.5e-5, 1e-4;
+    P(0, 4) = P(4, 0) = 3e-6;
+    P(1, 5) = P(5, 1) = -5e-5;
+    return P;
+  }();
+  static Eigen::VectorXd input(double t) {
+    Eigen::VectorXd u(2);
+    u << 0.3 + 0.2 * std::sin(2.0 * t), 0.5 * std::cos(1.3 * t);
+    return u;
+  }
+};
 }  // namespace
 
 // setHeldTail(count, consider = true): the held states carry a non-zero covariance (Schmidt
@@ -331,18 +349,10 @@ TEST(CdEkfLinear, ConsiderTailCarriesItsCrossCovarianceWithTheTransitionMatrix) 
   o.rel_tol = 1e-10;
   o.abs_tol_state = 1e-12;
   o.abs_tol_cov = 1e-14;
-  Eigen::VectorXd x0(6);
-  x0 << 0.6, 0.3, 0.0, 0.0, 1.0, 0.0;
-  Eigen::MatrixXd P0 = Eigen::MatrixXd::Zero(6, 6);
-  P0.diagonal() << 1e-3, 1e-4, 1e-6, 1e-6, 2.5e-5, 1e-4;
-  // Correlations as a consider update leaves them: v with the scale, phi with the bias.
-  P0(0, 4) = P0(4, 0) = 3e-6;
-  P0(1, 5) = P0(5, 1) = -5e-5;
-  const auto input = [](double t) {
-    Eigen::VectorXd u(2);
-    u << 0.3 + 0.2 * std::sin(2.0 * t), 0.5 * std::cos(1.3 * t);
-    return u;
-  };
+  const ConsiderStart start;
+  const Eigen::VectorXd& x0 = start.x0;
+  const Eigen::MatrixXd& P0 = start.P0;
+  const auto& input = ConsiderStart::input;
   CdEkf held(m, o), full(m, o);
   held.setHeldTail(2, true);
   held.reset(0.0, x0, P0);
@@ -389,17 +399,10 @@ TEST(CdEkfLinear, ConsiderTailCarriesItsCrossCovarianceWithTheTransitionMatrix) 
 // Taking CVODE's second evaluation instead (t0 + its first step) is off by ~5e-12 of P_xc.
 TEST(CdEkfLinear, ConsiderStepUsesTheJacobiansAtBothEndsOfEachInterval) {
   const UnicycleWithConsiderTail m;
-  Eigen::VectorXd x0(6);
-  x0 << 0.6, 0.3, 0.0, 0.0, 1.0, 0.0;
-  Eigen::MatrixXd P0 = Eigen::MatrixXd::Zero(6, 6);
-  P0.diagonal() << 1e-3, 1e-4, 1e-6, 1e-6, 2.5e-5, 1e-4;
-  P0(0, 4) = P0(4, 0) = 3e-6;
-  P0(1, 5) = P0(5, 1) = -5e-5;
-  const auto input = [](double t) {
-    Eigen::VectorXd u(2);
-    u << 0.3 + 0.2 * std::sin(2.0 * t), 0.5 * std::cos(1.3 * t);
-    return u;
-  };
+  const ConsiderStart start;
+  const Eigen::VectorXd& x0 = start.x0;
+  const Eigen::MatrixXd& P0 = start.P0;
+  const auto& input = ConsiderStart::input;
   CdEkf held(m, CvodeOptions{});
   held.setHeldTail(2, true);
   held.reset(0.0, x0, P0);

@@ -18,6 +18,19 @@ namespace {
 using testutil::countColour;
 using testutil::countNonBackground;
 
+/// `b`'s metrics rows are `a`'s: variant, error, estimate count and ATE (NaN as NaN).
+void expectSameMetricRows(const DriveData& b, const DriveData& a) {
+  ASSERT_EQ(b.metrics.rows.size(), a.metrics.rows.size());
+  for (std::size_t i = 0; i < a.metrics.rows.size(); ++i) {
+    const auto &ra = a.metrics.rows[i], &rb = b.metrics.rows[i];
+    EXPECT_EQ(rb.variant, ra.variant);
+    EXPECT_EQ(rb.error, ra.error);
+    EXPECT_EQ(rb.n_estimates, ra.n_estimates);
+    const double x = ra.metrics.ate_rmse_m, y = rb.metrics.ate_rmse_m;
+    EXPECT_TRUE(x == y || (std::isnan(x) && std::isnan(y))) << ra.variant;
+  }
+}
+
 TEST(Report, WritesEveryFigureWithContentAndTheIndex) {
   const std::string rawlog = testutil::SimulatedDrive::rawlog();
   test::TempDir dir;
@@ -99,12 +112,7 @@ TEST(Report, LeanLoadKeepsWhatTheFiguresDraw) {
     ASSERT_EQ(lean.trajectories.at(v).size(), t.size()) << v;
     EXPECT_EQ(lean.trajectories.at(v).back().x_m, t.back().x_m) << v;
   }
-  ASSERT_EQ(lean.metrics.rows.size(), full.metrics.rows.size());
-  for (std::size_t i = 0; i < full.metrics.rows.size(); ++i) {
-    const double a = lean.metrics.rows[i].metrics.ate_rmse_m,
-                 b = full.metrics.rows[i].metrics.ate_rmse_m;
-    EXPECT_TRUE(a == b || (std::isnan(a) && std::isnan(b))) << full.metrics.rows[i].variant;
-  }
+  expectSameMetricRows(lean, full);
   for (int s = 0; s < estimation::kNumSensors; ++s)
     EXPECT_EQ(lean.est.ekf.sensors[s].used, full.est.ekf.sensors[s].used);
 }
@@ -151,15 +159,7 @@ TEST(Report, StreamedLoadEqualsTheLoadedOne) {
       ASSERT_EQ(b.trajectories.at(v).size(), t.size()) << v;
       EXPECT_EQ(b.trajectories.at(v).back().y_m, t.back().y_m) << v;
     }
-    ASSERT_EQ(b.metrics.rows.size(), a.metrics.rows.size());
-    for (std::size_t i = 0; i < a.metrics.rows.size(); ++i) {
-      const auto &ra = a.metrics.rows[i], &rb = b.metrics.rows[i];
-      EXPECT_EQ(rb.variant, ra.variant);
-      EXPECT_EQ(rb.error, ra.error);
-      EXPECT_EQ(rb.n_estimates, ra.n_estimates);
-      const double x = ra.metrics.ate_rmse_m, y = rb.metrics.ate_rmse_m;
-      EXPECT_TRUE(x == y || (std::isnan(x) && std::isnan(y))) << ra.variant;
-    }
+    expectSameMetricRows(b, a);
     EXPECT_EQ(b.metrics.failed_recordings, a.metrics.failed_recordings);
     ASSERT_EQ(b.gt_start.size(), a.gt_start.size());
     ASSERT_FALSE(a.gt_start.empty());
