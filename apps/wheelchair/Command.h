@@ -53,6 +53,9 @@ struct Command {
   std::string description;
   // Adds the subcommand's options to `sub`; returns the action run after parsing.
   std::function<std::function<int()>(CLI::App& sub)> setup;
+  // Non-empty: the command runs in this other program of the same directory, started with the
+  // same arguments before any parsing (FullProgram.h); `setup` then only lists it in --help.
+  std::string runs_in = {};
 };
 
 std::vector<Command>& commandRegistry();

@@ -4,6 +4,7 @@
 // written (estimation::LiveEstimator, the vehicle configuration of the capture) and every
 // new model-health event is printed as it is found; OUT.jsonl is written atomically at the end.
 #include "Command.h"
+#include "FullProgram.h"
 #include "HealthJson.h"
 #include "StopSignal.h"
 
@@ -151,8 +152,7 @@ int runCapture(CaptureCliOptions& c) {
 }
 
 const RegisterCommand reg{Command{
-    "capture", "Record the wheelchair's sensors (serial devices, SPI counters) into a rawlog, live",
-    [](CLI::App& sub) -> std::function<int()> {
+    "capture", fullOnlyDescription("capture"), [](CLI::App& sub) -> std::function<int()> {
       auto c = std::make_shared<CaptureCliOptions>();
       sub.add_option("--config,-c", c->o.config_path, "Capture configuration (config/capture.ini)")
           ->required();

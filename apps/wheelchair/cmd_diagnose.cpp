@@ -7,6 +7,7 @@
 // go to the command-response analyser (diagnosis/CommandResponse.h): actuator_lag etc., with
 // the held-out open-loop drift in fit_before / fit_after and [mrclam_response] written.
 #include "Command.h"
+#include "FullProgram.h"
 #include "Progress.h"
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/diagnosis/CommandResponse.h"
@@ -315,9 +316,7 @@ int runDiagnose(const DiagnoseOptions& o) {
 }
 
 const RegisterCommand reg{Command{
-    "diagnose",
-    "Find the physics the model leaves out: locate, name, fit and validate model extensions",
-    [](CLI::App& sub) -> std::function<int()> {
+    "diagnose", fullOnlyDescription("diagnose"), [](CLI::App& sub) -> std::function<int()> {
       auto o = std::make_shared<DiagnoseOptions>();
       sub.add_option("inputs", o->inputs, "Recording(s) of one vehicle to fit on")->required();
       sub.add_option(

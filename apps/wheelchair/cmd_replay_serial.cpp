@@ -2,6 +2,7 @@
 // into pseudo-terminals, one per capture source, in the line formats the capture expects, so
 // that `wheelchair capture` runs without hardware (docs/capture.md, "Replay").
 #include "Command.h"
+#include "FullProgram.h"
 #include "StopSignal.h"
 
 #include "libwheelchair/capture/SerialReplayer.h"
@@ -52,8 +53,7 @@ int runReplay(ReplayCliOptions& c) {
 }
 
 const RegisterCommand reg{Command{
-    "replay-serial",
-    "Play a recording into pseudo-terminals in the capture sources' line formats (no hardware)",
+    "replay-serial", fullOnlyDescription("replay-serial"),
     [](CLI::App& sub) -> std::function<int()> {
       auto c = std::make_shared<ReplayCliOptions>();
       sub.add_option("recording", c->o.recording, "Plain-text recording directory (or a .rawlog)")

@@ -4,6 +4,7 @@
 // configuration used (libwheelchair/visualization/Report.h, docs/visualization.md).
 #include "AlignmentOption.h"
 #include "Command.h"
+#include "FullProgram.h"
 
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/RawlogStream.h"
@@ -47,8 +48,7 @@ int runReport(const ReportCliOptions& o) {
 }
 
 const RegisterCommand reg{Command{
-    "report", "Figures like the paper's Fig. 5-8 (PNG, headless) and index.md for a recording",
-    [](CLI::App& sub) -> std::function<int()> {
+    "report", fullOnlyDescription("report"), [](CLI::App& sub) -> std::function<int()> {
       auto o = std::make_shared<ReportCliOptions>();
       sub.add_option("file", o->file, "Rawlog recording")->required();
       sub.add_option("-o,--output", o->out_dir, "Output directory")->required();

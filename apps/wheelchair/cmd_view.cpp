@@ -4,6 +4,7 @@
 // sonar cone. Space play/pause, arrows step/seek, +/- speed, q quit. --screenshot saves one
 // frame (at --at seconds since the start) and exits; works without a display (offscreen).
 #include "Command.h"
+#include "FullProgram.h"
 
 #include "libwheelchair/io/RawlogIO.h"
 
@@ -46,8 +47,7 @@ int runView(const ViewCliOptions& o) {
 }
 
 const RegisterCommand reg{Command{
-    "view", "3-D viewer of a drive: trajectories, chair, obstacle estimate, sonar (MRPT window)",
-    [](CLI::App& sub) -> std::function<int()> {
+    "view", fullOnlyDescription("view"), [](CLI::App& sub) -> std::function<int()> {
       auto o = std::make_shared<ViewCliOptions>();
       sub.add_option("file", o->file, "Rawlog recording")->required();
       sub.add_option("--config", o->config_path, "Configuration INI (default: nominal vehicle)");

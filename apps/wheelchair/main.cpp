@@ -10,7 +10,10 @@
 #include <iostream>
 #include <map>
 
+#include <cerrno>
 #include <csignal>
+#include <cstring>
+#include <filesystem>
 
 #include <sys/resource.h>
 #include <unistd.h>
@@ -55,6 +58,34 @@ const std::map<std::string, std::string>& examples() {
   return ex;
 }
 
+// The command named on the command line when it runs in another program (Command::runs_in,
+// FullProgram.h): the first argument that is not an option (the program's own options,
+// --lenient, --help and --version, take no value), or nullptr.
+const wheelchair::cli::Command* runsElsewhere(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    if (argv[i][0] == '-') continue;
+    for (const auto& c : wheelchair::cli::commandRegistry())
+      if (c.name == argv[i]) return c.runs_in.empty() ? nullptr : &c;
+    return nullptr;
+  }
+  return nullptr;
+}
+
+// Replaces this process by `c.runs_in` from this program's directory, with the same
+// arguments; returns (exit code 1, one line) only if it cannot be started.
+int runInOtherProgram(const wheelchair::cli::Command& c, char** argv) {
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  const std::string path =
+      ((ec ? std::filesystem::path(argv[0]) : self).parent_path() / c.runs_in).string();
+  execv(path.c_str(), argv);
+  const int err = errno;
+  std::cerr << "wheelchair " << c.name << ": error: cannot run " << path << ": "
+            << std::strerror(err) << " (" << c.name << " is in " << c.runs_in
+            << ", built with wheelchair)\n";
+  return wheelchair::cli::kExitBadInput;
+}
+
 // A corrupt rawlog can hold a nonsense container length that MRPT's deserializer would try to
 // allocate (and zero) in full. Capping the address space turns that into std::bad_alloc,
 // which the readers report as a corrupt record, instead of the OOM killer ending the process.
@@ -72,6 +103,7 @@ void capAddressSpace() {
 
 int main(int argc, char** argv) {
   using namespace wheelchair::cli;
+  if (const Command* other = runsElsewhere(argc, argv)) return runInOtherProgram(*other, argv);
   capAddressSpace();
   // A file-size limit (ulimit -f) must be an I/O error like a full disk (write(2) fails with
   // EFBIG and every writer reports it), not a silent kill by SIGXFSZ.
@@ -86,8 +118,9 @@ int main(int argc, char** argv) {
                "Configuration files: unknown sections/keys and an empty file only warn "
                "(for files written by older versions); by default they are errors");
   app.fallthrough();  // --lenient is accepted after the subcommand name too
-  // Every module is linked into this program, so every options table has registered itself
-  // (config/Options.h): a section no table knows is a typo, not a module left out.
+  // Every module with an options table is linked into both programs (FullProgram.h; tests/cli
+  // compares their `config --dump`), so every table has registered itself (config/Options.h):
+  // a section no table knows is a typo, not a module left out.
   wheelchair::config::setAllSectionsRegistered(true);
 
   auto& registry = commandRegistry();
