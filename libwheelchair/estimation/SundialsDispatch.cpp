@@ -19,6 +19,7 @@
 //
 // Example: CVODE's predictor calls N_VLinearSum(1, zn[j-1], 1, zn[j], zn[j-1]); that is now
 // one indirect jump to the serial kernel installed in CdEkf.cpp instead of an -O0 frame.
+#include <nvector/nvector_serial.h>
 #include <sundials/sundials_math.h>
 #include <sundials/sundials_nonlinearsolver.h>
 #include <sundials/sundials_nvector.h>
@@ -53,6 +54,12 @@ realtype N_VWrmsNorm(N_Vector x, N_Vector w) {
 }
 realtype* N_VGetArrayPointer(N_Vector v) {
   return v->ops->nvgetarraypointer(v);
+}
+
+// The serial vector's array accessor, which CVODE's N_VGetArrayPointer reaches through the ops
+// table (CdEkf's kernels replace the arithmetic operations, not this one).
+realtype* N_VGetArrayPointer_Serial(N_Vector v) {
+  return NV_DATA_S(v);
 }
 
 // --- fused operations: the vector's own, else SUNDIALS' loop of single operations -----------

@@ -66,9 +66,9 @@ TEST(SundialsDispatch, TheProgramsDefinitionsAreTheOnesCvodeCalls) {
   // The first definition in lookup order is the one the library's PLT binds to.
   for (const char* name :
        {"N_VLinearSum", "N_VConst", "N_VProd", "N_VScale", "N_VDotProd", "N_VWrmsNorm",
-        "N_VGetArrayPointer", "N_VLinearCombination", "N_VScaleAddMulti", "N_VScaleVectorArray",
-        "SUNRpowerI", "SUNRpowerR", "SUNNonlinSolSolve", "SUNNonlinSolGetNumIters",
-        "SUNNonlinSolGetCurIter", "SUNNonlinSolGetNumConvFails"}) {
+        "N_VGetArrayPointer", "N_VGetArrayPointer_Serial", "N_VLinearCombination",
+        "N_VScaleAddMulti", "N_VScaleVectorArray", "SUNRpowerI", "SUNRpowerR", "SUNNonlinSolSolve",
+        "SUNNonlinSolGetNumIters", "SUNNonlinSolGetCurIter", "SUNNonlinSolGetNumConvFails"}) {
     void* first = dlsym(RTLD_DEFAULT, name);
     void* library = dlsym(RTLD_NEXT, name);
     ASSERT_NE(first, nullptr) << name;
@@ -116,6 +116,9 @@ TEST(SundialsDispatch, VectorOperationsGiveTheLibrarysBits) {
       expectSameData(mine.data(1), lib.data(1), "N_VConst");
       EXPECT_EQ(N_VGetArrayPointer(a[0]), NV_DATA_S(a[0]));
       EXPECT_EQ(libraryVersion<double* (*)(N_Vector)>("N_VGetArrayPointer")(a[0]), NV_DATA_S(a[0]));
+      EXPECT_EQ(N_VGetArrayPointer_Serial(a[1]), NV_DATA_S(a[1]));
+      EXPECT_EQ(libraryVersion<double* (*)(N_Vector)>("N_VGetArrayPointer_Serial")(a[1]),
+                NV_DATA_S(a[1]));
     }
   }
 }
