@@ -1049,28 +1049,34 @@ void describeFinding(Finding& f, const Candidate& c, const Selection& sel, std::
   if (!t.channels.empty()) f.channels = t.channels;
 }
 
+/// Column j of the stage 1 unmodeled-term library at window i: the window length T times v,
+/// |omega|, omega |omega|, cos(phi), sin(phi), v omega (rad for the rates' terms).
+double kinematicLibraryValue(const KinRows& k, int j, int i) {
+  const double T = k.t1[i] - k.t0[i], w = k.omega[i];
+  if (j == 0) return T * k.v[i];
+  if (j == 1) return T * std::abs(w);
+  if (j == 2) return T * w * std::abs(w);
+  if (j == 3) return T * std::cos(k.phi[i]);
+  if (j == 4) return T * std::sin(k.phi[i]);
+  return T * k.v[i] * w;
+}
+
 /// Stage 1 terms outside the catalogue: STLSQ over a library of window integrals.
 void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows& kv2,
                         const Eigen::VectorXd& rv_after, int lags,
                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
                         DiagnosisReport& rep) {
-  auto lib = [&](const KinRows& k) {
-    Eigen::MatrixXd L(k.y.size(), 6);
-    for (int i = 0; i < k.y.size(); ++i) {
-      double T = k.t1[i] - k.t0[i], w = k.omega[i];
-      L.row(i) << T * k.v[i], T * std::abs(w), T * w * std::abs(w), T * std::cos(k.phi[i]),
-          T * std::sin(k.phi[i]), T * k.v[i] * w;
-    }
-    return L;
+  // The library's columns made when read, not stored (memory, docs/benchmarks.md, "Ninth
+  // round, stage 1").
+  auto view = [](const KinRows& k) {
+    return Library{static_cast<int>(k.y.size()), 6, [&k](int j, int r0, int n) -> Eigen::VectorXd {
+                     Eigen::VectorXd c(n);
+                     for (int r = 0; r < n; ++r) c(r) = kinematicLibraryValue(k, j, r0 + r);
+                     return c;
+                   }};
   };
   const Eigen::VectorXd& rf = sel.fit.residual;
-  const Eigen::MatrixXd Lf = lib(kf2), Lv = lib(kv2);
-  auto view = [](const Eigen::MatrixXd& L) {
-    return Library{
-        static_cast<int>(L.rows()), static_cast<int>(L.cols()),
-        [&L](int j, int r0, int n) -> Eigen::VectorXd { return L.col(j).segment(r0, n); }};
-  };
-  SparseResult sr = stlsq(view(Lf), rf, kf2.groups, view(Lv), rv_after, kv2.groups, lags, opt,
+  SparseResult sr = stlsq(view(kf2), rf, kf2.groups, view(kv2), rv_after, kv2.groups, lags, opt,
                           opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
   if (!sr.accepted) return;
   static const std::vector<std::string> names = {"v",        "|omega|",  "omega*|omega|",
