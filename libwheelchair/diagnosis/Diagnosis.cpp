@@ -896,21 +896,25 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs, std::size_t n
 /// Fills data.all: each fit recording's streams (without motor currents) joined from the
 /// samples before its fit part, the fit part, its held-out part (without --validate) and the
 /// samples after: the streams makeStreams() made of it, sample for sample. After the stages
-/// nothing reads the motor currents nor the fit parts (the checks that follow read `all` and
-/// `val`): they are released first, each fit part once joined (memory, docs/benchmarks.md).
+/// nothing reads the motor currents, the fit parts nor (once the held-out trajectories are
+/// made, heldOutTrajectories()) the held-out parts: the join consumes them, each column
+/// released once joined, and the --validate recordings' streams are released (memory,
+/// docs/benchmarks.md).
 void makeWholeStreams(StageData& data) {
   data.all.clear();
   for (auto* parts : {&data.fit, &data.val})
     for (Streams& s : *parts)
       for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
   for (std::size_t i = 0; i < data.fit.size(); ++i) {
-    std::vector<const Streams*> parts{&data.beyond[i][0], &data.fit[i]};
-    if (data.fit_fraction < 1.0) parts.push_back(&data.val[i]);
-    parts.push_back(&data.beyond[i][1]);
-    data.all.push_back(joinStreams(parts, false));
-    data.fit[i] = Streams();
-    data.beyond[i] = {};
+    std::vector<Streams> parts;
+    parts.push_back(std::move(data.beyond[i][0]));
+    parts.push_back(std::move(data.fit[i]));
+    if (data.fit_fraction < 1.0) parts.push_back(std::move(data.val[i]));
+    parts.push_back(std::move(data.beyond[i][1]));
+    data.all.push_back(joinStreams(std::move(parts), false));
   }
+  std::vector<Streams>().swap(data.fit);
+  std::vector<Streams>().swap(data.val);
   std::vector<std::array<Streams, 2>>().swap(data.beyond);
 }
 
@@ -1993,12 +1997,20 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   return true;
 }
 
-/// Dead reckoning against ground truth before and after the corrections, and the corrections.
-void verifyTrajectories(const StageData& data, const Corrections& corr,
-                        const config::WheelchairConfig& cfg, DiagnosisReport& rep) {
+/// Dead reckoning against ground truth on the held-out parts, before and after the
+/// corrections (before makeWholeStreams(), which consumes them).
+void heldOutTrajectories(const StageData& data, const Corrections& corr,
+                         const config::WheelchairConfig& cfg, DiagnosisReport& rep) {
   Corrections none;
   nlohmann::json tb = trajectoryJson(data.val, none, cfg), ta = trajectoryJson(data.val, corr, cfg);
   if (!tb.empty()) rep.validation["trajectory_heldout"] = {{"before", tb}, {"after", ta}};
+}
+
+/// Dead reckoning against ground truth on the whole recordings before and after the
+/// corrections, and the corrections.
+void verifyTrajectories(const StageData& data, const Corrections& corr,
+                        const config::WheelchairConfig& cfg, DiagnosisReport& rep) {
+  Corrections none;
   nlohmann::json fb = trajectoryJson(data.all, none, cfg), fa = trajectoryJson(data.all, corr, cfg);
   if (!fb.empty()) rep.validation["trajectory_full_recordings"] = {{"before", fb}, {"after", fa}};
   rep.validation["corrections"] = {{"encoder_scale_right", corr.enc_scale[0]},
@@ -2043,7 +2055,9 @@ DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
   // odometric geometry against ground truth (with or without a gyro)
   addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
 
-  // sensor faults (not physics): sonar dropouts, Pozyx outliers
+  // sensor faults (not physics): sonar dropouts, Pozyx outliers; on the whole streams, which
+  // consume the held-out parts
+  heldOutTrajectories(data, corr, cfg, rep);
   makeWholeStreams(data);
   {
     SensorFaultOptions so;

@@ -190,35 +190,66 @@ Streams makeStreams(const io::Recording& rec, StreamColumns&& cols,
   return s;
 }
 
-Streams joinStreams(const std::vector<const Streams*>& parts, bool with_motors) {
+namespace {
+
+/// joinStreams(parts, with_motors); with `release` (the parts' owner: parts[i] == &(*release)[i])
+/// each column of the parts is freed once joined, so the parts and the result are never both
+/// held whole (memory, docs/benchmarks.md, "Ninth round, stage 1").
+Streams joinInto(const std::vector<const Streams*>& parts, bool with_motors,
+                 std::vector<Streams>* release) {
   Streams o;
   if (parts.empty()) return o;
-  // Sized once for every sample of the parts (memory); shared boundary samples leave a few.
-  std::size_t ne = 0, ng = 0, nm = 0, np = 0, nt = 0;
-  for (const Streams* p : parts)
-    ne += p->te.size(), ng += p->tg.size(), nm += p->tm.size(), np += p->pozyx.size(),
-        nt += p->gt.size();
-  for (auto* v : {&o.te, &o.sR, &o.sL}) v->reserve(ne);
-  for (auto* v : {&o.tg, &o.gz}) v->reserve(ng);
-  if (with_motors)
-    for (auto* v : {&o.tm, &o.iR, &o.iL}) v->reserve(nm);
+  using Column = std::vector<double> Streams::*;
+  // A stream's columns (time first): of each part the samples later than every sample taken
+  // so far, each output sized once to what it receives.
+  auto join = [&](std::initializer_list<Column> cols, bool keep) {
+    const Column tc = *cols.begin();
+    std::vector<std::vector<char>> take(parts.size());
+    std::size_t n = 0;
+    double last = 0;
+    for (std::size_t p = 0; keep && p < parts.size(); ++p) {
+      const std::vector<double>& t = parts[p]->*tc;
+      take[p].assign(t.size(), 0);
+      for (std::size_t k = 0; k < t.size(); ++k)
+        if (n == 0 || t[k] > last) take[p][k] = 1, last = t[k], ++n;
+    }
+    for (Column c : cols) {
+      std::vector<double>& out = o.*c;
+      if (keep) out.reserve(n);
+      for (std::size_t p = 0; p < parts.size(); ++p) {
+        const std::vector<double>& in = parts[p]->*c;
+        for (std::size_t k = 0; keep && k < in.size(); ++k)
+          if (take[p][k]) out.push_back(in[k]);
+        if (release) std::vector<double>().swap((*release)[p].*c);
+      }
+    }
+  };
+  join({&Streams::te, &Streams::sR, &Streams::sL}, true);
+  join({&Streams::tg, &Streams::gz}, true);
+  join({&Streams::tm, &Streams::iR, &Streams::iL}, with_motors);
+  std::size_t np = 0, nt = 0;
+  for (const Streams* p : parts) np += p->pozyx.size(), nt += p->gt.size();
   o.pozyx.reserve(np), o.gt.reserve(nt);
   for (const Streams* p : parts) {
-    for (std::size_t k = 0; k < p->te.size(); ++k)
-      if (o.te.empty() || p->te[k] > o.te.back())
-        o.te.push_back(p->te[k]), o.sR.push_back(p->sR[k]), o.sL.push_back(p->sL[k]);
-    for (std::size_t k = 0; k < p->tg.size(); ++k)
-      if (o.tg.empty() || p->tg[k] > o.tg.back())
-        o.tg.push_back(p->tg[k]), o.gz.push_back(p->gz[k]);
-    for (std::size_t k = 0; with_motors && k < p->tm.size(); ++k)
-      if (o.tm.empty() || p->tm[k] > o.tm.back())
-        o.tm.push_back(p->tm[k]), o.iR.push_back(p->iR[k]), o.iL.push_back(p->iL[k]);
     appendLater(o.pozyx, p->pozyx, [](const io::PozyxSample& x) { return x.t_s; });
     appendLater(o.gt, p->gt, [](const io::GroundTruthPoseSample& x) { return x.t_s; });
   }
   o.t_begin = parts.front()->t_begin;
   o.t_end = parts.back()->t_end;
+  if (release) release->clear();
   return o;
+}
+
+}  // namespace
+
+Streams joinStreams(const std::vector<const Streams*>& parts, bool with_motors) {
+  return joinInto(parts, with_motors, nullptr);
+}
+
+Streams joinStreams(std::vector<Streams>&& parts, bool with_motors) {
+  std::vector<const Streams*> ptrs;
+  for (const Streams& p : parts) ptrs.push_back(&p);
+  return joinInto(ptrs, with_motors, &parts);
 }
 
 namespace {
