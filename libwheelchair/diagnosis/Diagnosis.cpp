@@ -2026,12 +2026,31 @@ void verifyTrajectories(const StageData& data, const Corrections& corr,
 
 namespace {
 
+/// Frees the samples the diagnosis reads only through the streams (IMU, motor currents) or not
+/// at all (joystick: the command-response analyser is not part of diagnose()).
+void releaseStreamSamples(io::Recording& r) {
+  std::vector<io::ImuSample>().swap(r.imu);  // (`= {}` would keep the capacity)
+  std::vector<io::MotorSample>().swap(r.motors);
+  std::vector<io::JoystickSample>().swap(r.joystick);
+}
+
+/// Frees what the odometric calibration reads of a recording and the sensor-fault and
+/// trajectory checks read from the streams (encoders, Pozyx, ground truth).
+void releaseCalibrationSamples(io::Recording& r) {
+  std::vector<io::EncoderSample>().swap(r.encoders);
+  std::vector<io::PozyxSample>().swap(r.pozyx);
+  std::vector<io::GroundTruthPoseSample>().swap(r.ground_truth);
+}
+
 /// The diagnosis on the streams `data` of the recordings (diagnose()): the recordings are read
 /// only for their encoders, ground truth and sonar after the streams are made.
+/// `owned` (fit_recs and val_recs themselves, or null): the recordings may be released as
+/// they stop being read (memory).
 DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
                                 const std::vector<io::Recording>& val_recs, StageData& data,
                                 const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
-                                std::chrono::steady_clock::time_point tstart) {
+                                std::chrono::steady_clock::time_point tstart,
+                                std::array<std::vector<io::Recording>*, 2> owned = {}) {
   DiagnosisReport rep;
   if (!data.any_enc) throw std::runtime_error("diagnose: no encoder data in the fit recordings");
   rep.info["streams"] = {
@@ -2054,6 +2073,13 @@ DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
 
   // odometric geometry against ground truth (with or without a gyro)
   addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
+  // From here the recordings are read only for the fit recordings' sonar (the rest reads the
+  // streams): of owned recordings the fit ones' encoders, Pozyx and ground truth and the
+  // --validate ones are released (memory, docs/benchmarks.md, "Ninth round, stage 1").
+  if (owned[0])
+    for (io::Recording& r : *owned[0]) releaseCalibrationSamples(r);
+  if (owned[1])
+    for (io::Recording& r : *owned[1]) r = io::Recording();
 
   // sensor faults (not physics): sonar dropouts, Pozyx outliers; on the whole streams, which
   // consume the held-out parts
@@ -2071,14 +2097,6 @@ DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
   rep.info["runtime_s"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - tstart).count();
   return rep;
-}
-
-/// Frees the samples the diagnosis reads only through the streams (IMU, motor currents) or not
-/// at all (joystick: the command-response analyser is not part of diagnose()).
-void releaseStreamSamples(io::Recording& r) {
-  std::vector<io::ImuSample>().swap(r.imu);  // (`= {}` would keep the capacity)
-  std::vector<io::MotorSample>().swap(r.motors);
-  std::vector<io::JoystickSample>().swap(r.joystick);
 }
 
 }  // namespace
@@ -2103,7 +2121,7 @@ DiagnosisReport diagnose(std::vector<io::Recording>&& fit_recs,
     releaseStreamSamples(r);
     return s;
   });
-  return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart);
+  return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart, {&fit_recs, &val_recs});
 }
 
 DiagnosisReport diagnose(DiagnosisInput&& fit, DiagnosisInput&& val,
@@ -2114,7 +2132,7 @@ DiagnosisReport diagnose(DiagnosisInput&& fit, DiagnosisInput&& val,
   StageData data = splitStreams(fit.recs, val.recs.size(), opt, [&](bool f, std::size_t i) {
     return std::move((f ? fit : val).streams[i]);
   });
-  return diagnoseStreams(fit.recs, val.recs, data, cfg, opt, tstart);
+  return diagnoseStreams(fit.recs, val.recs, data, cfg, opt, tstart, {&fit.recs, &val.recs});
 }
 
 namespace {
