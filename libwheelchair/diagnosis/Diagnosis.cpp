@@ -896,21 +896,25 @@ StageData splitStreams(const std::vector<io::Recording>& fit_recs, std::size_t n
 /// Fills data.all: each fit recording's streams (without motor currents) joined from the
 /// samples before its fit part, the fit part, its held-out part (without --validate) and the
 /// samples after: the streams makeStreams() made of it, sample for sample. After the stages
-/// nothing reads the motor currents nor the fit parts (the checks that follow read `all` and
-/// `val`): they are released first, each fit part once joined (memory, docs/benchmarks.md).
+/// nothing reads the motor currents, the fit parts nor (once the held-out trajectories are
+/// made, heldOutTrajectories()) the held-out parts: the join consumes them, each column
+/// released once joined, and the --validate recordings' streams are released (memory,
+/// docs/benchmarks.md).
 void makeWholeStreams(StageData& data) {
   data.all.clear();
   for (auto* parts : {&data.fit, &data.val})
     for (Streams& s : *parts)
       for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
   for (std::size_t i = 0; i < data.fit.size(); ++i) {
-    std::vector<const Streams*> parts{&data.beyond[i][0], &data.fit[i]};
-    if (data.fit_fraction < 1.0) parts.push_back(&data.val[i]);
-    parts.push_back(&data.beyond[i][1]);
-    data.all.push_back(joinStreams(parts, false));
-    data.fit[i] = Streams();
-    data.beyond[i] = {};
+    std::vector<Streams> parts;
+    parts.push_back(std::move(data.beyond[i][0]));
+    parts.push_back(std::move(data.fit[i]));
+    if (data.fit_fraction < 1.0) parts.push_back(std::move(data.val[i]));
+    parts.push_back(std::move(data.beyond[i][1]));
+    data.all.push_back(joinStreams(std::move(parts), false));
   }
+  std::vector<Streams>().swap(data.fit);
+  std::vector<Streams>().swap(data.val);
   std::vector<std::array<Streams, 2>>().swap(data.beyond);
 }
 
@@ -1049,28 +1053,34 @@ void describeFinding(Finding& f, const Candidate& c, const Selection& sel, std::
   if (!t.channels.empty()) f.channels = t.channels;
 }
 
+/// Column j of the stage 1 unmodeled-term library at window i: the window length T times v,
+/// |omega|, omega |omega|, cos(phi), sin(phi), v omega (rad for the rates' terms).
+double kinematicLibraryValue(const KinRows& k, int j, int i) {
+  const double T = k.t1[i] - k.t0[i], w = k.omega[i];
+  if (j == 0) return T * k.v[i];
+  if (j == 1) return T * std::abs(w);
+  if (j == 2) return T * w * std::abs(w);
+  if (j == 3) return T * std::cos(k.phi[i]);
+  if (j == 4) return T * std::sin(k.phi[i]);
+  return T * k.v[i] * w;
+}
+
 /// Stage 1 terms outside the catalogue: STLSQ over a library of window integrals.
 void kinematicUnmodeled(const Selection& sel, const KinRows& kf2, const KinRows& kv2,
                         const Eigen::VectorXd& rv_after, int lags,
                         const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
                         DiagnosisReport& rep) {
-  auto lib = [&](const KinRows& k) {
-    Eigen::MatrixXd L(k.y.size(), 6);
-    for (int i = 0; i < k.y.size(); ++i) {
-      double T = k.t1[i] - k.t0[i], w = k.omega[i];
-      L.row(i) << T * k.v[i], T * std::abs(w), T * w * std::abs(w), T * std::cos(k.phi[i]),
-          T * std::sin(k.phi[i]), T * k.v[i] * w;
-    }
-    return L;
+  // The library's columns made when read, not stored (memory, docs/benchmarks.md, "Ninth
+  // round, stage 1").
+  auto view = [](const KinRows& k) {
+    return Library{static_cast<int>(k.y.size()), 6, [&k](int j, int r0, int n) -> Eigen::VectorXd {
+                     Eigen::VectorXd c(n);
+                     for (int r = 0; r < n; ++r) c(r) = kinematicLibraryValue(k, j, r0 + r);
+                     return c;
+                   }};
   };
   const Eigen::VectorXd& rf = sel.fit.residual;
-  const Eigen::MatrixXd Lf = lib(kf2), Lv = lib(kv2);
-  auto view = [](const Eigen::MatrixXd& L) {
-    return Library{
-        static_cast<int>(L.rows()), static_cast<int>(L.cols()),
-        [&L](int j, int r0, int n) -> Eigen::VectorXd { return L.col(j).segment(r0, n); }};
-  };
-  SparseResult sr = stlsq(view(Lf), rf, kf2.groups, view(Lv), rv_after, kv2.groups, lags, opt,
+  SparseResult sr = stlsq(view(kf2), rf, kf2.groups, view(kv2), rv_after, kv2.groups, lags, opt,
                           opt.min_relevance * cfg.imu.gyro_noise_rad_s * opt.window_s);
   if (!sr.accepted) return;
   static const std::vector<std::string> names = {"v",        "|omega|",  "omega*|omega|",
@@ -1987,12 +1997,20 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   return true;
 }
 
-/// Dead reckoning against ground truth before and after the corrections, and the corrections.
-void verifyTrajectories(const StageData& data, const Corrections& corr,
-                        const config::WheelchairConfig& cfg, DiagnosisReport& rep) {
+/// Dead reckoning against ground truth on the held-out parts, before and after the
+/// corrections (before makeWholeStreams(), which consumes them).
+void heldOutTrajectories(const StageData& data, const Corrections& corr,
+                         const config::WheelchairConfig& cfg, DiagnosisReport& rep) {
   Corrections none;
   nlohmann::json tb = trajectoryJson(data.val, none, cfg), ta = trajectoryJson(data.val, corr, cfg);
   if (!tb.empty()) rep.validation["trajectory_heldout"] = {{"before", tb}, {"after", ta}};
+}
+
+/// Dead reckoning against ground truth on the whole recordings before and after the
+/// corrections, and the corrections.
+void verifyTrajectories(const StageData& data, const Corrections& corr,
+                        const config::WheelchairConfig& cfg, DiagnosisReport& rep) {
+  Corrections none;
   nlohmann::json fb = trajectoryJson(data.all, none, cfg), fa = trajectoryJson(data.all, corr, cfg);
   if (!fb.empty()) rep.validation["trajectory_full_recordings"] = {{"before", fb}, {"after", fa}};
   rep.validation["corrections"] = {{"encoder_scale_right", corr.enc_scale[0]},
@@ -2008,12 +2026,31 @@ void verifyTrajectories(const StageData& data, const Corrections& corr,
 
 namespace {
 
+/// Frees the samples the diagnosis reads only through the streams (IMU, motor currents) or not
+/// at all (joystick: the command-response analyser is not part of diagnose()).
+void releaseStreamSamples(io::Recording& r) {
+  std::vector<io::ImuSample>().swap(r.imu);  // (`= {}` would keep the capacity)
+  std::vector<io::MotorSample>().swap(r.motors);
+  std::vector<io::JoystickSample>().swap(r.joystick);
+}
+
+/// Frees what the odometric calibration reads of a recording and the sensor-fault and
+/// trajectory checks read from the streams (encoders, Pozyx, ground truth).
+void releaseCalibrationSamples(io::Recording& r) {
+  std::vector<io::EncoderSample>().swap(r.encoders);
+  std::vector<io::PozyxSample>().swap(r.pozyx);
+  std::vector<io::GroundTruthPoseSample>().swap(r.ground_truth);
+}
+
 /// The diagnosis on the streams `data` of the recordings (diagnose()): the recordings are read
 /// only for their encoders, ground truth and sonar after the streams are made.
+/// `owned` (fit_recs and val_recs themselves, or null): the recordings may be released as
+/// they stop being read (memory).
 DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
                                 const std::vector<io::Recording>& val_recs, StageData& data,
                                 const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
-                                std::chrono::steady_clock::time_point tstart) {
+                                std::chrono::steady_clock::time_point tstart,
+                                std::array<std::vector<io::Recording>*, 2> owned = {}) {
   DiagnosisReport rep;
   if (!data.any_enc) throw std::runtime_error("diagnose: no encoder data in the fit recordings");
   rep.info["streams"] = {
@@ -2036,8 +2073,17 @@ DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
 
   // odometric geometry against ground truth (with or without a gyro)
   addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
+  // From here the recordings are read only for the fit recordings' sonar (the rest reads the
+  // streams): of owned recordings the fit ones' encoders, Pozyx and ground truth and the
+  // --validate ones are released (memory, docs/benchmarks.md, "Ninth round, stage 1").
+  if (owned[0])
+    for (io::Recording& r : *owned[0]) releaseCalibrationSamples(r);
+  if (owned[1])
+    for (io::Recording& r : *owned[1]) r = io::Recording();
 
-  // sensor faults (not physics): sonar dropouts, Pozyx outliers
+  // sensor faults (not physics): sonar dropouts, Pozyx outliers; on the whole streams, which
+  // consume the held-out parts
+  heldOutTrajectories(data, corr, cfg, rep);
   makeWholeStreams(data);
   {
     SensorFaultOptions so;
@@ -2051,14 +2097,6 @@ DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
   rep.info["runtime_s"] =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - tstart).count();
   return rep;
-}
-
-/// Frees the samples the diagnosis reads only through the streams (IMU, motor currents) or not
-/// at all (joystick: the command-response analyser is not part of diagnose()).
-void releaseStreamSamples(io::Recording& r) {
-  std::vector<io::ImuSample>().swap(r.imu);  // (`= {}` would keep the capacity)
-  std::vector<io::MotorSample>().swap(r.motors);
-  std::vector<io::JoystickSample>().swap(r.joystick);
 }
 
 }  // namespace
@@ -2083,7 +2121,7 @@ DiagnosisReport diagnose(std::vector<io::Recording>&& fit_recs,
     releaseStreamSamples(r);
     return s;
   });
-  return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart);
+  return diagnoseStreams(fit_recs, val_recs, data, cfg, opt, tstart, {&fit_recs, &val_recs});
 }
 
 DiagnosisReport diagnose(DiagnosisInput&& fit, DiagnosisInput&& val,
@@ -2094,7 +2132,7 @@ DiagnosisReport diagnose(DiagnosisInput&& fit, DiagnosisInput&& val,
   StageData data = splitStreams(fit.recs, val.recs.size(), opt, [&](bool f, std::size_t i) {
     return std::move((f ? fit : val).streams[i]);
   });
-  return diagnoseStreams(fit.recs, val.recs, data, cfg, opt, tstart);
+  return diagnoseStreams(fit.recs, val.recs, data, cfg, opt, tstart, {&fit.recs, &val.recs});
 }
 
 namespace {

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>
@@ -167,65 +168,106 @@ struct PozyxStats {
   double noise_used_m = 0, noise_estimated_m = 0, threshold_chi2 = 0;
 };
 
-struct Track {
-  std::vector<double> t, x, y, phi;
-};
-
-// Odometric track (start frame) from corrected encoders and, when present, the gyro heading.
-Track odometry(const Streams& s, const config::WheelchairConfig& cfg, const Corrections& c) {
-  Track tr;
-  if (s.te.size() < 2) return tr;
-  const double lw = cfg.vehicle.geom.track_width_m;
-  std::vector<double> G;  // cumulative gyro integral at tg
-  const bool gyro = s.tg.size() >= 2;
-  if (gyro) {
-    G.assign(s.tg.size(), 0.0);
-    for (std::size_t k = 1; k < s.tg.size(); ++k)
-      G[k] = G[k - 1] + 0.5 * ((s.gz[k] + s.gz[k - 1]) - 2 * c.gyro_bias) / c.gyro_scale *
-                            (s.tg[k] - s.tg[k - 1]);
-  }
-  auto Gat = [&](double t) {
-    if (t <= s.tg.front()) return G.front();
-    if (t >= s.tg.back()) return G.back();
-    const std::size_t k = std::upper_bound(s.tg.begin(), s.tg.end(), t) - s.tg.begin();
-    const double a = (t - s.tg[k - 1]) / (s.tg[k] - s.tg[k - 1]);
-    return G[k - 1] + a * (G[k] - G[k - 1]);
+/// The odometric track (start frame) from corrected encoders and, when present, the gyro
+/// heading, at the encoder samples: made sample by sample as it is read forward, neither the
+/// track nor the cumulative gyro integral stored (memory: 5 doubles per encoder and gyro
+/// sample of a long drive, docs/benchmarks.md, "Ninth round, stage 1"); the same doubles as
+/// the stored track. moveTo(k) (k >= 1) makes samples k - 1 and k current; moving back starts
+/// again from sample 0. E.g. moveTo(5); pose(1).x: x (m) at encoder sample 5.
+class OdometryTrack {
+ public:
+  struct Pose {
+    double x = 0, y = 0, phi = 0;  ///< m, m, rad
   };
-  double x = 0, y = 0, phi = 0;
-  tr.t.push_back(s.te[0]), tr.x.push_back(x), tr.y.push_back(y), tr.phi.push_back(phi);
-  for (std::size_t i = 1; i < s.te.size(); ++i) {
-    const double dR = (s.sR[i] - s.sR[i - 1]) / c.enc_scale[0];
-    const double dL = (s.sL[i] - s.sL[i - 1]) / c.enc_scale[1];
-    const double dphi = gyro ? Gat(s.te[i]) - Gat(s.te[i - 1]) : (dR - dL) / lw;
-    const double ds = 0.5 * (dR + dL);
-    x += ds * std::cos(phi + 0.5 * dphi);
-    y += ds * std::sin(phi + 0.5 * dphi);
-    phi += dphi;
-    tr.t.push_back(s.te[i]), tr.x.push_back(x), tr.y.push_back(y), tr.phi.push_back(phi);
+  OdometryTrack(const Streams& s, const config::WheelchairConfig& cfg, const Corrections& c)
+      : s_(s), c_(c), lw_(cfg.vehicle.geom.track_width_m), gyro_(s.tg.size() >= 2) {
+    restart();
   }
-  return tr;
-}
+  void moveTo(std::size_t k) {
+    if (k < i_) restart();
+    while (i_ < k) step();
+  }
+  /// Pose at sample k - 1 (0) and k (1) of the last moveTo(k).
+  const Pose& pose(int which) const { return which == 0 ? prev_ : cur_; }
+
+ private:
+  void restart() {
+    i_ = 0, cur_ = prev_ = Pose{};
+    gk_ = 0, g_k_ = 0, g_k1_ = 0;
+    if (gyro_) g_prev_ = headingAt(s_.te[0]);
+  }
+  /// One encoder sample forward.
+  void step() {
+    ++i_;
+    const double dR = (s_.sR[i_] - s_.sR[i_ - 1]) / c_.enc_scale[0];
+    const double dL = (s_.sL[i_] - s_.sL[i_ - 1]) / c_.enc_scale[1];
+    double dphi = (dR - dL) / lw_;
+    if (gyro_) {  // G(te[i]) - G(te[i - 1]), the latter kept from the step before
+      const double g = headingAt(s_.te[i_]);
+      dphi = g - g_prev_;
+      g_prev_ = g;
+    }
+    const double ds = 0.5 * (dR + dL);
+    prev_ = cur_;
+    cur_.x += ds * std::cos(cur_.phi + 0.5 * dphi);
+    cur_.y += ds * std::sin(cur_.phi + 0.5 * dphi);
+    cur_.phi += dphi;
+  }
+  /// The cumulative corrected gyro integral G (rad; G = 0 at tg[0]) at time t, linear between
+  /// the gyro samples; t must not decrease between calls (after restart()).
+  double headingAt(double t) {
+    const auto& tg = s_.tg;
+    if (t <= tg.front()) return 0.0;
+    if (t >= tg.back()) {
+      gyroTo(tg.size() - 1);
+      return g_k_;
+    }
+    const std::size_t k = std::upper_bound(tg.begin(), tg.end(), t) - tg.begin();
+    gyroTo(k);
+    const double a = (t - tg[k - 1]) / (tg[k] - tg[k - 1]);
+    return g_k1_ + a * (g_k_ - g_k1_);
+  }
+  /// G at gyro sample k (g_k_) and k - 1 (g_k1_), summed forward from the current one.
+  void gyroTo(std::size_t k) {
+    for (; gk_ < k; ++gk_) {
+      g_k1_ = g_k_;
+      g_k_ = g_k_ + 0.5 * ((s_.gz[gk_ + 1] + s_.gz[gk_]) - 2 * c_.gyro_bias) / c_.gyro_scale *
+                        (s_.tg[gk_ + 1] - s_.tg[gk_]);
+    }
+  }
+
+  const Streams& s_;
+  const Corrections& c_;
+  double lw_;
+  bool gyro_;
+  std::size_t i_ = 0, gk_ = 0;
+  Pose cur_, prev_;
+  double g_k_ = 0, g_k1_ = 0, g_prev_ = 0;
+};
 
 void pozyxRecording(const Streams& s, const config::WheelchairConfig& cfg, const Corrections& corr,
                     const SensorFaultOptions& o, PozyxStats& st,
-                    std::vector<std::vector<double>>& keep) {
+                    std::vector<std::array<double, 3>>& keep) {
   if (s.pozyx.size() < static_cast<std::size_t>(o.pozyx_min_window_fixes) || !s.hasEncoders())
     return;
-  const Track tr = odometry(s, cfg, corr);
+  OdometryTrack tr(s, cfg, corr);
+  const std::vector<double>& te = s.te;  // the track's times
   const double lx = cfg.pozyx.lever_x_m, ly = cfg.pozyx.lever_y_m;
   // Tag positions of the odometric track at the fix times.
   std::vector<double> t, qx, qy, zx, zy;
+  for (auto* v : {&t, &qx, &qy, &zx, &zy}) v->reserve(s.pozyx.size());
   for (const auto& p : s.pozyx) {
-    if (!(p.t_s >= tr.t.front() && p.t_s <= tr.t.back())) continue;
+    if (!(p.t_s >= te.front() && p.t_s <= te.back())) continue;
     if (!std::isfinite(p.x_m) || !std::isfinite(p.y_m)) continue;
     const std::size_t k =
-        std::max<std::size_t>(1, std::upper_bound(tr.t.begin(), tr.t.end(), p.t_s) - tr.t.begin());
-    const std::size_t k1 = std::min(k, tr.t.size() - 1);
-    const double a =
-        tr.t[k1] > tr.t[k1 - 1] ? (p.t_s - tr.t[k1 - 1]) / (tr.t[k1] - tr.t[k1 - 1]) : 0;
-    const double x = tr.x[k1 - 1] + a * (tr.x[k1] - tr.x[k1 - 1]);
-    const double y = tr.y[k1 - 1] + a * (tr.y[k1] - tr.y[k1 - 1]);
-    const double ph = tr.phi[k1 - 1] + a * (tr.phi[k1] - tr.phi[k1 - 1]);
+        std::max<std::size_t>(1, std::upper_bound(te.begin(), te.end(), p.t_s) - te.begin());
+    const std::size_t k1 = std::min(k, te.size() - 1);
+    tr.moveTo(k1);
+    const OdometryTrack::Pose &p0 = tr.pose(0), &p1 = tr.pose(1);
+    const double a = te[k1] > te[k1 - 1] ? (p.t_s - te[k1 - 1]) / (te[k1] - te[k1 - 1]) : 0;
+    const double x = p0.x + a * (p1.x - p0.x);
+    const double y = p0.y + a * (p1.y - p0.y);
+    const double ph = p0.phi + a * (p1.phi - p0.phi);
     t.push_back(p.t_s);
     qx.push_back(x + std::cos(ph) * lx - std::sin(ph) * ly);
     qy.push_back(y + std::sin(ph) * lx + std::cos(ph) * ly);
@@ -372,7 +414,7 @@ void sonarFinding(const SonarStats& ss, SensorFaultReport& rep) {
 /// The Pozyx fixes' outlier test (count against Binomial(n, 1/n) and the largest against the
 /// Bonferroni level) as report info and, when both reject, a pozyx_outliers finding
 /// (ps.tested > 0; keep: t, d2, |e| per tested fix).
-void pozyxFinding(PozyxStats& ps, const std::vector<std::vector<double>>& keep,
+void pozyxFinding(PozyxStats& ps, const std::vector<std::array<double, 3>>& keep,
                   const SensorFaultOptions& o, SensorFaultReport& rep) {
   // A fault is an outlier PROCESS, not one extreme fix: count the fixes beyond the level
   // p0 = 1 / n (one expected under the null) and test the count against Binomial(n, p0).
@@ -460,7 +502,7 @@ SensorFaultReport detectSensorFaults(const std::vector<io::Recording>& recs,
   for (const auto& r : recs) sonarRecording(r, cfg, o, ss);
   if (ss.readings > 0) sonarFinding(ss, rep);
   PozyxStats ps;
-  std::vector<std::vector<double>> keep;  // t, d2, |e|
+  std::vector<std::array<double, 3>> keep;  // t, d2, |e|
   for (std::size_t i = 0; i < recs.size(); ++i) {
     if (streams) {
       pozyxRecording((*streams)[i], cfg, corr, o, ps, keep);

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <numeric>
 #include <stdexcept>
 
@@ -56,38 +57,63 @@ void appendLater(std::vector<T>& out, const std::vector<T>& in, F time) {
     if (out.empty() || time(x) > time(out.back())) out.push_back(x);
 }
 
-/// Cumulative trapezoid of a piecewise-linear signal, evaluated anywhere (held outside).
+/// Cumulative trapezoid of the piecewise-linear signal x(t[k]) = (raw[k] - bias) / scale (t
+/// sorted, s; e.g. the corrected gyro z, rad/s), evaluated anywhere (held outside); sample k is
+/// at t[k] - shift. Neither x nor the whole cumulative sum is stored (memory: a long drive's
+/// gyro is 8 B a sample for each, docs/benchmarks.md, "Ninth round, stage 1"): x is made from
+/// raw when read, the cumulative sums C[k] = C[k-1] + (x[k] + x[k-1]) / 2 (t[k] - t[k-1]) (the
+/// same doubles in the same order as a stored one) as queries reach them, and release(q)
+/// drops those no query at or after time q reads (queries must then not go back before q).
+/// E.g. init(tg, gz, 0, 1, 0); integral(a, b) = the integral of gz over [a, b] (rad).
 struct LinearIntegral {
   const std::vector<double>* t = nullptr;
-  const std::vector<double>* x = nullptr;
-  double shift = 0;  // sample k is at t[k] - shift
-  std::vector<double> C;
-  void init(const std::vector<double>& tt, const std::vector<double>& xx, double sh) {
-    t = &tt, x = &xx, shift = sh;
-    C.assign(tt.size(), 0.0);
-    for (size_t k = 1; k < tt.size(); ++k)
-      C[k] = C[k - 1] + 0.5 * (xx[k] + xx[k - 1]) * (tt[k] - tt[k - 1]);
+  const std::vector<double>* raw = nullptr;
+  double bias = 0, scale = 1;
+  double shift = 0;      // sample k is at t[k] - shift
+  std::deque<double> C;  // C[k] for k in [base, base + C.size())
+  std::size_t base = 0;
+  void init(const std::vector<double>& tt, const std::vector<double>& rr, double b, double sc,
+            double sh) {
+    t = &tt, raw = &rr, bias = b, scale = sc, shift = sh;
+    C.assign(1, 0.0), base = 0;
+  }
+  double x(std::size_t k) const { return ((*raw)[k] - bias) / scale; }
+  /// C[k] (k >= base), the sums up to k made on the way.
+  double cumulative(std::size_t k) {
+    auto& T = *t;
+    for (std::size_t m = base + C.size(); m <= k; ++m)
+      C.push_back(C.back() + 0.5 * (x(m) + x(m - 1)) * (T[m] - T[m - 1]));
+    if (k < base) throw std::logic_error("LinearIntegral: query before a released time");
+    return C[k - base];
+  }
+  /// Frees the sums no query at or after time tq reads.
+  void release(double tq) {
+    auto& T = *t;
+    const std::size_t k = std::upper_bound(T.begin(), T.end(), tq + shift) - T.begin();
+    const std::size_t keep = k > 0 ? k - 1 : 0;  // F(q >= tq) reads C[upper_bound(q) - 1]
+    while (base < keep && C.size() > 1) C.pop_front(), ++base;
   }
   double value(double tq) const {  // value of x at tq (linear)
     double q = tq + shift;
     auto& T = *t;
-    if (q <= T.front()) return x->front();
-    if (q >= T.back()) return x->back();
+    if (q <= T.front()) return x(0);
+    if (q >= T.back()) return x(T.size() - 1);
     size_t k = std::upper_bound(T.begin(), T.end(), q) - T.begin();
     double a = (q - T[k - 1]) / (T[k] - T[k - 1]);
-    return (*x)[k - 1] + a * ((*x)[k] - (*x)[k - 1]);
+    const double x0 = x(k - 1);
+    return x0 + a * (x(k) - x0);
   }
-  double F(double tq) const {
+  double F(double tq) {
     double q = tq + shift;
     auto& T = *t;
     if (q <= T.front()) return 0.0;
-    if (q >= T.back()) return C.back();
+    if (q >= T.back()) return cumulative(T.size() - 1);
     size_t k = std::upper_bound(T.begin(), T.end(), q) - T.begin();
     double h = q - T[k - 1];
     double xq = value(tq);
-    return C[k - 1] + 0.5 * ((*x)[k - 1] + xq) * h;
+    return cumulative(k - 1) + 0.5 * (x(k - 1) + xq) * h;
   }
-  double integral(double a, double b) const { return F(b) - F(a); }
+  double integral(double a, double b) { return F(b) - F(a); }
   /// Largest sample gap inside [a, b] (sample times shifted), infinite if not covered.
   double maxGap(double a, double b) const {
     auto& T = *t;
@@ -164,35 +190,66 @@ Streams makeStreams(const io::Recording& rec, StreamColumns&& cols,
   return s;
 }
 
-Streams joinStreams(const std::vector<const Streams*>& parts, bool with_motors) {
+namespace {
+
+/// joinStreams(parts, with_motors); with `release` (the parts' owner: parts[i] == &(*release)[i])
+/// each column of the parts is freed once joined, so the parts and the result are never both
+/// held whole (memory, docs/benchmarks.md, "Ninth round, stage 1").
+Streams joinInto(const std::vector<const Streams*>& parts, bool with_motors,
+                 std::vector<Streams>* release) {
   Streams o;
   if (parts.empty()) return o;
-  // Sized once for every sample of the parts (memory); shared boundary samples leave a few.
-  std::size_t ne = 0, ng = 0, nm = 0, np = 0, nt = 0;
-  for (const Streams* p : parts)
-    ne += p->te.size(), ng += p->tg.size(), nm += p->tm.size(), np += p->pozyx.size(),
-        nt += p->gt.size();
-  for (auto* v : {&o.te, &o.sR, &o.sL}) v->reserve(ne);
-  for (auto* v : {&o.tg, &o.gz}) v->reserve(ng);
-  if (with_motors)
-    for (auto* v : {&o.tm, &o.iR, &o.iL}) v->reserve(nm);
+  using Column = std::vector<double> Streams::*;
+  // A stream's columns (time first): of each part the samples later than every sample taken
+  // so far, each output sized once to what it receives.
+  auto join = [&](std::initializer_list<Column> cols, bool keep) {
+    const Column tc = *cols.begin();
+    std::vector<std::vector<char>> take(parts.size());
+    std::size_t n = 0;
+    double last = 0;
+    for (std::size_t p = 0; keep && p < parts.size(); ++p) {
+      const std::vector<double>& t = parts[p]->*tc;
+      take[p].assign(t.size(), 0);
+      for (std::size_t k = 0; k < t.size(); ++k)
+        if (n == 0 || t[k] > last) take[p][k] = 1, last = t[k], ++n;
+    }
+    for (Column c : cols) {
+      std::vector<double>& out = o.*c;
+      if (keep) out.reserve(n);
+      for (std::size_t p = 0; p < parts.size(); ++p) {
+        const std::vector<double>& in = parts[p]->*c;
+        for (std::size_t k = 0; keep && k < in.size(); ++k)
+          if (take[p][k]) out.push_back(in[k]);
+        if (release) std::vector<double>().swap((*release)[p].*c);
+      }
+    }
+  };
+  join({&Streams::te, &Streams::sR, &Streams::sL}, true);
+  join({&Streams::tg, &Streams::gz}, true);
+  join({&Streams::tm, &Streams::iR, &Streams::iL}, with_motors);
+  std::size_t np = 0, nt = 0;
+  for (const Streams* p : parts) np += p->pozyx.size(), nt += p->gt.size();
   o.pozyx.reserve(np), o.gt.reserve(nt);
   for (const Streams* p : parts) {
-    for (std::size_t k = 0; k < p->te.size(); ++k)
-      if (o.te.empty() || p->te[k] > o.te.back())
-        o.te.push_back(p->te[k]), o.sR.push_back(p->sR[k]), o.sL.push_back(p->sL[k]);
-    for (std::size_t k = 0; k < p->tg.size(); ++k)
-      if (o.tg.empty() || p->tg[k] > o.tg.back())
-        o.tg.push_back(p->tg[k]), o.gz.push_back(p->gz[k]);
-    for (std::size_t k = 0; with_motors && k < p->tm.size(); ++k)
-      if (o.tm.empty() || p->tm[k] > o.tm.back())
-        o.tm.push_back(p->tm[k]), o.iR.push_back(p->iR[k]), o.iL.push_back(p->iL[k]);
     appendLater(o.pozyx, p->pozyx, [](const io::PozyxSample& x) { return x.t_s; });
     appendLater(o.gt, p->gt, [](const io::GroundTruthPoseSample& x) { return x.t_s; });
   }
   o.t_begin = parts.front()->t_begin;
   o.t_end = parts.back()->t_end;
+  if (release) release->clear();
   return o;
+}
+
+}  // namespace
+
+Streams joinStreams(const std::vector<const Streams*>& parts, bool with_motors) {
+  return joinInto(parts, with_motors, nullptr);
+}
+
+Streams joinStreams(std::vector<Streams>&& parts, bool with_motors) {
+  std::vector<const Streams*> ptrs;
+  for (const Streams& p : parts) ptrs.push_back(&p);
+  return joinInto(ptrs, with_motors, &parts);
 }
 
 namespace {
@@ -260,35 +317,50 @@ std::vector<Streams> cropStreams(Streams&& s,
 
 KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+  // Memory (docs/benchmarks.md, "Ninth round, stage 1"): no corrected copy of the encoder
+  // times or of the gyro, no stored cumulative gyro integral (LinearIntegral makes it as the
+  // windows move forward), the rows sized from an upper bound of their count (no growth slack).
   KinRows k;
   const double lw = cfg.vehicle.geom.track_width_m;
   const auto& cols = kinematicColumns();
   const std::size_t ncol = cols.size();
   std::vector<double> y, X;  // X row-major, ncol per row
+  std::vector<std::vector<double>*> per_row{&k.t0, &k.t1, &k.v, &k.omega, &k.phi};
   double gyro_dt_sum = 0;
   int gyro_dt_n = 0;
   for (const auto& s : recs) {
     if (!s.hasEncoders() || !s.hasGyro()) continue;
-    std::vector<double> te(s.te.size());
-    for (size_t i = 0; i < te.size(); ++i) te[i] = s.te[i] - c.delay_enc;
-    std::vector<double> gz(s.gz.size());
-    for (size_t i = 0; i < gz.size(); ++i) gz[i] = (s.gz[i] - c.gyro_bias) / c.gyro_scale;
-    LinearIntegral G;
-    G.init(s.tg, gz, 0.0);
-    // gyro stamps lag truth by delay_imu: truth time t is at stamp t + delay_imu
-    G.shift = c.delay_imu;
-    double dte = sensors::medianSpacing(te);
+    auto te = [&](std::size_t i) { return s.te[i] - c.delay_enc; };
+    // the median encoder spacing of the corrected times (a copy only when they are shifted)
+    double dte = 0;
+    if (c.delay_enc == 0) {
+      dte = sensors::medianSpacing(s.te);
+    } else {
+      std::vector<double> tc(s.te.size());
+      for (size_t i = 0; i < tc.size(); ++i) tc[i] = te(i);
+      dte = sensors::medianSpacing(tc);
+    }
     double dtg = sensors::medianSpacing(s.tg);
     if (!(dte > 0) || !(dtg > 0)) continue;
+    // gyro stamps lag truth by delay_imu: truth time t is at stamp t + delay_imu
+    LinearIntegral G;
+    G.init(s.tg, s.gz, c.gyro_bias, c.gyro_scale, c.delay_imu);
     gyro_dt_sum += dtg, gyro_dt_n++;
     int step = std::max(1, static_cast<int>(std::lround(opt.window_s / dte)));
+    {  // at most one row per `step` encoder samples
+      const std::size_t n = y.size() + s.te.size() / static_cast<std::size_t>(step);
+      y.reserve(n), X.reserve(n * ncol);
+      for (auto* v : per_row) v->reserve(n);
+    }
+    const double h = std::max(opt.window_s, dtg);
     int begin = static_cast<int>(y.size());
-    for (size_t i = 0; i + step < te.size(); i += step) {
+    for (size_t i = 0; i + step < s.te.size(); i += step) {
       size_t j = i + step;
-      double t0 = te[i], t1 = te[j];
+      double t0 = te(i), t1 = te(j);
+      G.release(t0 - h);  // the earliest time this window and the later ones read
       bool gap = false;
       for (size_t m = i + 1; m <= j; ++m)
-        if (te[m] - te[m - 1] > opt.max_gap_s) gap = true;
+        if (te(m) - te(m - 1) > opt.max_gap_s) gap = true;
       double dR = (s.sR[j] - s.sR[i]) / c.enc_scale[0];
       double dL = (s.sL[j] - s.sL[i]) / c.enc_scale[1];
       double dphi_enc = (dR - dL) / lw;
@@ -311,7 +383,6 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
       // over +-50 ms: LR 23 > 9) while the realised gain was negative, so real 40-95 ms gyro
       // delays were rejected. Averaged over +-one window such stretches are seen as not
       // testing the term (LR 5 < 9).
-      const double h = std::max(opt.window_s, dtg);
       auto meanRate = [&](double tc) { return G.integral(tc - h, tc + h) / (2 * h); };
       const effects::KinematicWindow w{t1 - t0, dR, dL, lw, meanRate(t1) - meanRate(t0)};
       for (const auto& c : cols) X.push_back(c.value(w));
@@ -323,9 +394,11 @@ KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
     if (static_cast<int>(y.size()) > begin) k.groups.push_back({begin, static_cast<int>(y.size())});
   }
   k.y = Eigen::Map<Eigen::VectorXd>(y.data(), y.size());
-  k.X.resize(y.size(), ncol);
-  for (size_t i = 0; i < y.size(); ++i)
+  std::vector<double>().swap(y);
+  k.X.resize(k.y.size(), ncol);
+  for (Eigen::Index i = 0; i < k.y.size(); ++i)
     for (size_t j = 0; j < ncol; ++j) k.X(i, j) = X[i * ncol + j];
+  std::vector<double>().swap(X);
   const double tick_m = cfg.vehicle.geom.wheel_radius_m * cfg.encoders.params.wheelRadPerTick();
   double dtg = gyro_dt_n ? gyro_dt_sum / gyro_dt_n : 0.01;
   k.noise_var_per_s = cfg.imu.gyro_noise_rad_s * cfg.imu.gyro_noise_rad_s * dtg;

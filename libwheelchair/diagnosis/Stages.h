@@ -61,6 +61,9 @@ std::vector<Streams> cropStreams(Streams&& s, const std::vector<std::pair<double
 /// currents are left out. t_begin, t_end: the first part's, the last part's.
 /// E.g. joinStreams({&crop(s, a, c), &crop(s, c, b)}, true) == crop(s, a, b).
 Streams joinStreams(const std::vector<const Streams*>& parts, bool with_motors);
+/// joinStreams of the parts, consuming them: each column of the parts is released once it is
+/// joined, so the parts and the result are never both held whole (memory).
+Streams joinStreams(std::vector<Streams>&& parts, bool with_motors);
 
 /// Sensor corrections applied before building rows (identity by default).
 struct Corrections {

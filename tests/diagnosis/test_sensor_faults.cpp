@@ -103,7 +103,8 @@ TEST(SensorFaults, ThreeTaskSonarDropoutWhereTheObstacleIsInView) {
 }
 
 // diagnose() on recordings it may release (the CLI's path: IMU, motor and joystick samples
-// freed once the streams are made; the Pozyx check then reads the streams) gives the same
+// freed once the streams are made, encoders, Pozyx and ground truth once the odometric
+// calibration has read them; the Pozyx check then reads the streams) gives the same
 // report, bit for bit but the run time, as on recordings it must keep: here with a Pozyx fault,
 // a sonar fault and physics, fit/held-out split and --validate recordings.
 TEST(SensorFaults, ReleasedRecordingsGiveTheSameReport) {
@@ -124,8 +125,9 @@ TEST(SensorFaults, ReleasedRecordingsGiveTheSameReport) {
         diagnosis::diagnose(fit, with_val ? val : std::vector<io::Recording>{}, cfg, opt);
     std::vector<io::Recording> fit2 = fit, val2 = with_val ? val : std::vector<io::Recording>{};
     const auto released = diagnosis::diagnose(std::move(fit2), std::move(val2), cfg, opt);
-    EXPECT_TRUE(fit2[0].imu.empty() && fit2[0].motors.empty());  // released indeed
-    EXPECT_EQ(fit2[0].pozyx.size(), a.pozyx.size());             // what is read later kept
+    EXPECT_TRUE(fit2[0].imu.empty() && fit2[0].motors.empty() && fit2[0].encoders.empty() &&
+                fit2[0].pozyx.empty());               // released indeed
+    EXPECT_EQ(fit2[0].sonar.size(), a.sonar.size());  // what is read last (sonar) kept
     EXPECT_EQ(json(kept), json(released)) << "with --validate: " << with_val;
     bool pozyx = false;
     for (const auto& f : released.findings) pozyx |= f.effect == "pozyx_outliers";
