@@ -62,11 +62,51 @@ struct RunMetrics {
   double ekf_speed_error_rel = 0;
   /// EKF position NEES against the truth at its 10 Hz samples (evaluation/Nees.h; truth only).
   std::vector<double> ekf_nees;
+  /// The same errors split per axis, 1 dof each (axisNees): sums over the truth times of the
+  /// along-track, cross-track (true heading frame) and heading NEES, and their count.
+  std::array<double, 3> axis_nees_sum{};
+  long axis_nees_count = 0;
   /// EKF NIS sums and counts per sensor (EstimationResult::sensors).
   std::array<double, estimation::kNumSensors> nis_sum{};
   std::array<long, estimation::kNumSensors> nis_count{};
   std::string error;
 };
+
+/// Per-axis NEES of the EKF against the truth (1 dof each; consistent: 1): at each reference
+/// time the estimate is interpolated linearly between the two estimates around it (position,
+/// heading by its wrapped difference, covariance), the position error e and its 2x2 covariance
+/// are rotated into the true heading's frame (along-track, cross-track), and
+/// e_along^2 / P_along, e_cross^2 / P_cross, e_phi^2 / P_phi are added to `sum`. Shows which
+/// direction a position NEES off its band comes from (docs/estimation.md, "What keeps the NEES
+/// low"). Example: a filter that carries a rolling-radius allowance the truth does not have
+/// gives along-track << 1.
+void axisNees(const estimation::EstimateSeries& est,
+              const std::vector<evaluation::Position2DStamped>& ref, std::array<double, 3>& sum,
+              long& count) {
+  std::size_t j = 0;
+  for (const auto& q : ref) {
+    while (j + 1 < est.size() && est[j + 1].t_s < q.t_s) ++j;
+    if (!q.hasHeading() || j + 1 >= est.size() || est[j].t_s > q.t_s) continue;
+    const auto &a = est[j], &b = est[j + 1];
+    const double dt_s = b.t_s - a.t_s;
+    if (!(dt_s > 0) || dt_s > 0.5) continue;
+    const double w = (q.t_s - a.t_s) / dt_s;
+    const Eigen::Vector2d p = (1 - w) * a.x.segment<2>(2) + w * b.x.segment<2>(2);
+    const double phi = a.x(4) + w * std::remainder(b.x(4) - a.x(4), 2 * M_PI);
+    const Eigen::Matrix3d P = (1 - w) * a.P.block<3, 3>(2, 2) + w * b.P.block<3, 3>(2, 2);
+    const double c = std::cos(q.phi_rad), sn = std::sin(q.phi_rad);
+    Eigen::Matrix2d Rt;  // start frame -> (along, cross) of the true heading
+    Rt << c, sn, -sn, c;
+    const Eigen::Vector2d e = Rt * (p - Eigen::Vector2d(q.x_m, q.y_m));
+    const Eigen::Matrix2d Pe = Rt * P.topLeftCorner<2, 2>() * Rt.transpose();
+    const double e_phi = std::remainder(phi - q.phi_rad, 2 * M_PI);
+    if (!(Pe(0, 0) > 0 && Pe(1, 1) > 0 && P(2, 2) > 0)) continue;
+    sum[0] += e(0) * e(0) / Pe(0, 0);
+    sum[1] += e(1) * e(1) / Pe(1, 1);
+    sum[2] += e_phi * e_phi / P(2, 2);
+    ++count;
+  }
+}
 
 RunMetrics runOne(const config::WheelchairConfig& cfg, uint64_t seed,
                   const std::vector<effects::EffectSpec>& effects, bool against_truth,
@@ -118,6 +158,7 @@ RunMetrics runOne(const config::WheelchairConfig& cfg, uint64_t seed,
       for (const auto& e : est.ekf.estimates)
         pe.push_back({e.t_s, e.x.segment<2>(2), e.P.block<2, 2>(2, 2)});
       out.ekf_nees = evaluation::averageNees(pe, reference, evaluation::NeesOptions{}).nees;
+      axisNees(est.ekf.estimates, reference, out.axis_nees_sum, out.axis_nees_count);
     }
     for (const auto& v : evaluation::variantNames()) {
       const auto m = evaluation::computeMetrics(est.trajectory(v), reference, mo);
@@ -238,7 +279,9 @@ struct Tally {
   std::map<std::string, std::vector<double>> ate, term, d_ate, d_term;
   std::map<std::string, int> wins_ate, wins_term;
   std::vector<double> speed_error;
-  std::vector<double> nees_mean;  ///< per truth time: mean position NEES over the drives
+  std::vector<double> nees_mean;          ///< per truth time: mean position NEES over the drives
+  std::array<double, 3> axis_nees_sum{};  ///< along-track, cross-track, heading (1 dof each)
+  long axis_nees_count = 0;
   std::array<double, estimation::kNumSensors> nis_sum{};
   std::array<long, estimation::kNumSensors> nis_count{};
   int failed = 0;
@@ -253,6 +296,8 @@ Tally tally(const std::vector<RunMetrics>& results) {
       continue;
     }
     t.speed_error.push_back(r.ekf_speed_error_rel);
+    for (int a = 0; a < 3; ++a) t.axis_nees_sum[a] += r.axis_nees_sum[a];
+    t.axis_nees_count += r.axis_nees_count;
     for (int s = 0; s < estimation::kNumSensors; ++s) {
       t.nis_sum[s] += r.nis_sum[s];
       t.nis_count[s] += r.nis_count[s];
@@ -331,6 +376,20 @@ nlohmann::json report(const Args& args, Tally& t) {
                quarters[2], quarters[3]);
     j["ekf_nees"] = {
         {"mean", all}, {"inside95", double(inside) / len}, {"times", len}, {"quarters", quarters}};
+    if (t.axis_nees_count > 0) {
+      // The same errors per axis (1 dof each, consistent: 1; band of the mean over all drives
+      // and times, optimistic: successive times are correlated).
+      const double n = double(t.axis_nees_count);
+      const auto b1 = stats::chi2MeanBand(0.95, 1, double(ok));
+      fmt::print(
+          "  per axis (1 dof, consistent: 1; band of {} drives {:.2f}..{:.2f}): along-track "
+          "{:.2f}, cross-track {:.2f}, heading {:.2f}\n",
+          ok, b1.first, b1.second, t.axis_nees_sum[0] / n, t.axis_nees_sum[1] / n,
+          t.axis_nees_sum[2] / n);
+      j["ekf_nees"]["along_track"] = t.axis_nees_sum[0] / n;
+      j["ekf_nees"]["cross_track"] = t.axis_nees_sum[1] / n;
+      j["ekf_nees"]["heading"] = t.axis_nees_sum[2] / n;
+    }
   }
   // Mean NIS per sensor over every accepted update of every drive, against the 95 % band of that
   // mean for a consistent filter (dof 2: encoders, Pozyx; 1: gyro, sonar).
