@@ -14,7 +14,8 @@
 //
 // --scenario / --duration: another drive than three_task (e.g. `--scenario excite --duration
 // 3600 --runs 4`: the one-hour drive; duration 0 = the scenario's own). The EKF's position NEES
-// is also reported per quarter of the drive (a drifting covariance shows as a trend), and its
+// is also reported per quarter of the drive (a drifting covariance shows as a trend) and per
+// axis (along-track, cross-track, heading: axisNees), and its
 // mean NIS per sensor over all drives against the band of that mean (Measurement.h bookUpdate).
 //
 // --engine: the truth simulator (default model; mujoco = the chair as a MuJoCo multibody,
