@@ -616,7 +616,12 @@ int main(int argc, char** argv) {
   nlohmann::json j = report(args, t);
   j["chair"] = chair;
   j["config"] = cfg.text();
-  if (!args.json_path.empty()) util::writeFileAtomically(args.json_path, j.dump(1) + "\n");
+  try {
+    if (!args.json_path.empty()) util::writeFileAtomically(args.json_path, j.dump(1) + "\n");
+  } catch (const std::exception& e) {
+    std::cerr << "fig5_campaign: " << e.what() << "\n";
+    return 1;
+  }
   if (t.failed) return 1;
   if (args.check) {
     if (!checkPasses(t)) return 1;
