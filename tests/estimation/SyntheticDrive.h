@@ -94,15 +94,15 @@ inline const config::WheelchairConfig& nominal() {
 }
 
 /// The filter's priors as the synthetic truth has them: the obstacle at obstacle_world (m, start
-/// frame) with 0.1 m / 2 deg of prior sd, and the pose exactly at the start frame's origin (the
-/// frame IS the initial pose; 1e-6 keeps P invertible).
+/// frame) with 0.1 m / 2 deg of prior sd. The pose starts exactly at the start frame's origin
+/// (the frame IS the initial pose), which the shipped initial_sigma_xy_m / _phi_rad (1e-6: P
+/// stays invertible) already say: kept as configured, so the Monte-Carlo tests check them.
 inline void setPriorsOfTheTruth(EkfOptions& o, const Eigen::Vector2d& obstacle_world) {
   o.initial_obstacle = ObstacleInit::Config;
   o.initial_obstacle_x_m = obstacle_world.x();
   o.initial_obstacle_y_m = obstacle_world.y();
   o.initial_obstacle_range_sigma_m = 0.1;
   o.initial_obstacle_bearing_sigma_deg = 2.0;
-  o.initial_sigma_xy_m = o.initial_sigma_phi_rad = 1e-6;
 }
 
 /// A curvy drive of duration_s (curvyCurrents(0.3, 1.6, 0.4)) past an obstacle at (2.5, 0.2) m
