@@ -2035,7 +2035,11 @@ DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
   if (!skipped.empty()) rep.info["skipped"] = skipped;
 
   // odometric geometry against ground truth (with or without a gyro)
-  addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
+  {
+    KinematicCalibration kc = calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr);
+    foldRadiusIntoEncoderScale(kc, corr, rep);
+    addKinematicCalibration(kc, cfg, rep);
+  }
 
   // sensor faults (not physics): sonar dropouts, Pozyx outliers
   makeWholeStreams(data);

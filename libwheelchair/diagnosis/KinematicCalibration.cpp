@@ -344,6 +344,50 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   return kc;
 }
 
+void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr,
+                                DiagnosisReport& rep) {
+  if (!kc.accepted) return;
+  Finding* named = nullptr;
+  int count = 0;
+  for (auto& f : rep.findings)
+    if (f.effect == "encoder_scale" && !f.command_response && f.parameters.contains("side"))
+      named = &f, ++count;
+  if (count != 1 || !named->parameters["scale"].is_number()) return;
+  const int s = named->parameters["side"] == "left" ? 1 : 0;
+  double* n[2] = {&kc.nominal.m_per_tick_right, &kc.nominal.m_per_tick_left};
+  double* g[2] = {&kc.fitted.m_per_tick_right, &kc.fitted.m_per_tick_left};
+  const double dS = rel(*g[s], *n[s]), dO = rel(*g[1 - s], *n[1 - s]);
+  if (dS == dO) return;
+  const double factor = (1 + dO) / (1 + dS);
+  const double before = named->parameters["scale"].get<double>(), after = before * factor;
+  kc.folded = {{"side", s == 0 ? "right" : "left"},
+               {"scale_before", before},
+               {"scale_after", after},
+               {"radius_rel_before", dS},
+               {"radius_rel_after", dO}};
+  named->parameters["scale"] = after;
+  if (named->uncertainty.contains("scale") && named->uncertainty["scale"].is_number())
+    named->uncertainty["scale"] =
+        std::hypot(named->uncertainty["scale"].get<double>(), after * kc.sd_rel[s]);
+  named->description += fmt::format(
+      " Refined against the ground truth: the wheel's metres per tick it measures ({:+.3f} % "
+      "against the other wheel's {:+.3f} %) belong to this encoder (one observable): scale "
+      "{:.5f} -> {:.5f}.",
+      100 * dS, 100 * dO, before, after);
+  corr.enc_scale[s] *= factor;
+  *n[s] = *g[s] / (1 + dO);  // the same metres per tick, now with the other wheel's radius
+  kc.sd_rel[s] = kc.sd_rel[1 - s];
+  const double beta = kc.fitted.travel_angle_rad - kc.nominal.travel_angle_rad;
+  if (std::abs(dO) < kMinRelativeChange && std::abs(rel(kc.fitted.track_m, kc.nominal.track_m)) <
+                                               kMinRelativeChange &&
+      std::abs(beta) < kMinRelativeChange) {
+    kc.accepted = false;
+    kc.rejected =
+        "the calibration's only geometry change was the radius of the wheel whose encoder scale "
+        "is named; it is folded into that scale";
+  }
+}
+
 void addKinematicCalibration(const KinematicCalibration& kc, const config::WheelchairConfig& cfg,
                              DiagnosisReport& rep) {
   nlohmann::json info = {{"tested", kc.tested}};
@@ -381,6 +425,7 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   info["accepted"] = kc.accepted;
   if (!kc.rejected.empty()) info["rejected"] = kc.rejected;
   if (!kc.rejected_parameters.empty()) info["not_established"] = kc.rejected_parameters;
+  if (!kc.folded.is_null()) info["folded_into_encoder_scale"] = kc.folded;
   rep.info["kinematic_calibration"] = info;
   if (!kc.accepted) return;
 

@@ -91,6 +91,8 @@ struct KinematicCalibration {
   /// The chosen candidate's parameters inside their uncertainty (kEstablishedZ), left at the
   /// configured geometry: what was dropped and why (empty: none)
   std::string rejected_parameters;
+  /// foldRadiusIntoEncoderScale: what was folded (null: nothing)
+  nlohmann::json folded;
 };
 
 /// A candidate must lower the cross-validated error by this fraction of the nominal
@@ -118,6 +120,25 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
                                          const config::WheelchairConfig& cfg,
                                          const DiagnosisOptions& opt,
                                          const Corrections* stage1 = nullptr);
+
+/// One observable, one name (issue 16): a wheel's metres per tick is its effective radius over
+/// its encoder's scale, so without an independent speed reference for that wheel a radius
+/// difference between the wheels and an encoder scale are the same fact. When stage 1 named an
+/// `encoder_scale` on ONE side (the other encoder agrees with the gyro) and the accepted
+/// calibration gives that side's radius a relative change dS different from the other side's
+/// dO, the difference is folded into the named scale,
+///     k_s' = k_s (1 + dO) / (1 + dS),
+/// and that side's radius gets the other's change dO (the odometry, metres per tick per side,
+/// and so every held-out number are unchanged). The encoder finding's scale (its uncertainty
+/// combined with the radius' jackknife sigma), `corr.enc_scale[s]` and kc.nominal follow; when
+/// no geometry change of at least kMinRelativeChange (nor travel angle) remains, nothing is
+/// reported as `wheel_geometry` (kc.accepted = false, kc.rejected says why). JSON:
+/// info.kinematic_calibration.folded_into_encoder_scale {side, scale_before, scale_after,
+/// radius_rel_before, radius_rel_after}. Example (MuJoCo excite 368766, left encoder 1.01839
+/// concealed): stage 1 left 1.01876, calibration radii -0.113 % right / -0.069 % left ->
+/// left encoder 1.01831, radii -0.113 % both (the engine rolls at -0.127 %).
+void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr,
+                                DiagnosisReport& rep);
 
 /// Adds the finding (if accepted), the [vehicle] config updates and info["kinematic_calibration"].
 void addKinematicCalibration(const KinematicCalibration& kc, const config::WheelchairConfig& cfg,
