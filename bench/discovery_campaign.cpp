@@ -49,7 +49,7 @@ int main(int argc, char** argv) {
   std::string cfg_path, json_path;
   double check_named_rate = -1, check_described_rate = -1;
   int check_false_alarms = -1;
-  std::string one_case;                  // --case SCENARIO:SEED
+  std::string one_case;  // --case SCENARIO:SEED
   std::vector<effects::EffectSpec> one_effects;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];

@@ -396,7 +396,8 @@ double realisedVdotTerm(const config::WheelchairConfig& cfg, const std::string& 
       m.push_back(row);
       y[0].push_back(S[k].current_right_A), y[1].push_back(S[k].current_left_A);
     }
-    return 0.5 * (relationFit(m, y[0], currentLibrary)(4) + relationFit(m, y[1], currentLibrary)(4));
+    return 0.5 *
+           (relationFit(m, y[0], currentLibrary)(4) + relationFit(m, y[1], currentLibrary)(4));
   };
   return coefficients(mj.truth) - coefficients(twin.truth);
 }

@@ -344,8 +344,7 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   return kc;
 }
 
-void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr,
-                                DiagnosisReport& rep) {
+void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr, DiagnosisReport& rep) {
   if (!kc.accepted) return;
   Finding* named = nullptr;
   int count = 0;
@@ -378,8 +377,8 @@ void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr,
   *n[s] = *g[s] / (1 + dO);  // the same metres per tick, now with the other wheel's radius
   kc.sd_rel[s] = kc.sd_rel[1 - s];
   const double beta = kc.fitted.travel_angle_rad - kc.nominal.travel_angle_rad;
-  if (std::abs(dO) < kMinRelativeChange && std::abs(rel(kc.fitted.track_m, kc.nominal.track_m)) <
-                                               kMinRelativeChange &&
+  if (std::abs(dO) < kMinRelativeChange &&
+      std::abs(rel(kc.fitted.track_m, kc.nominal.track_m)) < kMinRelativeChange &&
       std::abs(beta) < kMinRelativeChange) {
     kc.accepted = false;
     kc.rejected =

@@ -137,8 +137,7 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
 /// radius_rel_before, radius_rel_after}. Example (MuJoCo excite 368766, left encoder 1.01839
 /// concealed): stage 1 left 1.01876, calibration radii -0.113 % right / -0.069 % left ->
 /// left encoder 1.01831, radii -0.113 % both (the engine rolls at -0.127 %).
-void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr,
-                                DiagnosisReport& rep);
+void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr, DiagnosisReport& rep);
 
 /// Adds the finding (if accepted), the [vehicle] config updates and info["kinematic_calibration"].
 void addKinematicCalibration(const KinematicCalibration& kc, const config::WheelchairConfig& cfg,
