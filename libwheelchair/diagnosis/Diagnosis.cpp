@@ -2036,7 +2036,14 @@ DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
 
   // odometric geometry against ground truth (with or without a gyro)
   {
-    KinematicCalibration kc = calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr);
+    // a named slope's downhill heading (start frame): its yaw creep is tested (slopeYawCreep)
+    const Finding* slope = rep.find("ground_slope");
+    const double downhill_rad =
+        slope && slope->parameters.value("downhill_heading_deg", nlohmann::json()).is_number()
+            ? slope->parameters["downhill_heading_deg"].get<double>() * M_PI / 180
+            : std::nan("");
+    KinematicCalibration kc =
+        calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr, downhill_rad);
     foldRadiusIntoEncoderScale(kc, corr, rep);
     addKinematicCalibration(kc, cfg, rep);
   }

@@ -1,9 +1,13 @@
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/stats/Descriptive.h"
+#include "libwheelchair/stats/Distributions.h"
+
+#include <Eigen/Dense>
 
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace wheelchair::diagnosis {
@@ -282,10 +286,51 @@ bool restrictToEstablished(const CandidateModel& chosen, const std::vector<Odome
 
 }  // namespace
 
+nlohmann::json slopeYawCreep(const std::vector<OdometryRun>& runs, const OdometryGeometry& g,
+                             double downhill_rad, double alpha) {
+  std::vector<std::array<double, 4>> rows;  // y, dphi_odo, T, sin(h - phi) T
+  for (const auto& r : runs) {
+    std::size_t i0 = 0;
+    for (std::size_t i = 1; i < r.size(); ++i) {
+      const double T = r.t_s[i] - r.t_s[i0];
+      if (T < 1.0) continue;
+      const double odo = (g.m_per_tick_right * (r.ticks_right[i] - r.ticks_right[i0]) -
+                          g.m_per_tick_left * (r.ticks_left[i] - r.ticks_left[i0])) /
+                         g.track_m;
+      const double phi = r.phi_rad[(i0 + i) / 2] - r.phi_rad.front();
+      rows.push_back(
+          {r.phi_rad[i] - r.phi_rad[i0] - odo, odo, T, std::sin(downhill_rad - phi) * T});
+      i0 = i;
+    }
+  }
+  const int n = static_cast<int>(rows.size());
+  if (n < 12) return nullptr;
+  Eigen::MatrixXd X(n, 3);
+  Eigen::VectorXd y(n);
+  for (int k = 0; k < n; ++k) y(k) = rows[k][0], X.row(k) << rows[k][1], rows[k][2], rows[k][3];
+  auto fit = [&](int cols, Eigen::VectorXd& beta) {
+    const Eigen::MatrixXd A = X.leftCols(cols);
+    beta = A.colPivHouseholderQr().solve(y);
+    return (y - A * beta).squaredNorm();
+  };
+  Eigen::VectorXd b0, b1;
+  const double rss0 = fit(2, b0), rss1 = fit(3, b1);
+  const double lr = n * std::log(rss0 / std::max(1e-300, rss1));
+  const double needed = stats::chi2Quantile(1 - alpha, 1);
+  return {{"windows", n},
+          {"likelihood_ratio", lr},
+          {"needed", needed},
+          {"creep_rad_s", b1(2)},
+          {"turn_gain_rel_without", b0(0)},
+          {"turn_gain_rel_with", b1(0)},
+          {"significant", lr >= needed}};
+}
+
 KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
                                          const std::vector<io::Recording>& val,
                                          const config::WheelchairConfig& cfg,
-                                         const DiagnosisOptions& opt, const Corrections* stage1) {
+                                         const DiagnosisOptions& opt, const Corrections* stage1,
+                                         double slope_downhill_rad) {
   KinematicCalibration kc;
   kc.nominal = identification::odometryGeometry(cfg);
   if (stage1) {  // reported / true distance: the true metres per tick are k / scale
@@ -341,6 +386,18 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   judgeRefit(kc);
   jackknifeUncertainty(foldFits[best], kc);
   if (kc.accepted) restrictToEstablished(models[best], fitRuns, valRuns, train, kc);
+  if (kc.accepted && std::isfinite(slope_downhill_rad)) {
+    kc.slope_creep = slopeYawCreep(fitRuns, kc.nominal, slope_downhill_rad, opt.alpha);
+    if (!kc.slope_creep.is_null() && kc.slope_creep["significant"].get<bool>()) {
+      kc.accepted = false;
+      kc.rejected = fmt::format(
+          "the {} correction is not reported: the chair's heading creeps on the slope the "
+          "dynamics named ({:+.4f} rad/s x sin(downhill - heading), likelihood ratio {:.1f} >= "
+          "{:.1f}), which a flat-floor geometry absorbs",
+          kc.model, kc.slope_creep["creep_rad_s"].get<double>(),
+          kc.slope_creep["likelihood_ratio"].get<double>(), kc.slope_creep["needed"].get<double>());
+    }
+  }
   return kc;
 }
 
@@ -425,6 +482,15 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   if (!kc.rejected.empty()) info["rejected"] = kc.rejected;
   if (!kc.rejected_parameters.empty()) info["not_established"] = kc.rejected_parameters;
   if (!kc.folded.is_null()) info["folded_into_encoder_scale"] = kc.folded;
+  if (!kc.slope_creep.is_null()) {
+    info["slope_creep"] = kc.slope_creep;
+    if (kc.slope_creep["significant"].get<bool>())
+      rep.info["cannot_tell"].push_back(
+          "wheel geometry (radii, track) against the ground truth vs the slope's yaw creep: on "
+          "the slope the dynamics named, the heading drifts downhill with the heading, which a "
+          "flat-floor geometry absorbs. To tell: the same path on the flat, or across the slope "
+          "in both directions");
+  }
   rep.info["kinematic_calibration"] = info;
   if (!kc.accepted) return;
 
