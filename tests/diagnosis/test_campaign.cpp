@@ -97,6 +97,27 @@ TEST(DiagnoseCampaign, MujocoEngineTruthScoresOnlyTheEnginesOwnPhysics) {
   EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
 }
 
+// A `vdot` term is the engine's only against the forward acceleration term the multibody
+// realises in the drive's own motion (Campaign.cpp realisedVdotTerm: MuJoCo against its
+// model-engine twin, +0.052 A s^2/m on `square`, +0.074 on excite 661751), never against the
+// step from rest (+0.005), and never without that measurement.
+TEST(DiagnoseCampaign, VdotTermIsScoredAgainstTheDrivesRealisedForwardInertia) {
+  nlohmann::json truth = {{"radius_rel", {-0.00127, -0.00126}}, {"track_rel", {0.0005, 0.0035}},
+                          {"v_omega_A", 2.06},  {"omega2_A", -0.567},
+                          {"omegadot_A", 0.071}, {"vdot_A", 0.005},
+                          {"slope_cos_A", 0.0},  {"slope_sin_A", 0.0}};
+  diagnosis::Finding u;
+  u.effect = "unmodeled";
+  u.parameters = {{"channel", "current_left"}, {"omega^2", -0.55}, {"vdot", 0.055}};
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));  // not measured: an extra
+  truth["vdot_in_drive_A"] = 0.052;
+  EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));  // same sign on both motors
+  u.parameters["channel"] = "current_right";
+  EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["vdot"] = 0.072;  // 38 % above the realised value
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
+}
+
 // On a clean MuJoCo drive the chassis' yaw trails its wheels by ~2.5 ms (tyre creep): shorter
 // than one gyro sample, it is stated as undecidable, not named a sensor delay; a concealed
 // 50 ms gyro delay on the same engine is still named.
