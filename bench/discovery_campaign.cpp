@@ -6,6 +6,12 @@
 //        [--unknown N] [--seed S] [--duration S] [--effects a,b,...] [--engine model|mujoco]
 //        [--config F] [--json OUT] [--check-named-rate R] [--check-false-alarms N]
 //        [--check-described-rate R] [-v]
+//   build-diag/bench/discovery_campaign --case SCENARIO:SEED [--effect SPEC ...] [--engine E]
+//
+// --case: re-runs ONE campaign drive (the `scenario` and `seed` of a case in the JSON, its
+// `truth` effects each as --effect) and prints that case's JSON with the same scoring
+// (`engine_correct`, `engine_truth`), e.g.
+//   discovery_campaign --engine mujoco --case square:50402
 //
 // --check-named-rate R: exit 1 unless at least a fraction R of the single-effect drives has
 // the concealed effect named (and nothing else of the catalogue; `unmodeled` findings set
@@ -43,6 +49,8 @@ int main(int argc, char** argv) {
   std::string cfg_path, json_path;
   double check_named_rate = -1, check_described_rate = -1;
   int check_false_alarms = -1;
+  std::string one_case;  // --case SCENARIO:SEED
+  std::vector<effects::EffectSpec> one_effects;
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -71,6 +79,10 @@ int main(int argc, char** argv) {
       o.seed = std::stoull(next());
     else if (a == "--duration")
       o.duration_s = std::stod(next());
+    else if (a == "--case")
+      one_case = next();
+    else if (a == "--effect")
+      one_effects.push_back(effects::parseValidEffect(next()));
     else if (a == "--config")
       cfg_path = next();
     else if (a == "--json")
@@ -87,7 +99,8 @@ int main(int argc, char** argv) {
           << "usage: discovery_campaign [--runs N] [--pairs N] [--triples N] "
              "[--clean N] [--unknown N] [--seed S] [--duration S] [--effects a,b] "
              "[--scenarios a,b] [--engine model|mujoco] [--config F] [--json OUT] "
-             "[--check-named-rate R] [--check-false-alarms N] [--check-described-rate R] [-v]\n";
+             "[--check-named-rate R] [--check-false-alarms N] [--check-described-rate R] [-v]\n"
+             "       discovery_campaign --case SCENARIO:SEED [--effect SPEC ...] [--engine E]\n";
       return 2;
     }
   }
@@ -104,6 +117,20 @@ int main(int argc, char** argv) {
       cfg_path.empty() ? config::WheelchairConfig() : config::WheelchairConfig::load(cfg_path);
   diagnosis::DiagnosisOptions dopt;
   dopt.loadFromConfig(cfg.ini());
+  if (!one_case.empty()) {
+    const auto colon = one_case.find(':');
+    if (colon == std::string::npos) {
+      std::cerr << "discovery_campaign: --case wants SCENARIO:SEED, got " << one_case << "\n";
+      return 2;
+    }
+    const std::string sc = one_case.substr(0, colon);
+    const uint64_t seed = std::stoull(one_case.substr(colon + 1));
+    const auto c = diagnosis::runCase(cfg, sc, seed, o.duration_s, one_effects, dopt, o.engine);
+    nlohmann::json j = c.toJson();
+    j["scenario"] = sc, j["seed"] = seed;
+    std::cout << j.dump(1) << "\n";
+    return 0;
+  }
   auto res = diagnosis::runCampaign(cfg, o, dopt);
   nlohmann::json summary = res;
   summary.erase("cases");

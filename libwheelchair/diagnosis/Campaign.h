@@ -63,8 +63,13 @@ double parameterError(const effects::EffectSpec& truth, const Finding& f,
 /// campaign's parameter tolerance). unmodeled on a motor current: only the centre-of-mass
 /// terms v*omega (right +, left -), omega^2 and cos/sin(phi) (the slope's yaw moment on the
 /// centre of mass) and the yaw-inertia term omegadot (right +, left -; omegadot_A), each
-/// within 25 % of the engine's value. Anything else (a vdot term too: the step measurement
-/// of vdot_A scatters by ~0.04 A s^2/m, too coarse to confirm one): false (an extra).
+/// within 25 % of the engine's value. The acceleration terms vdot and omegadot are judged
+/// against the values the multibody realises in the drive's own motion, per motor
+/// (`vdot_in_drive_A`, `omegadot_in_drive_A` [right, left], measured by runCase against the
+/// drive's model-engine twin when a finding has such a term; they depend on the motion's
+/// spectrum: a step from rest gives vdot +0.005, a rolling start +0.13); without them a vdot
+/// term is false and omegadot is judged against the step's omegadot_A. Anything else: false
+/// (an extra).
 bool engineTruthFinding(const Finding& f, const nlohmann::json& truth);
 
 /// Score of an out-of-catalogue drive against the truth its generator states

@@ -2072,7 +2072,18 @@ DiagnosisReport diagnoseStreams(const std::vector<io::Recording>& fit_recs,
   if (!skipped.empty()) rep.info["skipped"] = skipped;
 
   // odometric geometry against ground truth (with or without a gyro)
-  addKinematicCalibration(calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr), cfg, rep);
+  {
+    // a named slope's downhill heading (start frame): its yaw creep is tested (slopeYawCreep)
+    const Finding* slope = rep.find("ground_slope");
+    const double downhill_rad =
+        slope && slope->parameters.value("downhill_heading_deg", nlohmann::json()).is_number()
+            ? slope->parameters["downhill_heading_deg"].get<double>() * M_PI / 180
+            : std::nan("");
+    KinematicCalibration kc =
+        calibrateKinematics(fit_recs, val_recs, cfg, opt, &corr, downhill_rad);
+    foldRadiusIntoEncoderScale(kc, corr, rep);
+    addKinematicCalibration(kc, cfg, rep);
+  }
   // From here the recordings are read only for the fit recordings' sonar (the rest reads the
   // streams): of owned recordings the fit ones' encoders, Pozyx and ground truth and the
   // --validate ones are released (memory, docs/benchmarks.md, "Ninth round, stage 1").

@@ -1,9 +1,13 @@
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/stats/Descriptive.h"
+#include "libwheelchair/stats/Distributions.h"
+
+#include <Eigen/Dense>
 
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace wheelchair::diagnosis {
@@ -282,10 +286,51 @@ bool restrictToEstablished(const CandidateModel& chosen, const std::vector<Odome
 
 }  // namespace
 
+nlohmann::json slopeYawCreep(const std::vector<OdometryRun>& runs, const OdometryGeometry& g,
+                             double downhill_rad, double alpha) {
+  std::vector<std::array<double, 4>> rows;  // y, dphi_odo, T, sin(h - phi) T
+  for (const auto& r : runs) {
+    std::size_t i0 = 0;
+    for (std::size_t i = 1; i < r.size(); ++i) {
+      const double T = r.t_s[i] - r.t_s[i0];
+      if (T < 1.0) continue;
+      const double odo = (g.m_per_tick_right * (r.ticks_right[i] - r.ticks_right[i0]) -
+                          g.m_per_tick_left * (r.ticks_left[i] - r.ticks_left[i0])) /
+                         g.track_m;
+      const double phi = r.phi_rad[(i0 + i) / 2] - r.phi_rad.front();
+      rows.push_back(
+          {r.phi_rad[i] - r.phi_rad[i0] - odo, odo, T, std::sin(downhill_rad - phi) * T});
+      i0 = i;
+    }
+  }
+  const int n = static_cast<int>(rows.size());
+  if (n < 12) return nullptr;
+  Eigen::MatrixXd X(n, 3);
+  Eigen::VectorXd y(n);
+  for (int k = 0; k < n; ++k) y(k) = rows[k][0], X.row(k) << rows[k][1], rows[k][2], rows[k][3];
+  auto fit = [&](int cols, Eigen::VectorXd& beta) {
+    const Eigen::MatrixXd A = X.leftCols(cols);
+    beta = A.colPivHouseholderQr().solve(y);
+    return (y - A * beta).squaredNorm();
+  };
+  Eigen::VectorXd b0, b1;
+  const double rss0 = fit(2, b0), rss1 = fit(3, b1);
+  const double lr = n * std::log(rss0 / std::max(1e-300, rss1));
+  const double needed = stats::chi2Quantile(1 - alpha, 1);
+  return {{"windows", n},
+          {"likelihood_ratio", lr},
+          {"needed", needed},
+          {"creep_rad_s", b1(2)},
+          {"turn_gain_rel_without", b0(0)},
+          {"turn_gain_rel_with", b1(0)},
+          {"significant", lr >= needed}};
+}
+
 KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
                                          const std::vector<io::Recording>& val,
                                          const config::WheelchairConfig& cfg,
-                                         const DiagnosisOptions& opt, const Corrections* stage1) {
+                                         const DiagnosisOptions& opt, const Corrections* stage1,
+                                         double slope_downhill_rad) {
   KinematicCalibration kc;
   kc.nominal = identification::odometryGeometry(cfg);
   if (stage1) {  // reported / true distance: the true metres per tick are k / scale
@@ -341,7 +386,62 @@ KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
   judgeRefit(kc);
   jackknifeUncertainty(foldFits[best], kc);
   if (kc.accepted) restrictToEstablished(models[best], fitRuns, valRuns, train, kc);
+  if (kc.accepted && std::isfinite(slope_downhill_rad)) {
+    kc.slope_creep = slopeYawCreep(fitRuns, kc.nominal, slope_downhill_rad, opt.alpha);
+    if (!kc.slope_creep.is_null() && kc.slope_creep["significant"].get<bool>()) {
+      kc.accepted = false;
+      kc.rejected = fmt::format(
+          "the {} correction is not reported: the chair's heading creeps on the slope the "
+          "dynamics named ({:+.4f} rad/s x sin(downhill - heading), likelihood ratio {:.1f} >= "
+          "{:.1f}), which a flat-floor geometry absorbs",
+          kc.model, kc.slope_creep["creep_rad_s"].get<double>(),
+          kc.slope_creep["likelihood_ratio"].get<double>(), kc.slope_creep["needed"].get<double>());
+    }
+  }
   return kc;
+}
+
+void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr, DiagnosisReport& rep) {
+  if (!kc.accepted) return;
+  Finding* named = nullptr;
+  int count = 0;
+  for (auto& f : rep.findings)
+    if (f.effect == "encoder_scale" && !f.command_response && f.parameters.contains("side"))
+      named = &f, ++count;
+  if (count != 1 || !named->parameters["scale"].is_number()) return;
+  const int s = named->parameters["side"] == "left" ? 1 : 0;
+  double* n[2] = {&kc.nominal.m_per_tick_right, &kc.nominal.m_per_tick_left};
+  double* g[2] = {&kc.fitted.m_per_tick_right, &kc.fitted.m_per_tick_left};
+  const double dS = rel(*g[s], *n[s]), dO = rel(*g[1 - s], *n[1 - s]);
+  if (dS == dO) return;
+  const double factor = (1 + dO) / (1 + dS);
+  const double before = named->parameters["scale"].get<double>(), after = before * factor;
+  kc.folded = {{"side", s == 0 ? "right" : "left"},
+               {"scale_before", before},
+               {"scale_after", after},
+               {"radius_rel_before", dS},
+               {"radius_rel_after", dO}};
+  named->parameters["scale"] = after;
+  if (named->uncertainty.contains("scale") && named->uncertainty["scale"].is_number())
+    named->uncertainty["scale"] =
+        std::hypot(named->uncertainty["scale"].get<double>(), after * kc.sd_rel[s]);
+  named->description += fmt::format(
+      " Refined against the ground truth: the wheel's metres per tick it measures ({:+.3f} % "
+      "against the other wheel's {:+.3f} %) belong to this encoder (one observable): scale "
+      "{:.5f} -> {:.5f}.",
+      100 * dS, 100 * dO, before, after);
+  corr.enc_scale[s] *= factor;
+  *n[s] = *g[s] / (1 + dO);  // the same metres per tick, now with the other wheel's radius
+  kc.sd_rel[s] = kc.sd_rel[1 - s];
+  const double beta = kc.fitted.travel_angle_rad - kc.nominal.travel_angle_rad;
+  if (std::abs(dO) < kMinRelativeChange &&
+      std::abs(rel(kc.fitted.track_m, kc.nominal.track_m)) < kMinRelativeChange &&
+      std::abs(beta) < kMinRelativeChange) {
+    kc.accepted = false;
+    kc.rejected =
+        "the calibration's only geometry change was the radius of the wheel whose encoder scale "
+        "is named; it is folded into that scale";
+  }
 }
 
 void addKinematicCalibration(const KinematicCalibration& kc, const config::WheelchairConfig& cfg,
@@ -381,6 +481,16 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   info["accepted"] = kc.accepted;
   if (!kc.rejected.empty()) info["rejected"] = kc.rejected;
   if (!kc.rejected_parameters.empty()) info["not_established"] = kc.rejected_parameters;
+  if (!kc.folded.is_null()) info["folded_into_encoder_scale"] = kc.folded;
+  if (!kc.slope_creep.is_null()) {
+    info["slope_creep"] = kc.slope_creep;
+    if (kc.slope_creep["significant"].get<bool>())
+      rep.info["cannot_tell"].push_back(
+          "wheel geometry (radii, track) against the ground truth vs the slope's yaw creep: on "
+          "the slope the dynamics named, the heading drifts downhill with the heading, which a "
+          "flat-floor geometry absorbs. To tell: the same path on the flat, or across the slope "
+          "in both directions");
+  }
   rep.info["kinematic_calibration"] = info;
   if (!kc.accepted) return;
 

@@ -61,6 +61,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -91,7 +92,28 @@ struct KinematicCalibration {
   /// The chosen candidate's parameters inside their uncertainty (kEstablishedZ), left at the
   /// configured geometry: what was dropped and why (empty: none)
   std::string rejected_parameters;
+  /// foldRadiusIntoEncoderScale: what was folded (null: nothing)
+  nlohmann::json folded;
+  /// slopeYawCreep (only when the dynamics named a slope): the test's numbers (null: not run)
+  nlohmann::json slope_creep;
 };
+
+/// A slope turns the chair downhill (issue 16): gravity's side component on the centre of mass
+/// and on the tyres gives a yaw creep A sin(h - phi) (h the downhill heading the dynamics
+/// named, start frame) that is not proportional to the wheel-tick difference. Whole-run or
+/// increment fits of a flat-floor geometry fold it into the track or the radius ratio. Test,
+/// over non-overlapping 1-s windows of the fit runs: the truth's heading increment minus the
+/// odometric one (geometry g),
+///     y = gamma dphi_odo + c T  [+ A sin(h - phi) T],
+/// (phi the truth heading at the window's middle relative to the run's first, i.e. the start
+/// frame of the dynamics' heading; T the window's length) with and without the creep column;
+/// LR = n log(RSS_without / RSS_with) against chi2_1(1 - alpha). JSON {windows,
+/// likelihood_ratio, needed, creep_rad_s (A), turn_gain_rel_without / _with (gamma),
+/// significant}. MuJoCo excite 653117 (slope 1.53 deg): A = 0.0009 rad/s, LR 15 (the whole-run
+/// `track` +0.57 % it would have reported is the creep).
+nlohmann::json slopeYawCreep(const std::vector<identification::OdometryRun>& runs,
+                             const identification::OdometryGeometry& g, double downhill_rad,
+                             double alpha);
 
 /// A candidate must lower the cross-validated error by this fraction of the nominal
 /// geometry's to be chosen (smaller gains are within the run-to-run scatter), and the held-out
@@ -113,11 +135,36 @@ inline constexpr double kEstablishedZ = 2.0;
 /// Runs the stage. `val` empty: fit on the first opt.fit_fraction of each recording.
 /// `stage1`: encoder scales already found against the gyro (stage 1); the stage then tests
 /// what remains (the configured geometry with those scales applied).
+/// `slope_downhill_rad`: the downhill heading of a `ground_slope` the dynamics stage named (NaN:
+/// none); then an accepted geometry is
+/// tested against the slope's yaw creep (slopeYawCreep, on the configured geometry): when the
+/// creep is significant the geometry cannot be told from it on these drives, it is not
+/// reported (kc.rejected) and addKinematicCalibration says so in info.cannot_tell (what would
+/// tell them apart: the same path on the flat, or across the slope in both directions).
 KinematicCalibration calibrateKinematics(const std::vector<io::Recording>& fit,
                                          const std::vector<io::Recording>& val,
                                          const config::WheelchairConfig& cfg,
                                          const DiagnosisOptions& opt,
-                                         const Corrections* stage1 = nullptr);
+                                         const Corrections* stage1 = nullptr,
+                                         double slope_downhill_rad = std::nan(""));
+
+/// One observable, one name (issue 16): a wheel's metres per tick is its effective radius over
+/// its encoder's scale, so without an independent speed reference for that wheel a radius
+/// difference between the wheels and an encoder scale are the same fact. When stage 1 named an
+/// `encoder_scale` on ONE side (the other encoder agrees with the gyro) and the accepted
+/// calibration gives that side's radius a relative change dS different from the other side's
+/// dO, the difference is folded into the named scale,
+///     k_s' = k_s (1 + dO) / (1 + dS),
+/// and that side's radius gets the other's change dO (the odometry, metres per tick per side,
+/// and so every held-out number are unchanged). The encoder finding's scale (its uncertainty
+/// combined with the radius' jackknife sigma), `corr.enc_scale[s]` and kc.nominal follow; when
+/// no geometry change of at least kMinRelativeChange (nor travel angle) remains, nothing is
+/// reported as `wheel_geometry` (kc.accepted = false, kc.rejected says why). JSON:
+/// info.kinematic_calibration.folded_into_encoder_scale {side, scale_before, scale_after,
+/// radius_rel_before, radius_rel_after}. Example (MuJoCo excite 368766, left encoder 1.01839
+/// concealed): stage 1 left 1.01876, calibration radii -0.113 % right / -0.069 % left ->
+/// left encoder 1.01831, radii -0.113 % both (the engine rolls at -0.127 %).
+void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr, DiagnosisReport& rep);
 
 /// Adds the finding (if accepted), the [vehicle] config updates and info["kinematic_calibration"].
 void addKinematicCalibration(const KinematicCalibration& kc, const config::WheelchairConfig& cfg,

@@ -97,6 +97,37 @@ TEST(DiagnoseCampaign, MujocoEngineTruthScoresOnlyTheEnginesOwnPhysics) {
   EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
 }
 
+// An acceleration term (`vdot`, `omegadot`) is the engine's only against the term the
+// multibody realises in the drive's own motion, per motor (Campaign.cpp
+// realisedAccelerationTerms: MuJoCo against its model-engine twin; clean `square`: vdot
+// +0.052, omegadot +0.116 right / -0.052 left), never the step from rest (vdot +0.005), and a
+// vdot term never without that measurement.
+TEST(DiagnoseCampaign, AccelerationTermsAreScoredAgainstTheDrivesRealisedValues) {
+  nlohmann::json truth = {{"radius_rel", {-0.00127, -0.00126}}, {"track_rel", {0.0005, 0.0035}},
+                          {"v_omega_A", 2.06},  {"omega2_A", -0.567},
+                          {"omegadot_A", 0.071}, {"vdot_A", 0.005},
+                          {"slope_cos_A", 0.0},  {"slope_sin_A", 0.0}};
+  diagnosis::Finding u;
+  u.effect = "unmodeled";
+  u.parameters = {{"channel", "current_left"}, {"omega^2", -0.55}, {"vdot", 0.055}};
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));  // not measured: an extra
+  truth["vdot_in_drive_A"] = {0.052, 0.052};
+  truth["omegadot_in_drive_A"] = {0.116, -0.052};
+  EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["channel"] = "current_right";
+  EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));
+  u.parameters["vdot"] = 0.072;  // 38 % above the realised value
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
+  // the right motor's omegadot on a `square` drive: 0.127 (the step from rest: 0.071)
+  u.parameters = {{"channel", "current_right"}, {"omega^2", -0.49}, {"omegadot", 0.127}};
+  EXPECT_TRUE(diagnosis::engineTruthFinding(u, truth));
+  truth.erase("omegadot_in_drive_A");
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));
+  truth["omegadot_in_drive_A"] = {0.116, -0.052};
+  u.parameters = {{"channel", "current_left"}, {"omega^2", -0.55}, {"omegadot", -0.127}};
+  EXPECT_FALSE(diagnosis::engineTruthFinding(u, truth));  // the left motor realises -0.052
+}
+
 // On a clean MuJoCo drive the chassis' yaw trails its wheels by ~2.5 ms (tyre creep): shorter
 // than one gyro sample, it is stated as undecidable, not named a sensor delay; a concealed
 // 50 ms gyro delay on the same engine is still named.

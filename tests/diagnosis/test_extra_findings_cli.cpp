@@ -136,3 +136,51 @@ TEST(ExtraFindingsCli, MujocoConcealedGyroScaleIsConfirmedByTheTruth) {
   EXPECT_NE(t["verdict"], "encoder_geometry");
   EXPECT_NEAR(t["scale_vs_truth"].get<double>(), 0.98379, 0.001);
 }
+
+// One observable, one name (KinematicCalibration.h, foldRadiusIntoEncoderScale): with a
+// concealed left encoder scale the stage-1 estimate is 0.04 % off and the increment-domain
+// calibration put that 0.04 % into the left wheel's radius (-0.069 % against the right's
+// -0.113 %; the engine rolls both at -0.127 %). A wheel's metres per tick are its radius over
+// its encoder's scale: the difference goes into the named encoder scale, which gets closer to
+// the concealed one, and both radii report the engine's common rolling radius.
+TEST(ExtraFindingsCli, MujocoWheelRadiusOfANamedEncoderIsFoldedIntoItsScale) {
+  const auto j = simulateAndDiagnose(
+      "--engine mujoco --scenario excite --seed 368766 --duration 90 "
+      "--effect encoder_scale:scale=1.01839,side=left --ground-truth-stream");
+  const auto* enc = findingOf(j, "encoder_scale");
+  ASSERT_NE(enc, nullptr) << j["findings"].dump();
+  EXPECT_EQ((*enc)["parameters"]["side"], "left");
+  // main: 1.01876 (the radius' share left out); folded: 1.01831
+  EXPECT_NEAR((*enc)["parameters"]["scale"].get<double>(), 1.01839, 0.0002) << enc->dump();
+  const auto& kc = j["info"]["kinematic_calibration"];
+  ASSERT_TRUE(kc.contains("folded_into_encoder_scale")) << kc.dump();
+  EXPECT_EQ(kc["folded_into_encoder_scale"]["side"], "left");
+  const auto* w = findingOf(j, "wheel_geometry");
+  ASSERT_NE(w, nullptr) << j["findings"].dump();
+  EXPECT_NEAR((*w)["parameters"]["wheel_radius_left_rel"].get<double>(),
+              (*w)["parameters"]["wheel_radius_right_rel"].get<double>(), 1e-9);
+  const wheelchair::config::WheelchairConfig cfg;
+  expectEngineGeometry(*w, wheelchair::simulation::measureMujocoTruth(cfg, {}));
+}
+
+// A slope turns the chair downhill (KinematicCalibration.h, slopeYawCreep): MuJoCo excite
+// 653117 on a 1.53 deg slope, where the heading creeps by ~0.001 rad/s x sin(downhill -
+// heading). The whole-run calibration folded that creep into a track 0.57 % wider (the engine's
+// effective track is +0.05..+0.35 %); with the slope named by the dynamics, the creep is tested
+// on the heading increments against the ground truth: significant, so no geometry is reported
+// and info.cannot_tell says what would tell them apart.
+TEST(ExtraFindingsCli, MujocoSlopeYawCreepIsNotReportedAsWheelGeometry) {
+  const auto j = simulateAndDiagnose(
+      "--engine mujoco --scenario excite --seed 653117 --duration 90 "
+      "--effect gyro_bias:bias_rad_s=-0.012837 "
+      "--effect ground_slope:angle_deg=1.52922,downhill_heading_deg=10.3465 "
+      "--ground-truth-stream");
+  ASSERT_NE(findingOf(j, "ground_slope"), nullptr) << j["findings"].dump();
+  EXPECT_EQ(findingOf(j, "wheel_geometry"), nullptr) << j["findings"].dump();
+  const auto& kc = j["info"]["kinematic_calibration"];
+  ASSERT_TRUE(kc.contains("slope_creep")) << kc.dump();
+  EXPECT_TRUE(kc["slope_creep"]["significant"].get<bool>()) << kc.dump();
+  EXPECT_GT(kc["slope_creep"]["creep_rad_s"].get<double>(), 0) << kc.dump();
+  ASSERT_TRUE(j["info"].contains("cannot_tell")) << j["info"].dump();
+  EXPECT_NE(j["info"]["cannot_tell"].dump().find("slope's yaw creep"), std::string::npos);
+}
