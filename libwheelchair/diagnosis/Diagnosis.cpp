@@ -914,6 +914,14 @@ void makeWholeStreams(StageData& data) {
   std::vector<std::array<Streams, 2>>().swap(data.beyond);
 }
 
+/// The catalogue design of a stage's rows: stage 1's stored X, stage 2's made block by block.
+CatalogueDesign designOf(const KinRows& k) {
+  return k.X;
+}
+CatalogueDesign designOf(const DynRows& d) {
+  return d.design();
+}
+
 /// Rows rebuilt with a re-estimated stream delay (`delay` s).
 template <class Rows>
 struct DelayRefit {
@@ -934,21 +942,21 @@ DelayRefit<Rows> refineDelay(Selection& sel, int di, const std::vector<Candidate
   for (int it = 0; it < 4; ++it) {
     r.delay += sel.fit.beta(sel.ranges[di].first);
     r.fit = rows(true, r.delay);
-    sel.fit = fitAccepted(r.fit.X, r.fit.y, cands, sel.accepted, r.fit.groups, lags);
+    sel.fit = fitAccepted(designOf(r.fit), r.fit.y, cands, sel.accepted, r.fit.groups, lags);
   }
   r.delay += sel.fit.beta(sel.ranges[di].first);
   r.fit = rows(true, r.delay);
   r.val = rows(false, r.delay);
   SelectionStep dstep = sel.steps[di];
   int dcand = sel.accepted[di];
-  SelectionData sd2{r.fit.y,      r.val.y,      r.fit.X, r.val.X,
-                    r.fit.groups, r.val.groups, lags,    min_contribution_rms};
+  SelectionData sd2{r.fit.y,      r.val.y, designOf(r.fit),     designOf(r.val), r.fit.groups,
+                    r.val.groups, lags,    min_contribution_rms};
   sel = forwardSelect(sd2, cands, opt, {dcand});
   sel.steps.insert(sel.steps.begin(), dstep);
   r.delay += sel.fit.beta(sel.ranges[0].first);
   r.fit = rows(true, r.delay);
   r.val = rows(false, r.delay);
-  sel.fit = fitAccepted(r.fit.X, r.fit.y, cands, sel.accepted, r.fit.groups, lags);
+  sel.fit = fitAccepted(designOf(r.fit), r.fit.y, cands, sel.accepted, r.fit.groups, lags);
   return r;
 }
 
@@ -1652,7 +1660,7 @@ std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candid
     if (c.S.cols() != 1 || c.effect == "sensor_delay" ||
         std::find(sel.accepted.begin(), sel.accepted.end(), ci) != sel.accepted.end())
       continue;
-    SpareTerm sp{ci, df2.X * c.S.col(0), dv2.X * c.S.col(0)};
+    SpareTerm sp{ci, df2.design().times(c.S.col(0)), dv2.design().times(c.S.col(0))};
     const Eigen::Index nR = sp.xf.size() / 2;
     if (sp.xf.head(nR).norm() > 0 && sp.xf.tail(nR).norm() > 0) continue;  // one motor only
     out.push_back(std::move(sp));
@@ -1771,7 +1779,7 @@ int supersededByOutOfCatalogue(const Selection& sel, const std::vector<Candidate
   std::vector<int> lib;
   for (int j = 0; j < static_cast<int>(dynLibNames().size()); ++j)
     if (j != 12 && j != 13) lib.push_back(j);  // not the measured currents (dynamicUnmodeled)
-  const Eigen::MatrixXd D = acceptedDesign(df.X, cands, sel.accepted);
+  const Eigen::MatrixXd D = acceptedDesign(df.design(), cands, sel.accepted);
   const double crit = stats::chi2Quantile(1 - alpha_b, 1);
   for (std::size_t a = 0; a < sel.accepted.size(); ++a) {
     const Candidate& c = cands[sel.accepted[a]];
@@ -1885,8 +1893,9 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   const bool sensors_nominal = corr == Corrections{};
   int lags = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
   if (!(df.y.size() > 50)) return false;
-  SelectionData sd{df.y,      dv.y,      df.X, dv.X,
-                   df.groups, dv.groups, lags, opt.min_relevance * cfg.motors.current_noise_A};
+  SelectionData sd{
+      df.y,      dv.y,      df.design(), dv.design(),
+      df.groups, dv.groups, lags,        opt.min_relevance * cfg.motors.current_noise_A};
   std::vector<SupersededTerm> superseded;
   Selection sel = selectCatalogue(sd, cands, df, lags, opt, alpha_b, superseded);
   // The superseded terms stay candidates for addSpannedTerms (unconfirmedSupersessions),
@@ -1913,13 +1922,11 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   const DynRows& dv2 = *pv2;
   // The accepted catalogue terms' designs (a few columns), then the catalogue estimated jointly
   // with what it does not contain (jointDynamicFit).
-  Eigen::MatrixXd Df = acceptedDesign(df2.X, cands, sel.accepted);
-  Eigen::MatrixXd Dv = acceptedDesign(dv2.X, cands, sel.accepted);
+  Eigen::MatrixXd Df = acceptedDesign(df2.design(), cands, sel.accepted);
+  Eigen::MatrixXd Dv = acceptedDesign(dv2.design(), cands, sel.accepted);
   if (opt.enable_unmodeled) {
-    // The unmodeled-term search reads the rows' signals (DynRows::libColumn), not their
-    // designs: those go first, as the search's own fits are the peak of diagnose (memory).
+    // The unmodeled-term search reads the rows' signals (DynRows::libColumn).
     std::vector<SpareTerm> spare = spareTerms(sel, cands, df2, dv2);
-    for (DynRows* rows : {&df, &dv, &refit.fit, &refit.val}) rows->X = Eigen::MatrixXd();
     for (bool retested = false;;) {
       JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
       sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;

@@ -402,8 +402,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   const double eps = dt.coulomb_smoothing_m_s > 0 ? dt.coulomb_smoothing_m_s : 0.01;
   const double Mg2 = (g.body_mass_kg + 2 * g.wheel_mass_kg) * 9.81 / 2.0;
   const double fs = opt.grid_rate_hz, fc = opt.cutoff_hz;
-  const auto& cols = driveColumns();
-  const int ncol = static_cast<int>(cols.size());
+  d.theta5 = theta5, d.alpha = alpha, d.wheel_radius_m = r, d.gear_ratio = rG;
+  d.half_weight_N = Mg2;
   signals::DriveSignalOptions so;
   so.grid_rate_hz = fs, so.cutoff_hz = fc, so.max_gap_s = opt.max_gap_s;
   so.edge_trim_s = opt.edge_trim_s;
@@ -428,11 +428,10 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   for (const auto& seg : segs) nR += seg.i1 - seg.i0;
   const int N = 2 * nR;
   d.y.resize(N);
-  d.X.resize(N, ncol);
   auto& G = d.grid;
   for (auto* col : {&G.t, &G.v, &G.omega, &G.vdot, &G.omegadot, &G.phi, &G.cos_phi, &G.sin_phi})
     col->resize(nR);
-  for (auto* col : {&d.u, &d.sgn_u, &d.current}) col->resize(N);
+  for (auto* col : {&d.u, &d.sgn_u, &d.current, &d.dcurrent_model}) col->resize(N);
   int row_R = 0;  // next right-motor row; its left-motor row is row_R + nR
   for (signals::DriveSegment& seg : segs) {
     {
@@ -482,12 +481,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
           double u = sd == 0 ? uRf[i] : uLf[i];
           double im = sd == 0 ? iRf[i] : iLf[i];
           d.y(k) = im - (sd == 0 ? predR[i] : predL[i]);
-          double sg = sd == 0 ? sgR[i] : sgL[i];
-          const effects::DriveSample sample{
-              sd,     u,     sg, vd[i], cph[i], sph[i], sd == 0 ? dpR[i] : dpL[i],
-              theta5, alpha, r,  rG,    Mg2};
-          for (int j = 0; j < ncol; ++j) d.X(k, j) = cols[j].value(sample);
-          d.u[k] = u, d.sgn_u[k] = sg;
+          d.u[k] = u, d.sgn_u[k] = sd == 0 ? sgR[i] : sgL[i];
+          d.dcurrent_model[k] = sd == 0 ? dpR[i] : dpL[i];
           d.current[k] = im;  // io, the other motor's, is the other side's row
         }
       }
@@ -535,6 +530,52 @@ Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
   return c;
 }
 
+void DynRows::designBlock(long r0, long nb, Eigen::MatrixXd& out) const {
+  const auto& cols = driveColumns();
+  const int ncol = static_cast<int>(cols.size());
+  out.resize(nb, ncol);
+  for (long q = 0; q < nb; ++q) {
+    const int k = static_cast<int>(r0 + q), i = step(k);
+    const effects::DriveSample sample{
+        side(k),           u[k],   sgn_u[k], grid.vdot[i],   grid.cos_phi[i], grid.sin_phi[i],
+        dcurrent_model[k], theta5, alpha,    wheel_radius_m, gear_ratio,      half_weight_N};
+    for (int j = 0; j < ncol; ++j) out(q, j) = cols[j].value(sample);
+  }
+}
+
+CatalogueDesign DynRows::design() const {
+  return {static_cast<long>(y.size()), static_cast<long>(driveColumns().size()),
+          [this](long r0, long nb, Eigen::MatrixXd& out) { designBlock(r0, nb, out); }};
+}
+
+void CatalogueDesign::block(long r0, long nb, Eigen::MatrixXd& out) const {
+  if (X_)
+    out = X_->middleRows(r0, nb);
+  else
+    block_(r0, nb, out);
+}
+
+void CatalogueDesign::blockTimes(long r0, long nb, const Eigen::MatrixXd& S,
+                                 Eigen::MatrixXd& out) const {
+  if (X_) {
+    out.noalias() = X_->middleRows(r0, nb) * S;
+    return;
+  }
+  Eigen::MatrixXd B;
+  block_(r0, nb, B);
+  out.noalias() = B * S;
+}
+
+Eigen::MatrixXd CatalogueDesign::times(const Eigen::MatrixXd& S) const {
+  Eigen::MatrixXd D(rows_, S.cols()), B;
+  for (long r0 = 0; r0 < rows_; r0 += stats::kDesignBlockRows) {
+    const long nb = std::min(stats::kDesignBlockRows, rows_ - r0);
+    blockTimes(r0, nb, S, B);
+    D.middleRows(r0, nb) = B;
+  }
+  return D;
+}
+
 namespace {
 
 /// The number of design columns of the accepted terms (the sum of their selectors' widths).
@@ -546,18 +587,12 @@ int acceptedWidth(const std::vector<Candidate>& cands, const std::vector<int>& a
 
 }  // namespace
 
-Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+Eigen::MatrixXd acceptedDesign(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                const std::vector<int>& accepted) {
-  Eigen::MatrixXd D(X.rows(), acceptedWidth(cands, accepted));
-  int c = 0;
-  for (int a : accepted) {
-    D.middleCols(c, cands[a].S.cols()) = X * cands[a].S;
-    c += static_cast<int>(cands[a].S.cols());
-  }
-  return D;
+  return X.times(acceptedSelector(X, cands, accepted));
 }
 
-Eigen::MatrixXd acceptedSelector(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+Eigen::MatrixXd acceptedSelector(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                  const std::vector<int>& accepted) {
   Eigen::MatrixXd S(X.cols(), acceptedWidth(cands, accepted));
   int c = 0;
@@ -568,28 +603,29 @@ Eigen::MatrixXd acceptedSelector(const Eigen::MatrixXd& X, const std::vector<Can
   return S;
 }
 
-stats::DesignRows acceptedRows(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+stats::DesignRows acceptedRows(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                const std::vector<int>& accepted) {
-  return [&X, S = acceptedSelector(X, cands, accepted)](long r0, long nb, Eigen::MatrixXd& out) {
-    out.noalias() = X.middleRows(r0, nb) * S;
+  return [X, S = acceptedSelector(X, cands, accepted)](long r0, long nb, Eigen::MatrixXd& out) {
+    X.blockTimes(r0, nb, S, out);
   };
 }
 
-LinearFit fitAccepted(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+LinearFit fitAccepted(const CatalogueDesign& X, const Eigen::VectorXd& y,
                       const std::vector<Candidate>& cands, const std::vector<int>& accepted,
                       const stats::Groups& groups, int lags) {
   return fitLinear(acceptedRows(X, cands, accepted), acceptedWidth(cands, accepted), y, groups,
                    lags);
 }
 
-Eigen::VectorXd acceptedPrediction(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+Eigen::VectorXd acceptedPrediction(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                    const std::vector<int>& accepted, const Eigen::VectorXd& coef) {
   const Eigen::MatrixXd S = acceptedSelector(X, cands, accepted);
   Eigen::VectorXd p(X.rows());
-  constexpr Eigen::Index kBlock = stats::kDesignBlockRows;
-  for (Eigen::Index r0 = 0; r0 < X.rows(); r0 += kBlock) {
-    const Eigen::Index nb = std::min(kBlock, X.rows() - r0);
-    p.segment(r0, nb).noalias() = Eigen::MatrixXd(X.middleRows(r0, nb) * S) * coef;
+  Eigen::MatrixXd B;
+  for (long r0 = 0; r0 < X.rows(); r0 += stats::kDesignBlockRows) {
+    const long nb = std::min(stats::kDesignBlockRows, X.rows() - r0);
+    X.blockTimes(r0, nb, S, B);
+    p.segment(r0, nb).noalias() = B * coef;
   }
   return p;
 }
@@ -653,8 +689,9 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
   Selection sel;
   const stats::SelectionRule rule = selectionRule(opt, cands.size());
   const bool have_val = d.y_val.size() > 10;
-  auto contributionRms = [&](const Candidate& c, const Eigen::VectorXd& coef) {
-    return (d.X_fit * c.S * coef).norm() / std::sqrt(std::max<double>(1, d.y_fit.size()));
+  auto contributionRms = [&](int ci, const Eigen::VectorXd& coef) {
+    return acceptedPrediction(d.X_fit, cands, {ci}, coef).norm() /
+           std::sqrt(std::max<double>(1, d.y_fit.size()));
   };
   // Forward steps: the fit of the accepted terms (f0) and each candidate's trial.
   LinearFit f0;
@@ -697,7 +734,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     const Candidate& c = cands[ci];
     SelectionStep& st = trial_step[ci];
     if (c.plausible && !c.plausible(st.coef)) return "physically implausible parameters";
-    double crms = contributionRms(c, st.coef);
+    double crms = contributionRms(ci, st.coef);
     if (crms < d.min_contribution_rms)
       return "irrelevant: contribution rms " + std::to_string(crms) + " below " +
              std::to_string(d.min_contribution_rms);
@@ -736,7 +773,8 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     LinearFit r0 = fitAccepted(d.X_fit, d.y_fit, cands, rest, d.g_fit, d.lags);
     t.evidence = compareNested(r0.rss, f1.rss, k, ne1);
     Eigen::VectorXd coef = f1.beta.segment(col, k);
-    if (contributionRms(c, coef) < d.min_contribution_rms || (c.plausible && !c.plausible(coef)))
+    if (contributionRms(acc[a], coef) < d.min_contribution_rms ||
+        (c.plausible && !c.plausible(coef)))
       t.reject = "irrelevant or implausible given the others";
     return t;
   };
