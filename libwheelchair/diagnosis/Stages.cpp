@@ -9,7 +9,9 @@
 #include "libwheelchair/signals/DriveSignals.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <initializer_list>
 #include <numeric>
 #include <stdexcept>
 
@@ -390,6 +392,76 @@ const std::vector<std::string>& dynLibNames() {
   return n;
 }
 
+namespace {
+
+/// Releases the memory of each vector.
+void release(std::initializer_list<std::vector<double>*> xs) {
+  for (std::vector<double>* x : xs) std::vector<double>().swap(*x);
+}
+
+/// The rows of one resampled segment (its grid samples [seg.i0, seg.i1)) written into d's
+/// outputs (sized already) from right-motor row bR on, the left motor's from bR + nR on. Each
+/// signal of the segment is released once read and each temporary made only when needed
+/// (memory: the segment of a ten-hour drive is ~1.3 M grid steps, 10 MB per signal).
+/// lw: track width (m); eps: the Coulomb smoothing speed (m/s); fc, fs: cutoff, grid rate (Hz).
+void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveTrain& dt, double lw,
+                 double eps, double fc, double fs, DynRows& d) {
+  const std::vector<double>& tg = seg.t;
+  const int n = static_cast<int>(tg.size()), i0 = seg.i0, i1 = seg.i1;
+  auto& G = d.grid;
+  // sgn(u): nonlinear, from lightly filtered rim speeds, then filtered like everything else
+  const double fc2 = std::min(2.5 * fc, 0.45 * fs);
+  std::array<std::vector<double>, 2> sg;
+  for (int s = 0; s < 2; ++s) {
+    std::vector<double> u2 = sensors::filtfiltButter2(seg.u[s], fc2, fs);
+    release({&seg.u[s]});
+    for (double& x : u2) x = std::tanh(x / eps);
+    sg[s] = sensors::filtfiltButter2(u2, fc, fs);
+  }
+  std::vector<double> phi(n);
+  for (int i = 0; i < n; ++i) phi[i] = (seg.p[0][i] - seg.p[1][i]) / lw;
+  release({&seg.p[0], &seg.p[1]});
+  // The kinematics, the nominal model's currents and the rim speeds.
+  const auto &uRf = seg.u_f[0], &uLf = seg.u_f[1], &udR = seg.a_f[0], &udL = seg.a_f[1];
+  std::array<std::vector<double>, 2> pred{std::vector<double>(n), std::vector<double>(n)};
+  for (int i = 0; i < n; ++i) {
+    const double v = 0.5 * (uRf[i] + uLf[i]), w = (uRf[i] - uLf[i]) / lw;
+    const double vd = 0.5 * (udR[i] + udL[i]), wd = (udR[i] - udL[i]) / lw;
+    const Eigen::Vector2d ip = dt.currents({v, w, phi[i]}, vd, wd);
+    pred[0][i] = ip(0), pred[1][i] = ip(1);
+    if (i < i0 || i >= i1) continue;
+    const int r = bR + i - i0;
+    G.t[r] = tg[i], G.v[r] = v, G.omega[r] = w, G.vdot[r] = vd, G.omegadot[r] = wd;
+    G.phi[r] = phi[i];
+    d.u[r] = uRf[i], d.u[r + nR] = uLf[i];
+  }
+  release({&seg.u_f[0], &seg.u_f[1], &seg.a_f[0], &seg.a_f[1]});
+  // The heading's cos and sin, filtered.
+  for (int c = 0; c < 2; ++c) {
+    std::vector<double> x(n);
+    for (int i = 0; i < n; ++i) x[i] = c == 0 ? std::cos(phi[i]) : std::sin(phi[i]);
+    x = sensors::filtfiltButter2(x, fc, fs);
+    std::vector<double>& out = c == 0 ? G.cos_phi : G.sin_phi;
+    for (int i = i0; i < i1; ++i) out[bR + i - i0] = x[i];
+  }
+  release({&phi});
+  // Per motor: y, the smoothed sign, the model current's derivative, the current.
+  for (int s = 0; s < 2; ++s) {
+    const std::vector<double> dp = sensors::centralDerivative(tg, pred[s]);
+    const std::vector<double>& im = seg.i_f[s];
+    for (int i = i0; i < i1; ++i) {
+      const int k = bR + i - i0 + s * nR;
+      d.y(k) = im[i] - pred[s][i];
+      d.sgn_u[k] = sg[s][i];
+      d.dcurrent_model[k] = dp[i];
+      d.current[k] = im[i];  // io, the other motor's, is the other side's row
+    }
+    release({&pred[s], &seg.i_f[s], &sg[s]});
+  }
+}
+
+}  // namespace
+
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
                     const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
   DynRows d;
@@ -434,60 +506,9 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   for (auto* col : {&d.u, &d.sgn_u, &d.current, &d.dcurrent_model}) col->resize(N);
   int row_R = 0;  // next right-motor row; its left-motor row is row_R + nR
   for (signals::DriveSegment& seg : segs) {
-    {
-      const std::vector<double>& tg = seg.t;
-      const int n = static_cast<int>(tg.size());
-      const auto &pR = seg.p[0], &pL = seg.p[1], &uRf = seg.u_f[0], &uLf = seg.u_f[1];
-      const auto &udR = seg.a_f[0], &udL = seg.a_f[1], &iRf = seg.i_f[0], &iLf = seg.i_f[1];
-      double fc2 = std::min(2.5 * fc, 0.45 * fs);
-      auto uR2 = sensors::filtfiltButter2(seg.u[0], fc2, fs);
-      auto uL2 = sensors::filtfiltButter2(seg.u[1], fc2, fs);
-      // What the rows no longer read goes before the next temporaries (memory: the segment of
-      // a ten-hour drive is ~1.3 M grid steps, 10 MB per signal).
-      for (auto* x : {&seg.u[0], &seg.u[1]}) std::vector<double>().swap(*x);
-      // nonlinear columns from lightly filtered signals, then filtered like everything else
-      std::vector<double> sgR(n), sgL(n), cph(n), sph(n), phi(n);
-      for (int i = 0; i < n; ++i) {
-        phi[i] = (pR[i] - pL[i]) / lw;
-        sgR[i] = std::tanh(uR2[i] / eps);
-        sgL[i] = std::tanh(uL2[i] / eps);
-        cph[i] = std::cos(phi[i]);
-        sph[i] = std::sin(phi[i]);
-      }
-      for (auto* x : {&seg.p[0], &seg.p[1], &uR2, &uL2}) std::vector<double>().swap(*x);
-      sgR = sensors::filtfiltButter2(sgR, fc, fs);
-      sgL = sensors::filtfiltButter2(sgL, fc, fs);
-      cph = sensors::filtfiltButter2(cph, fc, fs);
-      sph = sensors::filtfiltButter2(sph, fc, fs);
-      std::vector<double> predR(n), predL(n);
-      std::vector<double> v(n), w(n), vd(n), wd(n);
-      for (int i = 0; i < n; ++i) {
-        v[i] = 0.5 * (uRf[i] + uLf[i]);
-        w[i] = (uRf[i] - uLf[i]) / lw;
-        vd[i] = 0.5 * (udR[i] + udL[i]);
-        wd[i] = (udR[i] - udL[i]) / lw;
-        Eigen::Vector2d ip = dt.currents({v[i], w[i], phi[i]}, vd[i], wd[i]);
-        predR[i] = ip(0), predL[i] = ip(1);
-      }
-      auto dpR = sensors::centralDerivative(tg, predR);
-      auto dpL = sensors::centralDerivative(tg, predL);
-      const int bR = row_R;
-      for (int i = seg.i0; i < seg.i1; ++i, ++row_R) {
-        G.t[row_R] = tg[i], G.v[row_R] = v[i], G.omega[row_R] = w[i], G.vdot[row_R] = vd[i],
-        G.omegadot[row_R] = wd[i], G.phi[row_R] = phi[i], G.cos_phi[row_R] = cph[i],
-        G.sin_phi[row_R] = sph[i];
-        for (int sd = 0; sd < 2; ++sd) {
-          const int k = sd == 0 ? row_R : row_R + nR;
-          double u = sd == 0 ? uRf[i] : uLf[i];
-          double im = sd == 0 ? iRf[i] : iLf[i];
-          d.y(k) = im - (sd == 0 ? predR[i] : predL[i]);
-          d.u[k] = u, d.sgn_u[k] = sd == 0 ? sgR[i] : sgL[i];
-          d.dcurrent_model[k] = sd == 0 ? dpR[i] : dpL[i];
-          d.current[k] = im;  // io, the other motor's, is the other side's row
-        }
-      }
-      d.groups.push_back({bR, row_R});
-    }
+    segmentRows(seg, row_R, nR, dt, lw, eps, fc, fs, d);
+    d.groups.push_back({row_R, row_R + seg.i1 - seg.i0});
+    row_R += seg.i1 - seg.i0;
     seg = signals::DriveSegment{};  // consumed: its memory goes back before the next one
   }
   const std::size_t nseg = d.groups.size();
