@@ -1643,27 +1643,27 @@ void removeAccepted(Selection& sel, int a, Eigen::MatrixXd& Df, Eigen::MatrixXd&
 }
 
 /// A one-column catalogue term of ONE motor (a motor asymmetry, Coulomb friction of one side)
-/// the forward selection did not accept, with its design on the fit and validation rows (kept
-/// when the rows' full designs go, for addSpannedTerms). Terms of both motors (payload, slope,
+/// the forward selection did not accept (for addSpannedTerms, which makes its column on the fit
+/// and validation rows when it tests it: not kept through the unmodeled-term search, 8 B per
+/// row each; memory, docs/benchmarks.md). Terms of both motors (payload, slope,
 /// Coulomb friction of both) predict the same coefficient on both motors, which per-motor
 /// descriptions need not have (MuJoCo: vdot +0.09 A s^2/m on one motor, +0.12 on the other,
 /// unexplained): they are not re-tested.
 struct SpareTerm {
   int cand = -1;
-  Eigen::VectorXd xf, xv;
 };
 std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candidate>& cands,
-                                  const DynRows& df2, const DynRows& dv2) {
+                                  const DynRows& df2) {
   std::vector<SpareTerm> out;
   for (int ci = 0; ci < static_cast<int>(cands.size()); ++ci) {
     const Candidate& c = cands[ci];
     if (c.S.cols() != 1 || c.effect == "sensor_delay" ||
         std::find(sel.accepted.begin(), sel.accepted.end(), ci) != sel.accepted.end())
       continue;
-    SpareTerm sp{ci, df2.design().times(c.S.col(0)), dv2.design().times(c.S.col(0))};
-    const Eigen::Index nR = sp.xf.size() / 2;
-    if (sp.xf.head(nR).norm() > 0 && sp.xf.tail(nR).norm() > 0) continue;  // one motor only
-    out.push_back(std::move(sp));
+    const Eigen::VectorXd xf = df2.design().times(c.S.col(0));
+    const Eigen::Index nR = xf.size() / 2;
+    if (xf.head(nR).norm() > 0 && xf.tail(nR).norm() > 0) continue;  // one motor only
+    out.push_back({ci});
   }
   return out;
 }
@@ -1678,7 +1678,7 @@ std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candid
 bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
                      const std::vector<SpareTerm>& spare,
                      const std::array<SparseResult, 2>& unmodeled, Eigen::MatrixXd& Df,
-                     Eigen::MatrixXd& Dv, const DynRows& df2, int lags) {
+                     Eigen::MatrixXd& Dv, const DynRows& df2, const DynRows& dv2, int lags) {
   const int nR = static_cast<int>(df2.y.size() / 2);
   std::vector<Eigen::VectorXd> u;
   for (int s2 = 0; s2 < 2; ++s2)
@@ -1700,12 +1700,14 @@ bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
       for (const auto& n : c.conflicts) conflict = conflict || cands[a].name == n;
     for (int a : sel.accepted)
       for (const auto& n : cands[a].conflicts) conflict = conflict || c.name == n;
-    if (conflict || !inSpan(qrU, U, sp.xf)) continue;
+    if (conflict) continue;
+    const Eigen::VectorXd xf = df2.design().times(c.S.col(0));
+    if (!inSpan(qrU, U, xf)) continue;
     const LinearFit f0 = fitLinear(Df, df2.y, df2.groups, lags);
     Df.conservativeResize(Eigen::NoChange, Df.cols() + 1);
-    Df.col(Df.cols() - 1) = sp.xf;
+    Df.col(Df.cols() - 1) = xf;
     Dv.conservativeResize(Eigen::NoChange, Dv.cols() + 1);
-    Dv.col(Dv.cols() - 1) = sp.xv;
+    Dv.col(Dv.cols() - 1) = dv2.design().times(c.S.col(0));
     sel.fit = fitLinear(Df, df2.y, df2.groups, lags);
     SelectionStep st;
     st.candidate = sp.cand;
@@ -1926,7 +1928,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   Eigen::MatrixXd Dv = acceptedDesign(dv2.design(), cands, sel.accepted);
   if (opt.enable_unmodeled) {
     // The unmodeled-term search reads the rows' signals (DynRows::libColumn).
-    std::vector<SpareTerm> spare = spareTerms(sel, cands, df2, dv2);
+    std::vector<SpareTerm> spare = spareTerms(sel, cands, df2);
     for (bool retested = false;;) {
       JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
       sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;
@@ -1939,7 +1941,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
         retested = true;
         if (addSpannedTerms(sel, cands,
                             unconfirmedSupersessions(spare, cands, superseded, unmodeled),
-                            unmodeled, Df, Dv, df2, lags))
+                            unmodeled, Df, Dv, df2, dv2, lags))
           continue;
       }
       if (a < 0) break;
