@@ -918,6 +918,14 @@ void makeWholeStreams(StageData& data) {
   std::vector<std::array<Streams, 2>>().swap(data.beyond);
 }
 
+/// The catalogue design of a stage's rows: stage 1's stored X, stage 2's made block by block.
+CatalogueDesign designOf(const KinRows& k) {
+  return k.X;
+}
+CatalogueDesign designOf(const DynRows& d) {
+  return d.design();
+}
+
 /// Rows rebuilt with a re-estimated stream delay (`delay` s).
 template <class Rows>
 struct DelayRefit {
@@ -938,21 +946,21 @@ DelayRefit<Rows> refineDelay(Selection& sel, int di, const std::vector<Candidate
   for (int it = 0; it < 4; ++it) {
     r.delay += sel.fit.beta(sel.ranges[di].first);
     r.fit = rows(true, r.delay);
-    sel.fit = fitAccepted(r.fit.X, r.fit.y, cands, sel.accepted, r.fit.groups, lags);
+    sel.fit = fitAccepted(designOf(r.fit), r.fit.y, cands, sel.accepted, r.fit.groups, lags);
   }
   r.delay += sel.fit.beta(sel.ranges[di].first);
   r.fit = rows(true, r.delay);
   r.val = rows(false, r.delay);
   SelectionStep dstep = sel.steps[di];
   int dcand = sel.accepted[di];
-  SelectionData sd2{r.fit.y,      r.val.y,      r.fit.X, r.val.X,
-                    r.fit.groups, r.val.groups, lags,    min_contribution_rms};
+  SelectionData sd2{r.fit.y,      r.val.y, designOf(r.fit),     designOf(r.val), r.fit.groups,
+                    r.val.groups, lags,    min_contribution_rms};
   sel = forwardSelect(sd2, cands, opt, {dcand});
   sel.steps.insert(sel.steps.begin(), dstep);
   r.delay += sel.fit.beta(sel.ranges[0].first);
   r.fit = rows(true, r.delay);
   r.val = rows(false, r.delay);
-  sel.fit = fitAccepted(r.fit.X, r.fit.y, cands, sel.accepted, r.fit.groups, lags);
+  sel.fit = fitAccepted(designOf(r.fit), r.fit.y, cands, sel.accepted, r.fit.groups, lags);
   return r;
 }
 
@@ -1645,27 +1653,27 @@ void removeAccepted(Selection& sel, int a, Eigen::MatrixXd& Df, Eigen::MatrixXd&
 }
 
 /// A one-column catalogue term of ONE motor (a motor asymmetry, Coulomb friction of one side)
-/// the forward selection did not accept, with its design on the fit and validation rows (kept
-/// when the rows' full designs go, for addSpannedTerms). Terms of both motors (payload, slope,
+/// the forward selection did not accept (for addSpannedTerms, which makes its column on the fit
+/// and validation rows when it tests it: not kept through the unmodeled-term search, 8 B per
+/// row each; memory, docs/benchmarks.md). Terms of both motors (payload, slope,
 /// Coulomb friction of both) predict the same coefficient on both motors, which per-motor
 /// descriptions need not have (MuJoCo: vdot +0.09 A s^2/m on one motor, +0.12 on the other,
 /// unexplained): they are not re-tested.
 struct SpareTerm {
   int cand = -1;
-  Eigen::VectorXd xf, xv;
 };
 std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candidate>& cands,
-                                  const DynRows& df2, const DynRows& dv2) {
+                                  const DynRows& df2) {
   std::vector<SpareTerm> out;
   for (int ci = 0; ci < static_cast<int>(cands.size()); ++ci) {
     const Candidate& c = cands[ci];
     if (c.S.cols() != 1 || c.effect == "sensor_delay" ||
         std::find(sel.accepted.begin(), sel.accepted.end(), ci) != sel.accepted.end())
       continue;
-    SpareTerm sp{ci, df2.X * c.S.col(0), dv2.X * c.S.col(0)};
-    const Eigen::Index nR = sp.xf.size() / 2;
-    if (sp.xf.head(nR).norm() > 0 && sp.xf.tail(nR).norm() > 0) continue;  // one motor only
-    out.push_back(std::move(sp));
+    const Eigen::VectorXd xf = df2.design().times(c.S.col(0));
+    const Eigen::Index nR = xf.size() / 2;
+    if (xf.head(nR).norm() > 0 && xf.tail(nR).norm() > 0) continue;  // one motor only
+    out.push_back({ci});
   }
   return out;
 }
@@ -1680,7 +1688,7 @@ std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candid
 bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
                      const std::vector<SpareTerm>& spare,
                      const std::array<SparseResult, 2>& unmodeled, Eigen::MatrixXd& Df,
-                     Eigen::MatrixXd& Dv, const DynRows& df2, int lags) {
+                     Eigen::MatrixXd& Dv, const DynRows& df2, const DynRows& dv2, int lags) {
   const int nR = static_cast<int>(df2.y.size() / 2);
   std::vector<Eigen::VectorXd> u;
   for (int s2 = 0; s2 < 2; ++s2)
@@ -1702,12 +1710,14 @@ bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
       for (const auto& n : c.conflicts) conflict = conflict || cands[a].name == n;
     for (int a : sel.accepted)
       for (const auto& n : cands[a].conflicts) conflict = conflict || c.name == n;
-    if (conflict || !inSpan(qrU, U, sp.xf)) continue;
+    if (conflict) continue;
+    const Eigen::VectorXd xf = df2.design().times(c.S.col(0));
+    if (!inSpan(qrU, U, xf)) continue;
     const LinearFit f0 = fitLinear(Df, df2.y, df2.groups, lags);
     Df.conservativeResize(Eigen::NoChange, Df.cols() + 1);
-    Df.col(Df.cols() - 1) = sp.xf;
+    Df.col(Df.cols() - 1) = xf;
     Dv.conservativeResize(Eigen::NoChange, Dv.cols() + 1);
-    Dv.col(Dv.cols() - 1) = sp.xv;
+    Dv.col(Dv.cols() - 1) = dv2.design().times(c.S.col(0));
     sel.fit = fitLinear(Df, df2.y, df2.groups, lags);
     SelectionStep st;
     st.candidate = sp.cand;
@@ -1781,7 +1791,7 @@ int supersededByOutOfCatalogue(const Selection& sel, const std::vector<Candidate
   std::vector<int> lib;
   for (int j = 0; j < static_cast<int>(dynLibNames().size()); ++j)
     if (j != 12 && j != 13) lib.push_back(j);  // not the measured currents (dynamicUnmodeled)
-  const Eigen::MatrixXd D = acceptedDesign(df.X, cands, sel.accepted);
+  const Eigen::MatrixXd D = acceptedDesign(df.design(), cands, sel.accepted);
   const double crit = stats::chi2Quantile(1 - alpha_b, 1);
   for (std::size_t a = 0; a < sel.accepted.size(); ++a) {
     const Candidate& c = cands[sel.accepted[a]];
@@ -1895,8 +1905,9 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   const bool sensors_nominal = corr == Corrections{};
   int lags = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
   if (!(df.y.size() > 50)) return false;
-  SelectionData sd{df.y,      dv.y,      df.X, dv.X,
-                   df.groups, dv.groups, lags, opt.min_relevance * cfg.motors.current_noise_A};
+  SelectionData sd{
+      df.y,      dv.y,      df.design(), dv.design(),
+      df.groups, dv.groups, lags,        opt.min_relevance * cfg.motors.current_noise_A};
   std::vector<SupersededTerm> superseded;
   Selection sel = selectCatalogue(sd, cands, df, lags, opt, alpha_b, superseded);
   // The superseded terms stay candidates for addSpannedTerms (unconfirmedSupersessions),
@@ -1923,13 +1934,11 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
   const DynRows& dv2 = *pv2;
   // The accepted catalogue terms' designs (a few columns), then the catalogue estimated jointly
   // with what it does not contain (jointDynamicFit).
-  Eigen::MatrixXd Df = acceptedDesign(df2.X, cands, sel.accepted);
-  Eigen::MatrixXd Dv = acceptedDesign(dv2.X, cands, sel.accepted);
+  Eigen::MatrixXd Df = acceptedDesign(df2.design(), cands, sel.accepted);
+  Eigen::MatrixXd Dv = acceptedDesign(dv2.design(), cands, sel.accepted);
   if (opt.enable_unmodeled) {
-    // The unmodeled-term search reads the rows' signals (DynRows::libColumn), not their
-    // designs: those go first, as the search's own fits are the peak of diagnose (memory).
-    std::vector<SpareTerm> spare = spareTerms(sel, cands, df2, dv2);
-    for (DynRows* rows : {&df, &dv, &refit.fit, &refit.val}) rows->X = Eigen::MatrixXd();
+    // The unmodeled-term search reads the rows' signals (DynRows::libColumn).
+    std::vector<SpareTerm> spare = spareTerms(sel, cands, df2);
     for (bool retested = false;;) {
       JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
       sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;
@@ -1942,7 +1951,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
         retested = true;
         if (addSpannedTerms(sel, cands,
                             unconfirmedSupersessions(spare, cands, superseded, unmodeled),
-                            unmodeled, Df, Dv, df2, lags))
+                            unmodeled, Df, Dv, df2, dv2, lags))
           continue;
       }
       if (a < 0) break;

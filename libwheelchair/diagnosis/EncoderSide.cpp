@@ -108,8 +108,9 @@ double dynamicsRms(const std::vector<Streams>& fitS, const Explanation& e,
   c.enc_scale[1] = e.k[1];
   const DynRows r = dynamicRows(fitS, c, cfg, opt);
   if (r.y.size() < 50) return std::nan("");
-  const Eigen::VectorXd b = r.X.colPivHouseholderQr().solve(r.y);
-  return std::sqrt((r.y - r.X * b).squaredNorm() / r.y.size());
+  const Eigen::MatrixXd X = r.design().matrix();
+  const Eigen::VectorXd b = X.colPivHouseholderQr().solve(r.y);
+  return std::sqrt((r.y - X * b).squaredNorm() / r.y.size());
 }
 
 }  // namespace

@@ -9,8 +9,10 @@
 #include "libwheelchair/signals/DriveSignals.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <deque>
+#include <initializer_list>
 #include <numeric>
 #include <stdexcept>
 
@@ -463,6 +465,76 @@ const std::vector<std::string>& dynLibNames() {
   return n;
 }
 
+namespace {
+
+/// Releases the memory of each vector.
+void release(std::initializer_list<std::vector<double>*> xs) {
+  for (std::vector<double>* x : xs) std::vector<double>().swap(*x);
+}
+
+/// The rows of one resampled segment (its grid samples [seg.i0, seg.i1)) written into d's
+/// outputs (sized already) from right-motor row bR on, the left motor's from bR + nR on. Each
+/// signal of the segment is released once read and each temporary made only when needed
+/// (memory: the segment of a ten-hour drive is ~1.3 M grid steps, 10 MB per signal).
+/// lw: track width (m); eps: the Coulomb smoothing speed (m/s); fc, fs: cutoff, grid rate (Hz).
+void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveTrain& dt, double lw,
+                 double eps, double fc, double fs, DynRows& d) {
+  const std::vector<double>& tg = seg.t;
+  const int n = static_cast<int>(tg.size()), i0 = seg.i0, i1 = seg.i1;
+  auto& G = d.grid;
+  // sgn(u): nonlinear, from lightly filtered rim speeds, then filtered like everything else
+  const double fc2 = std::min(2.5 * fc, 0.45 * fs);
+  std::array<std::vector<double>, 2> sg;
+  for (int s = 0; s < 2; ++s) {
+    std::vector<double> u2 = sensors::filtfiltButter2(seg.u[s], fc2, fs);
+    release({&seg.u[s]});
+    for (double& x : u2) x = std::tanh(x / eps);
+    sg[s] = sensors::filtfiltButter2(u2, fc, fs);
+  }
+  std::vector<double> phi(n);
+  for (int i = 0; i < n; ++i) phi[i] = (seg.p[0][i] - seg.p[1][i]) / lw;
+  release({&seg.p[0], &seg.p[1]});
+  // The kinematics, the nominal model's currents and the rim speeds.
+  const auto &uRf = seg.u_f[0], &uLf = seg.u_f[1], &udR = seg.a_f[0], &udL = seg.a_f[1];
+  std::array<std::vector<double>, 2> pred{std::vector<double>(n), std::vector<double>(n)};
+  for (int i = 0; i < n; ++i) {
+    const double v = 0.5 * (uRf[i] + uLf[i]), w = (uRf[i] - uLf[i]) / lw;
+    const double vd = 0.5 * (udR[i] + udL[i]), wd = (udR[i] - udL[i]) / lw;
+    const Eigen::Vector2d ip = dt.currents({v, w, phi[i]}, vd, wd);
+    pred[0][i] = ip(0), pred[1][i] = ip(1);
+    if (i < i0 || i >= i1) continue;
+    const int r = bR + i - i0;
+    G.t[r] = tg[i], G.v[r] = v, G.omega[r] = w, G.vdot[r] = vd, G.omegadot[r] = wd;
+    G.phi[r] = phi[i];
+    d.u[r] = uRf[i], d.u[r + nR] = uLf[i];
+  }
+  release({&seg.u_f[0], &seg.u_f[1], &seg.a_f[0], &seg.a_f[1]});
+  // The heading's cos and sin, filtered.
+  for (int c = 0; c < 2; ++c) {
+    std::vector<double> x(n);
+    for (int i = 0; i < n; ++i) x[i] = c == 0 ? std::cos(phi[i]) : std::sin(phi[i]);
+    x = sensors::filtfiltButter2(x, fc, fs);
+    std::vector<double>& out = c == 0 ? G.cos_phi : G.sin_phi;
+    for (int i = i0; i < i1; ++i) out[bR + i - i0] = x[i];
+  }
+  release({&phi});
+  // Per motor: y, the smoothed sign, the model current's derivative, the current.
+  for (int s = 0; s < 2; ++s) {
+    const std::vector<double> dp = sensors::centralDerivative(tg, pred[s]);
+    const std::vector<double>& im = seg.i_f[s];
+    for (int i = i0; i < i1; ++i) {
+      const int k = bR + i - i0 + s * nR;
+      d.y(k) = im[i] - pred[s][i];
+      d.sgn_u[k] = sg[s][i];
+      d.dcurrent_model[k] = dp[i];
+      d.current[k] = im[i];  // io, the other motor's, is the other side's row
+    }
+    release({&pred[s], &seg.i_f[s], &sg[s]});
+  }
+}
+
+}  // namespace
+
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
                     const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
   DynRows d;
@@ -475,8 +547,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   const double eps = dt.coulomb_smoothing_m_s > 0 ? dt.coulomb_smoothing_m_s : 0.01;
   const double Mg2 = (g.body_mass_kg + 2 * g.wheel_mass_kg) * 9.81 / 2.0;
   const double fs = opt.grid_rate_hz, fc = opt.cutoff_hz;
-  const auto& cols = driveColumns();
-  const int ncol = static_cast<int>(cols.size());
+  d.theta5 = theta5, d.alpha = alpha, d.wheel_radius_m = r, d.gear_ratio = rG;
+  d.half_weight_N = Mg2;
   signals::DriveSignalOptions so;
   so.grid_rate_hz = fs, so.cutoff_hz = fc, so.max_gap_s = opt.max_gap_s;
   so.edge_trim_s = opt.edge_trim_s;
@@ -501,71 +573,15 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   for (const auto& seg : segs) nR += seg.i1 - seg.i0;
   const int N = 2 * nR;
   d.y.resize(N);
-  d.X.resize(N, ncol);
   auto& G = d.grid;
   for (auto* col : {&G.t, &G.v, &G.omega, &G.vdot, &G.omegadot, &G.phi, &G.cos_phi, &G.sin_phi})
     col->resize(nR);
-  for (auto* col : {&d.u, &d.sgn_u, &d.current}) col->resize(N);
+  for (auto* col : {&d.u, &d.sgn_u, &d.current, &d.dcurrent_model}) col->resize(N);
   int row_R = 0;  // next right-motor row; its left-motor row is row_R + nR
   for (signals::DriveSegment& seg : segs) {
-    {
-      const std::vector<double>& tg = seg.t;
-      const int n = static_cast<int>(tg.size());
-      const auto &pR = seg.p[0], &pL = seg.p[1], &uRf = seg.u_f[0], &uLf = seg.u_f[1];
-      const auto &udR = seg.a_f[0], &udL = seg.a_f[1], &iRf = seg.i_f[0], &iLf = seg.i_f[1];
-      double fc2 = std::min(2.5 * fc, 0.45 * fs);
-      auto uR2 = sensors::filtfiltButter2(seg.u[0], fc2, fs);
-      auto uL2 = sensors::filtfiltButter2(seg.u[1], fc2, fs);
-      // What the rows no longer read goes before the next temporaries (memory: the segment of
-      // a ten-hour drive is ~1.3 M grid steps, 10 MB per signal).
-      for (auto* x : {&seg.u[0], &seg.u[1]}) std::vector<double>().swap(*x);
-      // nonlinear columns from lightly filtered signals, then filtered like everything else
-      std::vector<double> sgR(n), sgL(n), cph(n), sph(n), phi(n);
-      for (int i = 0; i < n; ++i) {
-        phi[i] = (pR[i] - pL[i]) / lw;
-        sgR[i] = std::tanh(uR2[i] / eps);
-        sgL[i] = std::tanh(uL2[i] / eps);
-        cph[i] = std::cos(phi[i]);
-        sph[i] = std::sin(phi[i]);
-      }
-      for (auto* x : {&seg.p[0], &seg.p[1], &uR2, &uL2}) std::vector<double>().swap(*x);
-      sgR = sensors::filtfiltButter2(sgR, fc, fs);
-      sgL = sensors::filtfiltButter2(sgL, fc, fs);
-      cph = sensors::filtfiltButter2(cph, fc, fs);
-      sph = sensors::filtfiltButter2(sph, fc, fs);
-      std::vector<double> predR(n), predL(n);
-      std::vector<double> v(n), w(n), vd(n), wd(n);
-      for (int i = 0; i < n; ++i) {
-        v[i] = 0.5 * (uRf[i] + uLf[i]);
-        w[i] = (uRf[i] - uLf[i]) / lw;
-        vd[i] = 0.5 * (udR[i] + udL[i]);
-        wd[i] = (udR[i] - udL[i]) / lw;
-        Eigen::Vector2d ip = dt.currents({v[i], w[i], phi[i]}, vd[i], wd[i]);
-        predR[i] = ip(0), predL[i] = ip(1);
-      }
-      auto dpR = sensors::centralDerivative(tg, predR);
-      auto dpL = sensors::centralDerivative(tg, predL);
-      const int bR = row_R;
-      for (int i = seg.i0; i < seg.i1; ++i, ++row_R) {
-        G.t[row_R] = tg[i], G.v[row_R] = v[i], G.omega[row_R] = w[i], G.vdot[row_R] = vd[i],
-        G.omegadot[row_R] = wd[i], G.phi[row_R] = phi[i], G.cos_phi[row_R] = cph[i],
-        G.sin_phi[row_R] = sph[i];
-        for (int sd = 0; sd < 2; ++sd) {
-          const int k = sd == 0 ? row_R : row_R + nR;
-          double u = sd == 0 ? uRf[i] : uLf[i];
-          double im = sd == 0 ? iRf[i] : iLf[i];
-          d.y(k) = im - (sd == 0 ? predR[i] : predL[i]);
-          double sg = sd == 0 ? sgR[i] : sgL[i];
-          const effects::DriveSample sample{
-              sd,     u,     sg, vd[i], cph[i], sph[i], sd == 0 ? dpR[i] : dpL[i],
-              theta5, alpha, r,  rG,    Mg2};
-          for (int j = 0; j < ncol; ++j) d.X(k, j) = cols[j].value(sample);
-          d.u[k] = u, d.sgn_u[k] = sg;
-          d.current[k] = im;  // io, the other motor's, is the other side's row
-        }
-      }
-      d.groups.push_back({bR, row_R});
-    }
+    segmentRows(seg, row_R, nR, dt, lw, eps, fc, fs, d);
+    d.groups.push_back({row_R, row_R + seg.i1 - seg.i0});
+    row_R += seg.i1 - seg.i0;
     seg = signals::DriveSegment{};  // consumed: its memory goes back before the next one
   }
   const std::size_t nseg = d.groups.size();
@@ -608,6 +624,52 @@ Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
   return c;
 }
 
+void DynRows::designBlock(long r0, long nb, Eigen::MatrixXd& out) const {
+  const auto& cols = driveColumns();
+  const int ncol = static_cast<int>(cols.size());
+  out.resize(nb, ncol);
+  for (long q = 0; q < nb; ++q) {
+    const int k = static_cast<int>(r0 + q), i = step(k);
+    const effects::DriveSample sample{
+        side(k),           u[k],   sgn_u[k], grid.vdot[i],   grid.cos_phi[i], grid.sin_phi[i],
+        dcurrent_model[k], theta5, alpha,    wheel_radius_m, gear_ratio,      half_weight_N};
+    for (int j = 0; j < ncol; ++j) out(q, j) = cols[j].value(sample);
+  }
+}
+
+CatalogueDesign DynRows::design() const {
+  return {static_cast<long>(y.size()), static_cast<long>(driveColumns().size()),
+          [this](long r0, long nb, Eigen::MatrixXd& out) { designBlock(r0, nb, out); }};
+}
+
+void CatalogueDesign::block(long r0, long nb, Eigen::MatrixXd& out) const {
+  if (X_)
+    out = X_->middleRows(r0, nb);
+  else
+    block_(r0, nb, out);
+}
+
+void CatalogueDesign::blockTimes(long r0, long nb, const Eigen::MatrixXd& S,
+                                 Eigen::MatrixXd& out) const {
+  if (X_) {
+    out.noalias() = X_->middleRows(r0, nb) * S;
+    return;
+  }
+  Eigen::MatrixXd B;
+  block_(r0, nb, B);
+  out.noalias() = B * S;
+}
+
+Eigen::MatrixXd CatalogueDesign::times(const Eigen::MatrixXd& S) const {
+  Eigen::MatrixXd D(rows_, S.cols()), B;
+  for (long r0 = 0; r0 < rows_; r0 += stats::kDesignBlockRows) {
+    const long nb = std::min(stats::kDesignBlockRows, rows_ - r0);
+    blockTimes(r0, nb, S, B);
+    D.middleRows(r0, nb) = B;
+  }
+  return D;
+}
+
 namespace {
 
 /// The number of design columns of the accepted terms (the sum of their selectors' widths).
@@ -619,18 +681,12 @@ int acceptedWidth(const std::vector<Candidate>& cands, const std::vector<int>& a
 
 }  // namespace
 
-Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+Eigen::MatrixXd acceptedDesign(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                const std::vector<int>& accepted) {
-  Eigen::MatrixXd D(X.rows(), acceptedWidth(cands, accepted));
-  int c = 0;
-  for (int a : accepted) {
-    D.middleCols(c, cands[a].S.cols()) = X * cands[a].S;
-    c += static_cast<int>(cands[a].S.cols());
-  }
-  return D;
+  return X.times(acceptedSelector(X, cands, accepted));
 }
 
-Eigen::MatrixXd acceptedSelector(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+Eigen::MatrixXd acceptedSelector(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                  const std::vector<int>& accepted) {
   Eigen::MatrixXd S(X.cols(), acceptedWidth(cands, accepted));
   int c = 0;
@@ -641,28 +697,29 @@ Eigen::MatrixXd acceptedSelector(const Eigen::MatrixXd& X, const std::vector<Can
   return S;
 }
 
-stats::DesignRows acceptedRows(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+stats::DesignRows acceptedRows(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                const std::vector<int>& accepted) {
-  return [&X, S = acceptedSelector(X, cands, accepted)](long r0, long nb, Eigen::MatrixXd& out) {
-    out.noalias() = X.middleRows(r0, nb) * S;
+  return [X, S = acceptedSelector(X, cands, accepted)](long r0, long nb, Eigen::MatrixXd& out) {
+    X.blockTimes(r0, nb, S, out);
   };
 }
 
-LinearFit fitAccepted(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+LinearFit fitAccepted(const CatalogueDesign& X, const Eigen::VectorXd& y,
                       const std::vector<Candidate>& cands, const std::vector<int>& accepted,
                       const stats::Groups& groups, int lags) {
   return fitLinear(acceptedRows(X, cands, accepted), acceptedWidth(cands, accepted), y, groups,
                    lags);
 }
 
-Eigen::VectorXd acceptedPrediction(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+Eigen::VectorXd acceptedPrediction(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                    const std::vector<int>& accepted, const Eigen::VectorXd& coef) {
   const Eigen::MatrixXd S = acceptedSelector(X, cands, accepted);
   Eigen::VectorXd p(X.rows());
-  constexpr Eigen::Index kBlock = stats::kDesignBlockRows;
-  for (Eigen::Index r0 = 0; r0 < X.rows(); r0 += kBlock) {
-    const Eigen::Index nb = std::min(kBlock, X.rows() - r0);
-    p.segment(r0, nb).noalias() = Eigen::MatrixXd(X.middleRows(r0, nb) * S) * coef;
+  Eigen::MatrixXd B;
+  for (long r0 = 0; r0 < X.rows(); r0 += stats::kDesignBlockRows) {
+    const long nb = std::min(stats::kDesignBlockRows, X.rows() - r0);
+    X.blockTimes(r0, nb, S, B);
+    p.segment(r0, nb).noalias() = B * coef;
   }
   return p;
 }
@@ -726,8 +783,9 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
   Selection sel;
   const stats::SelectionRule rule = selectionRule(opt, cands.size());
   const bool have_val = d.y_val.size() > 10;
-  auto contributionRms = [&](const Candidate& c, const Eigen::VectorXd& coef) {
-    return (d.X_fit * c.S * coef).norm() / std::sqrt(std::max<double>(1, d.y_fit.size()));
+  auto contributionRms = [&](int ci, const Eigen::VectorXd& coef) {
+    return acceptedPrediction(d.X_fit, cands, {ci}, coef).norm() /
+           std::sqrt(std::max<double>(1, d.y_fit.size()));
   };
   // Forward steps: the fit of the accepted terms (f0) and each candidate's trial.
   LinearFit f0;
@@ -770,7 +828,7 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     const Candidate& c = cands[ci];
     SelectionStep& st = trial_step[ci];
     if (c.plausible && !c.plausible(st.coef)) return "physically implausible parameters";
-    double crms = contributionRms(c, st.coef);
+    double crms = contributionRms(ci, st.coef);
     if (crms < d.min_contribution_rms)
       return "irrelevant: contribution rms " + std::to_string(crms) + " below " +
              std::to_string(d.min_contribution_rms);
@@ -809,7 +867,8 @@ Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& ca
     LinearFit r0 = fitAccepted(d.X_fit, d.y_fit, cands, rest, d.g_fit, d.lags);
     t.evidence = compareNested(r0.rss, f1.rss, k, ne1);
     Eigen::VectorXd coef = f1.beta.segment(col, k);
-    if (contributionRms(c, coef) < d.min_contribution_rms || (c.plausible && !c.plausible(coef)))
+    if (contributionRms(acc[a], coef) < d.min_contribution_rms ||
+        (c.plausible && !c.plausible(coef)))
       t.reject = "irrelevant or implausible given the others";
     return t;
   };

@@ -100,14 +100,46 @@ struct KinRows {
 KinRows kinematicRows(const std::vector<Streams>& recs, const Corrections& c,
                       const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
 
+/// A stage's catalogue design X (rows() x cols(): the stage's columns, kinematicColumns() or
+/// driveColumns()), stored or made block of rows by block (DynRows::design(): the stage 2
+/// design is not stored; memory, docs/benchmarks.md). A view: the matrix or the rows it makes
+/// its blocks from must outlive it. Implicit from a stored matrix, e.g.
+///   CatalogueDesign X = k.X;                      // a view of KinRows' stored design
+///   Eigen::MatrixXd b; X.block(0, 100, b);        // b = k.X.topRows(100)
+class CatalogueDesign {
+ public:
+  /// Fills `out` with rows [r0, r0 + nb) of the design (nb <= stats::kDesignBlockRows).
+  using Block = std::function<void(long r0, long nb, Eigen::MatrixXd& out)>;
+  CatalogueDesign(const Eigen::MatrixXd& X)  // NOLINT: implicit, a view of a stored design
+      : rows_(X.rows()), cols_(X.cols()), X_(&X) {}
+  CatalogueDesign(long rows, long cols, Block block)
+      : rows_(rows), cols_(cols), block_(std::move(block)) {}
+  long rows() const { return rows_; }
+  long cols() const { return cols_; }
+  /// Rows [r0, r0 + nb) into `out` (nb x cols()).
+  void block(long r0, long nb, Eigen::MatrixXd& out) const;
+  /// Rows [r0, r0 + nb) times S (cols() x k) into `out` (nb x k): X.middleRows(r0, nb) * S.
+  void blockTimes(long r0, long nb, const Eigen::MatrixXd& S, Eigen::MatrixXd& out) const;
+  /// X * S (rows() x k), made block by block.
+  Eigen::MatrixXd times(const Eigen::MatrixXd& S) const;
+  /// The whole design (rows() x cols(); for small row sets only).
+  Eigen::MatrixXd matrix() const { return times(Eigen::MatrixXd::Identity(cols_, cols_)); }
+
+ private:
+  long rows_ = 0, cols_ = 0;
+  const Eigen::MatrixXd* X_ = nullptr;
+  Block block_;
+};
+
 /// Stage 2 rows: per grid sample the right and then the left motor equation error (A),
 /// y = filtered current - nominal model current. Columns: driveColumns() (asymmetry right/left,
-/// Coulomb right/left, payload per kg, slope cos/sin, motors delay).
-/// The unmodeled-term library (names in dynLibNames()) is not stored as a matrix (16 doubles
-/// a row; memory, docs/benchmarks.md): libColumn() makes a column from the per-row signals.
+/// Coulomb right/left, payload per kg, slope cos/sin, motors delay), not stored (64 B a row;
+/// memory, docs/benchmarks.md): design() makes them block by block from the row's signals
+/// (effects::DriveColumn::value of the row's effects::DriveSample).
+/// The unmodeled-term library (names in dynLibNames()) is not stored as a matrix either (16
+/// doubles a row): libColumn() makes a column from the per-row signals.
 struct DynRows {
   Eigen::VectorXd y;
-  Eigen::MatrixXd X;
   /// What both motors' rows of a grid sample share, stored once per grid sample (memory,
   /// docs/benchmarks.md): row k (right rows 0..nR-1, then left rows nR..2 nR-1) is grid sample
   /// step(k). Time (s), v (m/s), omega (rad/s), their derivatives, heading phi (rad) and its
@@ -118,6 +150,13 @@ struct DynRows {
   /// Per row, the rest of the library: the motor's rim speed u (m/s), its smoothed sign
   /// sgn(u) and the motor's filtered current (A).
   std::vector<double> u, sgn_u, current;
+  /// Per row, the time derivative of the motor's nominal model current (A/s; the delay
+  /// column's signal).
+  std::vector<double> dcurrent_model;
+  /// The constants of the drive columns (effects::DriveSample): motor viscous friction per
+  /// torque constant theta5 (A s/rad), 1 / (gearbox efficiency x torque constant) (A/(N m)),
+  /// wheel radius r (m), gear ratio, half the weight on the drive wheels Mg/2 (N).
+  double theta5 = 0, alpha = 0, wheel_radius_m = 0, gear_ratio = 0, half_weight_N = 0;
   stats::Groups groups;
   /// Grid sample of row k (k < nR: the right motor's row; else the left motor's).
   int step(int k) const {
@@ -132,6 +171,10 @@ struct DynRows {
   /// v*|v| (a drag's signed square) and sgn(omega) = tanh(omega / 0.02 rad/s) (a dry
   /// moment's sign; from the filtered rate).
   Eigen::VectorXd libColumn(int j, int r0, int n) const;
+  /// Rows [r0, r0 + nb) of the catalogue design (nb x driveColumns().size()).
+  void designBlock(long r0, long nb, Eigen::MatrixXd& out) const;
+  /// The catalogue design, made block by block (a view of these rows: they must outlive it).
+  CatalogueDesign design() const;
 };
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
                     const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
@@ -170,7 +213,7 @@ struct Selection {
 /// Views of the caller's rows (no copy of the regression matrices; they must outlive it).
 struct SelectionData {
   const Eigen::VectorXd &y_fit, &y_val;
-  const Eigen::MatrixXd &X_fit, &X_val;
+  CatalogueDesign X_fit, X_val;  ///< views (stored, or made block by block)
   const stats::Groups &g_fit, &g_val;
   int lags = 5;
   /// Relevance: the RMS of a term's contribution over the fit rows must reach this (units of
@@ -187,23 +230,23 @@ stats::SelectionRule selectionRule(const DiagnosisOptions& opt, std::size_t m);
 Selection forwardSelect(const SelectionData& d, const std::vector<Candidate>& cands,
                         const DiagnosisOptions& opt, const std::vector<int>& forced = {});
 
-/// Design of the accepted candidates, in order.
-Eigen::MatrixXd acceptedDesign(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+/// Design of the accepted candidates, in order (made block by block when X is).
+Eigen::MatrixXd acceptedDesign(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                const std::vector<int>& accepted);
 /// The same design as X * S: S (X.cols() x k) stacks the accepted candidates' S, in order.
-Eigen::MatrixXd acceptedSelector(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+Eigen::MatrixXd acceptedSelector(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                  const std::vector<int>& accepted);
 /// The same design made block of rows by block (never stored; memory, docs/benchmarks.md) for
-/// stats::fitLinear(DesignRows, ...). X must outlive the result.
-stats::DesignRows acceptedRows(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+/// stats::fitLinear(DesignRows, ...). What X views must outlive the result.
+stats::DesignRows acceptedRows(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                const std::vector<int>& accepted);
 /// fitLinear(acceptedDesign(X, cands, accepted), y, groups, lags) without the design (same
 /// numbers up to rounding: the column norms are summed block by block).
-stats::LinearFit fitAccepted(const Eigen::MatrixXd& X, const Eigen::VectorXd& y,
+stats::LinearFit fitAccepted(const CatalogueDesign& X, const Eigen::VectorXd& y,
                              const std::vector<Candidate>& cands, const std::vector<int>& accepted,
                              const stats::Groups& groups, int lags);
 /// acceptedDesign(X, cands, accepted) * coef, block of rows by block.
-Eigen::VectorXd acceptedPrediction(const Eigen::MatrixXd& X, const std::vector<Candidate>& cands,
+Eigen::VectorXd acceptedPrediction(const CatalogueDesign& X, const std::vector<Candidate>& cands,
                                    const std::vector<int>& accepted, const Eigen::VectorXd& coef);
 
 }  // namespace wheelchair::diagnosis

@@ -152,10 +152,14 @@ bool conditionSegment(const DriveStreams& s, const DriveSignalOptions& o, double
   seg.t.resize(n);
   for (int i = 0; i < n; ++i) seg.t[i] = glo + i / fs;
   // currents: filtered on their own time base, then resampled
+  // (sized exactly first: no growth slack on a long drive's copy; memory, docs/benchmarks.md)
+  auto inWindow = [&](double t) { return t >= glo - 2 && t <= ghi + 2; };
+  const auto m = static_cast<std::size_t>(std::count_if(s.tm.begin(), s.tm.end(), inWindow));
   std::vector<double> tmi;
   std::array<std::vector<double>, 2> is;
+  tmi.reserve(m), is[0].reserve(m), is[1].reserve(m);
   for (size_t i = 0; i < s.tm.size(); ++i)
-    if (s.tm[i] >= glo - 2 && s.tm[i] <= ghi + 2)
+    if (inWindow(s.tm[i]))
       tmi.push_back(s.tm[i]), is[0].push_back(s.i[0][i]), is[1].push_back(s.i[1][i]);
   if (tmi.size() < 10) return false;
   for (int side = 0; side < 2; ++side) {
@@ -165,6 +169,7 @@ bool conditionSegment(const DriveStreams& s, const DriveSignalOptions& o, double
     seg.a_f[side] = sensors::centralDerivative(seg.t, seg.u_f[side]);
     seg.i_f[side] =
         sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, is[side], fc), seg.t);
+    std::vector<double>().swap(is[side]);
   }
   seg.i0 = static_cast<int>(std::ceil(margin * fs));
   seg.i1 = n - seg.i0;

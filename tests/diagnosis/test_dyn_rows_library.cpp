@@ -5,6 +5,7 @@
 #include "DiagnoseTestUtil.h"
 #include "libwheelchair/diagnosis/HeldOut.h"
 #include "libwheelchair/diagnosis/Stages.h"
+#include "libwheelchair/io/TextFormat.h"
 
 #include <gtest/gtest.h>
 
@@ -120,9 +121,9 @@ TEST(DynRowsLibrary, BlockwiseCatalogueStatisticsEqualTheStoredDesigns) {
   for (int c = 0; c < static_cast<int>(cands.size()); ++c)
     if (cands[c].name.find("left") == std::string::npos && acc.size() < 4) acc.push_back(c);
   ASSERT_GE(acc.size(), 2u);
-  const Eigen::MatrixXd D = diagnosis::acceptedDesign(d.X, cands, acc);
+  const Eigen::MatrixXd D = diagnosis::acceptedDesign(d.design(), cands, acc);
   const stats::LinearFit a = stats::fitLinear(D, d.y, d.groups, 5);
-  const stats::LinearFit b = diagnosis::fitAccepted(d.X, d.y, cands, acc, d.groups, 5);
+  const stats::LinearFit b = diagnosis::fitAccepted(d.design(), d.y, cands, acc, d.groups, 5);
   ASSERT_TRUE(a.ok);
   ASSERT_TRUE(b.ok);
   for (int k = 0; k < a.beta.size(); ++k) {
@@ -130,7 +131,7 @@ TEST(DynRowsLibrary, BlockwiseCatalogueStatisticsEqualTheStoredDesigns) {
     EXPECT_NEAR(b.cov(k, k), a.cov(k, k), 1e-9 * a.cov(k, k)) << k;
   }
   EXPECT_NEAR(b.rss, a.rss, 1e-12 * a.rss);
-  const Eigen::VectorXd p = diagnosis::acceptedPrediction(d.X, cands, acc, a.beta);
+  const Eigen::VectorXd p = diagnosis::acceptedPrediction(d.design(), cands, acc, a.beta);
   EXPECT_LT((p - D * a.beta).norm(), 1e-12 * p.norm());
   const auto rows = [&](Eigen::Index r0, Eigen::Index r1) {
     return Eigen::MatrixXd(D.middleRows(r0, r1 - r0));
@@ -145,4 +146,56 @@ TEST(DynRowsLibrary, BlockwiseCatalogueStatisticsEqualTheStoredDesigns) {
     EXPECT_EQ(r.mean_gain, m.mean_gain);
     EXPECT_EQ(r.p_not_positive, m.p_not_positive);
   }
+}
+
+// Stage 2's forward selection on the catalogue design made block by block from the rows'
+// signals (DynRows::design; the design is not stored, memory, docs/benchmarks.md) is the
+// selection on the stored design, on a bundled drive with a motor asymmetry held out against
+// its second run (the left encoder's 0.95 corrected as stage 1 finds it): the same accepted terms,
+// evidence, held-out numbers, coefficients and log.
+TEST(DynRowsLibrary, BlockwiseSelectionEqualsTheStoredDesignSelection) {
+  const config::WheelchairConfig cfg;
+  diagnosis::DiagnosisOptions opt;
+  // The drive and its second run (held out, as `diagnose --validate` uses it).
+  std::vector<diagnosis::DynRows> rows;
+  diagnosis::Corrections c;
+  c.enc_scale[1] = 0.95;
+  for (const char* name : {"three_task_faulty", "three_task_faulty_b"}) {
+    const io::Recording rec =
+        io::readTextRecording(std::string(WHEELCHAIR_SOURCE_DIR) + "/datasets/" + name);
+    rows.push_back(diagnosis::dynamicRows({diagnosis::makeStreams(rec, cfg)}, c, cfg, opt));
+  }
+  const diagnosis::DynRows &df = rows[0], &dv = rows[1];
+  ASSERT_GT(df.y.size(), stats::kDesignBlockRows);  // more than one block in both
+  ASSERT_GT(dv.y.size(), stats::kDesignBlockRows);
+  const Eigen::MatrixXd Xf = df.design().matrix(), Xv = dv.design().matrix();
+  ASSERT_EQ(Xf.cols(), static_cast<Eigen::Index>(diagnosis::driveColumns().size()));
+  // Every block is the rows' block of the whole design, wherever the block starts.
+  Eigen::MatrixXd B;
+  df.design().block(777, 1000, B);
+  EXPECT_EQ(B, Xf.middleRows(777, 1000));
+  const int lags = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
+  const double min_rms = opt.min_relevance * cfg.motors.current_noise_A;
+  const auto cands =
+      diagnosis::stageCandidates(effects::Stage::dynamic, {cfg.vehicle.geom.body_mass_kg, true});
+  const diagnosis::SelectionData stored{df.y, dv.y, Xf, Xv, df.groups, dv.groups, lags, min_rms};
+  const diagnosis::SelectionData made{df.y,      dv.y,      df.design(), dv.design(),
+                                      df.groups, dv.groups, lags,        min_rms};
+  const diagnosis::Selection a = diagnosis::forwardSelect(stored, cands, opt);
+  const diagnosis::Selection b = diagnosis::forwardSelect(made, cands, opt);
+  bool asymmetry = false;
+  for (int ci : a.accepted) asymmetry |= cands[ci].effect == "motor_asymmetry";
+  EXPECT_TRUE(asymmetry);
+  EXPECT_EQ(b.accepted, a.accepted);
+  EXPECT_EQ(b.log, a.log);
+  ASSERT_EQ(b.steps.size(), a.steps.size());
+  for (std::size_t q = 0; q < a.steps.size(); ++q) {
+    EXPECT_EQ(b.steps[q].candidate, a.steps[q].candidate);
+    EXPECT_EQ(b.steps[q].evidence.lr, a.steps[q].evidence.lr);
+    EXPECT_EQ(b.steps[q].rss1_val, a.steps[q].rss1_val);
+    EXPECT_EQ(b.steps[q].lr_val_expected, a.steps[q].lr_val_expected);
+    EXPECT_EQ(b.steps[q].coef, a.steps[q].coef);
+  }
+  EXPECT_EQ(b.fit.beta, a.fit.beta);
+  EXPECT_EQ(b.fit.cov, a.fit.cov);
 }

@@ -115,7 +115,8 @@ inline TermCheck driveTermCheck(const std::string& text, const std::string& name
   const auto s1 = diagnosis::makeStreams(drive({text}), nominal());
   const auto d0 = diagnosis::dynamicRows({s0}, {}, nominal(), opt);
   const auto d1 = diagnosis::dynamicRows({s1}, {}, nominal(), opt);
-  const Eigen::VectorXd pred0 = d0.X * term(Stage::dynamic, name).S * coefficientOf(text, name);
+  const Eigen::VectorXd pred0 =
+      d0.design().times(term(Stage::dynamic, name).S) * coefficientOf(text, name);
   std::vector<double> dy, pr;
   const Eigen::Index n0R = d0.y.size() / 2;   // rows: right motor, then left
   const std::vector<double>& t0 = d0.grid.t;  // per grid sample, shared by both motors' rows
