@@ -385,9 +385,9 @@ std::vector<Candidate> stageCandidates(effects::Stage stage, const effects::Term
 
 const std::vector<std::string>& dynLibNames() {
   static const std::vector<std::string> n = {
-      "1",       "v",       "omega",    "vdot",     "omegadot", "sgn(u)",  "|u|",   "u^2",
-      "v*omega", "omega^2", "cos(phi)", "sin(phi)", "i_self",   "i_other", "v*|v|", "sgn(omega)",
-      "castor_swivel"};
+      "1",      "v",       "omega",   "vdot",       "omegadot",     "sgn(u)",
+      "|u|",    "u^2",     "v*omega", "omega^2",    "cos(phi)",     "sin(phi)",
+      "i_self", "i_other", "v*|v|",   "sgn(omega)", "castor_swivel"};
   return n;
 }
 
@@ -468,8 +468,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   d.y.resize(N);
   d.X.resize(N, ncol);
   auto& G = d.grid;
-  for (auto* col : {&G.t, &G.v, &G.omega, &G.vdot, &G.omegadot, &G.phi, &G.cos_phi, &G.sin_phi,
-                    &d.castor})
+  for (auto* col :
+       {&G.t, &G.v, &G.omega, &G.vdot, &G.omegadot, &G.phi, &G.cos_phi, &G.sin_phi, &d.castor})
     col->resize(nR);
   const CastorGeometry castors{opt.castor_x_m, opt.castor_half_spacing_m, opt.castor_relaxation_m};
   for (auto* col : {&d.u, &d.sgn_u, &d.current}) col->resize(N);
