@@ -252,6 +252,12 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
     const double sf = std::sqrt(std::max(0.0, f.cov(2 * a, 2 * a)));
     const double sy = std::sqrt(std::max(0.0, f.cov(2 * a + 1, 2 * a + 1)));
     const bool tf = std::abs(bf) >= d.t_threshold * sf, ty = std::abs(by) >= d.t_threshold * sy;
+    // The castors' column is their yaw moment (castorSwivelMoment): a yaw term only (on MuJoCo
+    // its forward twin came with a negative held-out gain).
+    if (names[terms[a]] == "castor_swivel") {
+      if (ty) kept.push_back({terms[a], 1});
+      continue;
+    }
     // Per motor: right = f + y, left = f - y. One motor when the other's share is within
     // 2 sigma of zero or below a quarter of it.
     const double sd_m = std::sqrt(sf * sf + sy * sy);
