@@ -831,7 +831,8 @@ config::Options DiagnosisOptions::options(const std::string& section) {
       .real("castor_half_spacing_m", castor_half_spacing_m,
             "library castor_swivel: swivel axes at +- this y (m)", nonneg)
       .real("castor_relaxation_m", castor_relaxation_m,
-            "library castor_swivel: distance a castor rolls while turning round (m)", pos)
+            "library castor_swivel: distance a castor rolls while turning round (m; 0: no term)",
+            nonneg)
       .flag("enable_delay", enable_delay, "fit stream delays");
 }
 
