@@ -1,6 +1,7 @@
 #include "libwheelchair/diagnosis/Campaign.h"
 
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
+#include "libwheelchair/diagnosis/Stages.h"
 #include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/MujocoTruth.h"
 #include "libwheelchair/simulation/Simulator.h"
@@ -256,6 +257,7 @@ namespace {
 /// accelerations by central differences: v, omega, vdot, omegadot, phi, rim speeds u_R, u_L.
 struct MotionRow {
   double v, w, vdot, wdot, phi, u[2], udot[2];
+  double castor = 0;  ///< castorSwivelMoment of the motion (set by withCastors)
 };
 std::vector<MotionRow> motionAt(const simulation::TruthTrajectory& T,
                                 const std::vector<double>& t_s, double track_m) {
@@ -278,6 +280,17 @@ std::vector<MotionRow> motionAt(const simulation::TruthTrajectory& T,
     out.push_back(m);
   }
   return out;
+}
+
+/// Rows with their castorSwivelMoment (the castors of `dopt`), rows at times t_s.
+std::vector<MotionRow> withCastors(std::vector<MotionRow> rows, const std::vector<double>& t_s,
+                                   const DiagnosisOptions& dopt) {
+  std::vector<double> v, w;
+  for (const MotionRow& m : rows) v.push_back(m.v), w.push_back(m.w);
+  const std::vector<double> c = castorSwivelMoment(
+      t_s, v, w, {dopt.castor_x_m, dopt.castor_half_spacing_m, dopt.castor_relaxation_m});
+  for (std::size_t i = 0; i < rows.size() && i < c.size(); ++i) rows[i].castor = c[i];
+  return rows;
 }
 
 /// How a stream y relates to the motion: least squares of y on the rows `lib` builds.
@@ -331,12 +344,14 @@ nlohmann::json realisedLaw(const std::vector<MotionRow>& m, const std::vector<do
   const double dd = yaw ? ey : ef;
   auto x = [&](std::size_t i) { return yaw ? m[i].w : m[i].v; };
   auto xdot = [&](std::size_t i) { return yaw ? m[i].wdot : m[i].vdot; };
-  const std::vector<std::pair<std::string, std::function<double(std::size_t)>>> classes = {
+  std::vector<std::pair<std::string, std::function<double(std::size_t)>>> classes = {
       {"constant", [](std::size_t) { return 1.0; }},
       {"sign_of_rate", [&](std::size_t i) { return double((x(i) > 0) - (x(i) < 0)); }},
       {"rate", x},
       {"rate_squared", [&](std::size_t i) { return x(i) * std::abs(x(i)); }},
       {"acceleration", xdot}};
+  // The castors swivelling round (castorSwivelMoment of the true motion): a yaw class.
+  if (yaw) classes.push_back({"castor_swivel", [&](std::size_t i) { return m[i].castor; }});
   nlohmann::json r2s = nlohmann::json::object();
   std::string best;
   double best_r2 = -1;
@@ -354,12 +369,12 @@ nlohmann::json realisedLaw(const std::vector<MotionRow>& m, const std::vector<do
 }
 
 /// Rows of the currents' relation: the dependence classes of v and omega, the centre of
-/// mass' v omega and omega^2, the heading's cos and sin.
+/// mass' v omega and omega^2, the heading's cos and sin, the castors' swivel moment.
 Eigen::VectorXd currentLibrary(const MotionRow& m) {
   auto sg = [](double x) { return double((x > 0) - (x < 0)); };
-  Eigen::VectorXd r(13);
+  Eigen::VectorXd r(14);
   r << 1, sg(m.v), m.v, m.v * std::abs(m.v), m.vdot, sg(m.w), m.w, m.w * std::abs(m.w), m.wdot,
-      m.v * m.w, m.w * m.w, std::cos(m.phi), std::sin(m.phi);
+      m.v * m.w, m.w * m.w, std::cos(m.phi), std::sin(m.phi), m.castor;
   return r;
 }
 
@@ -438,8 +453,8 @@ nlohmann::json effectTrace(const config::WheelchairConfig& cfg, const std::strin
       ta.push_back(s.t_s), ya[0].push_back(s.current_right_A), ya[1].push_back(s.current_left_A);
     for (const auto& s : b.recording.motors)
       tb.push_back(s.t_s), yb[0].push_back(s.current_right_A), yb[1].push_back(s.current_left_A);
-    ma_cur = motionAt(a.truth, ta, lw);
-    const auto mb = motionAt(b.truth, tb, lw);
+    ma_cur = withCastors(motionAt(a.truth, ta, lw), ta, dopt);
+    const auto mb = withCastors(motionAt(b.truth, tb, lw), tb, dopt);
     for (int s : {0, 1}) {
       dcur[s] = relationChange(ma_cur, ya[s], mb, yb[s], currentLibrary);
       streams[s == 0 ? "current_right" : "current_left"] =

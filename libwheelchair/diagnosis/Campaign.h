@@ -98,7 +98,8 @@ nlohmann::json unknownEffectScore(const std::vector<effects::EffectSpec>& truth,
 /// `realised`: the law the engine realised, measured on the noise-free true currents (half
 /// sum: forward, half difference: yaw) regressed on each dependence class of the truth's v
 /// or omega alone (sign_of_rate sgn(x), rate x, rate_squared x|x|, acceleration xdot,
-/// constant 1): uncentred R^2 per class and the best one, on the channel that carries more
+/// constant 1; on yaw also castor_swivel, Stages.h castorSwivelMoment of the true motion with
+/// dopt's castors): uncentred R^2 per class and the best one, on the channel that carries more
 /// of the change (null when the true currents do not change: a sensor effect).
 /// JSON: {traced, strongest, streams {name: {rms_ratio, lr}}, realised}.
 nlohmann::json effectTrace(const config::WheelchairConfig& cfg, const std::string& scenario,

@@ -826,6 +826,13 @@ config::Options DiagnosisOptions::options(const std::string& section) {
             "unmodeled terms the held-out part cannot test: judged on all rows (CV)")
       .real("stlsq_threshold_sigma", stlsq_threshold_sigma,
             "STLSQ keeps terms with |coef| > this x HAC sigma (-)", nonneg)
+      .real("castor_x_m", castor_x_m, "library castor_swivel: swivel axes ahead of the axle (m)",
+            nonneg)
+      .real("castor_half_spacing_m", castor_half_spacing_m,
+            "library castor_swivel: swivel axes at +- this y (m)", nonneg)
+      .real("castor_relaxation_m", castor_relaxation_m,
+            "library castor_swivel: distance a castor rolls while turning round (m; 0: no term)",
+            nonneg)
       .flag("enable_delay", enable_delay, "fit stream delays");
 }
 

@@ -59,6 +59,9 @@ struct DiagnosisOptions {
   /// (docs/discovery.md, "Out of catalogue: traces, realised laws, where excited").
   bool unmodeled_judge_where_excited = true;
   double stlsq_threshold_sigma = 4.0;  ///< STLSQ keeps terms with |coef| > this x HAC sigma
+  /// The castors of the library term castor_swivel (Stages.h castorSwivelMoment): swivel axes
+  /// at x (m) ahead of the axle, +-y (m), and the distance a castor rolls while turning round.
+  double castor_x_m = 0.45, castor_half_spacing_m = 0.22, castor_relaxation_m = 0.08;
   bool enable_delay = true;
 
   /// The key table (config/Options.h), bound to this object.

@@ -460,9 +460,47 @@ std::vector<Candidate> stageCandidates(effects::Stage stage, const effects::Term
 
 const std::vector<std::string>& dynLibNames() {
   static const std::vector<std::string> n = {
-      "1",       "v",       "omega",    "vdot",     "omegadot", "sgn(u)",  "|u|",   "u^2",
-      "v*omega", "omega^2", "cos(phi)", "sin(phi)", "i_self",   "i_other", "v*|v|", "sgn(omega)"};
+      "1",      "v",       "omega",   "vdot",       "omegadot",     "sgn(u)",
+      "|u|",    "u^2",     "v*omega", "omega^2",    "cos(phi)",     "sin(phi)",
+      "i_self", "i_other", "v*|v|",   "sgn(omega)", "castor_swivel"};
   return n;
+}
+
+/// tanh width of the castors' swivel-rate sign (rad/s).
+constexpr double kSwivelRateWidth_rad_s = 0.3;
+
+std::vector<double> castorSwivelMoment(const std::vector<double>& t_s,
+                                       const std::vector<double>& v_m_s,
+                                       const std::vector<double>& omega_rad_s,
+                                       const CastorGeometry& g) {
+  const std::size_t n = std::min({t_s.size(), v_m_s.size(), omega_rad_s.size()});
+  std::vector<double> out(n, 0.0);
+  const double d = g.relaxation_m;
+  if (!(d > 0)) return out;
+  double b[2] = {0.0, 0.0};  // swivel angles of the left (y > 0) and right castor (rad)
+  for (std::size_t i = 0; i < n; ++i) {
+    const double v = v_m_s[i], w = omega_rad_s[i];
+    const double dt = i > 0 ? std::max(0.0, t_s[i] - t_s[i - 1]) : 0.0;
+    double m = 0;
+    for (int k = 0; k < 2; ++k) {
+      const double y = k == 0 ? g.half_spacing_m : -g.half_spacing_m;
+      const double vx = v - w * y, vy = w * g.x_m;
+      auto rate = [&](double a) { return (vy * std::cos(a) - vx * std::sin(a)) / d - w; };
+      // Explicit sub-steps, each turning the castor by at most ~0.05 rad (stable: the castor
+      // relaxes at |v| / d, ~20 1/s at 1.5 m/s over 0.08 m).
+      const double vmax = std::hypot(vx, vy) / d + std::abs(w);
+      const int sub = std::clamp(static_cast<int>(std::ceil(dt * vmax / 0.05)), 1, 1000);
+      // After a reversal the castor sits at its unstable balance (the rate is odd in the
+      // motion): a real castor is never exactly there; nudged, it swings round.
+      const double slope = -(vy * std::sin(b[k]) + vx * std::cos(b[k])) / d;
+      if (slope > 0 && std::abs(rate(b[k])) < 0.01 * slope) b[k] += 0.01;
+      for (int q = 0; q < sub; ++q) b[k] += rate(b[k]) * dt / sub;
+      m += std::tanh(rate(b[k]) / kSwivelRateWidth_rad_s) *
+           ((g.x_m * std::cos(b[k]) + y * std::sin(b[k])) / d - 1.0);
+    }
+    out[i] = m;
+  }
+  return out;
 }
 
 namespace {
@@ -478,7 +516,7 @@ void release(std::initializer_list<std::vector<double>*> xs) {
 /// (memory: the segment of a ten-hour drive is ~1.3 M grid steps, 10 MB per signal).
 /// lw: track width (m); eps: the Coulomb smoothing speed (m/s); fc, fs: cutoff, grid rate (Hz).
 void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveTrain& dt, double lw,
-                 double eps, double fc, double fs, DynRows& d) {
+                 double eps, double fc, double fs, const CastorGeometry& castors, DynRows& d) {
   const std::vector<double>& tg = seg.t;
   const int n = static_cast<int>(tg.size()), i0 = seg.i0, i1 = seg.i1;
   auto& G = d.grid;
@@ -497,8 +535,10 @@ void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveT
   // The kinematics, the nominal model's currents and the rim speeds.
   const auto &uRf = seg.u_f[0], &uLf = seg.u_f[1], &udR = seg.a_f[0], &udL = seg.a_f[1];
   std::array<std::vector<double>, 2> pred{std::vector<double>(n), std::vector<double>(n)};
+  std::vector<double> vs(n), ws(n);  // the castors' swivel moment reads the whole segment's
   for (int i = 0; i < n; ++i) {
     const double v = 0.5 * (uRf[i] + uLf[i]), w = (uRf[i] - uLf[i]) / lw;
+    vs[i] = v, ws[i] = w;
     const double vd = 0.5 * (udR[i] + udL[i]), wd = (udR[i] - udL[i]) / lw;
     const Eigen::Vector2d ip = dt.currents({v, w, phi[i]}, vd, wd);
     pred[0][i] = ip(0), pred[1][i] = ip(1);
@@ -509,6 +549,11 @@ void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveT
     d.u[r] = uRf[i], d.u[r + nR] = uLf[i];
   }
   release({&seg.u_f[0], &seg.u_f[1], &seg.a_f[0], &seg.a_f[1]});
+  {
+    const std::vector<double> castor = castorSwivelMoment(tg, vs, ws, castors);
+    release({&vs, &ws});
+    for (int i = i0; i < i1; ++i) d.castor[bR + i - i0] = castor[i];
+  }
   // The heading's cos and sin, filtered.
   for (int c = 0; c < 2; ++c) {
     std::vector<double> x(n);
@@ -574,12 +619,14 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   const int N = 2 * nR;
   d.y.resize(N);
   auto& G = d.grid;
-  for (auto* col : {&G.t, &G.v, &G.omega, &G.vdot, &G.omegadot, &G.phi, &G.cos_phi, &G.sin_phi})
+  for (auto* col :
+       {&G.t, &G.v, &G.omega, &G.vdot, &G.omegadot, &G.phi, &G.cos_phi, &G.sin_phi, &d.castor})
     col->resize(nR);
+  const CastorGeometry castors{opt.castor_x_m, opt.castor_half_spacing_m, opt.castor_relaxation_m};
   for (auto* col : {&d.u, &d.sgn_u, &d.current, &d.dcurrent_model}) col->resize(N);
   int row_R = 0;  // next right-motor row; its left-motor row is row_R + nR
   for (signals::DriveSegment& seg : segs) {
-    segmentRows(seg, row_R, nR, dt, lw, eps, fc, fs, d);
+    segmentRows(seg, row_R, nR, dt, lw, eps, fc, fs, castors, d);
     d.groups.push_back({row_R, row_R + seg.i1 - seg.i0});
     row_R += seg.i1 - seg.i0;
     seg = signals::DriveSegment{};  // consumed: its memory goes back before the next one
@@ -596,14 +643,14 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
 constexpr double kSgnOmegaWidth_rad_s = 0.02;
 
 Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
-  if (j < 0 || j >= 16)
+  if (j < 0 || j >= 17)
     throw std::out_of_range("DynRows::libColumn: no column " + std::to_string(j));
   const int nR = static_cast<int>(y.size() / 2);
   Eigen::VectorXd c(n);
   for (int q = 0; q < n; ++q) {
     const int k = r0 + q, i = k < nR ? k : k - nR;  // row, grid sample
     const double uk = u[k], vk = grid.v[i], wk = grid.omega[i];
-    const double row[16] = {1.0,
+    const double row[17] = {1.0,
                             vk,
                             wk,
                             grid.vdot[i],
@@ -618,7 +665,8 @@ Eigen::VectorXd DynRows::libColumn(int j, int r0, int n) const {
                             current[k],
                             current[k < nR ? k + nR : k - nR],
                             vk * std::abs(vk),
-                            std::tanh(wk / kSgnOmegaWidth_rad_s)};
+                            std::tanh(wk / kSgnOmegaWidth_rad_s),
+                            castor[i]};
     c(q) = row[j];
   }
   return c;

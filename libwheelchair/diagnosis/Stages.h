@@ -166,16 +166,46 @@ struct DynRows {
   /// Motor of row k: 0 right, 1 left.
   int side(int k) const { return k < static_cast<int>(y.size() / 2) ? 0 : 1; }
   double noise_var = 0;  ///< predicted variance of y from the current-sensor noise
+  /// Per grid sample: castorSwivelMoment of the filtered v, omega (library term
+  /// "castor_swivel").
+  std::vector<double> castor;
   /// Library column j over rows [r0, r0 + n): 1, v, omega, vdot, omegadot, sgn(u), |u|, u^2,
   /// v*omega, omega^2, cos(phi), sin(phi), i_self, i_other (the other motor's current),
-  /// v*|v| (a drag's signed square) and sgn(omega) = tanh(omega / 0.02 rad/s) (a dry
-  /// moment's sign; from the filtered rate).
+  /// v*|v| (a drag's signed square), sgn(omega) = tanh(omega / 0.02 rad/s) (a dry
+  /// moment's sign; from the filtered rate) and castor_swivel (castorSwivelMoment).
   Eigen::VectorXd libColumn(int j, int r0, int n) const;
   /// Rows [r0, r0 + nb) of the catalogue design (nb x driveColumns().size()).
   void designBlock(long r0, long nb, Eigen::MatrixXd& out) const;
   /// The catalogue design, made block by block (a view of these rows: they must outlive it).
   CatalogueDesign design() const;
 };
+
+/// Where the castors swivel (options of the library term "castor_swivel"): swivel axes at
+/// (x_m, +-half_spacing_m) in the body frame (x forward, y left, origin the axle midpoint),
+/// relaxation_m the distance a castor rolls while it turns round (its trail, lengthened by
+/// tyre compliance and swivel friction).
+struct CastorGeometry {
+  double x_m = 0.45, half_spacing_m = 0.22, relaxation_m = 0.08;
+};
+/// The yaw moment per unit of swivel friction of two trailing castors (issue 16 item 3: the
+/// castors turning round at the start of a turn or a reversal), N m per N m. Each castor's
+/// swivel angle b (rad, relative to the body x axis; 0 = trailing a forward motion) follows an
+/// ideal trailing castor of relaxation length d = relaxation_m, driven by its axis' velocity
+/// (vx, vy) = (v - omega y_i, omega x):
+///   db/dt = (vy cos b - vx sin b) / d - omega        (b = 0 at the first sample)
+/// and dry swivel friction M_s opposing db/dt loads the body, through the lateral force at the
+/// wheel (M_s / d) and the bearing's reaction, with a yaw moment
+///   M = -M_s sum_i tanh((db_i/dt) / 0.3 rad/s) ((x cos b_i + y_i sin b_i) / d - 1).
+/// Returned: sum_i tanh(...) (...) (the column; a load opposing the swivel is a positive
+/// coefficient). Zero while the castors roll without swivelling (straight lines, steady
+/// turns): it is not spanned by omega, omegadot or sgn(omega). t_s, v_m_s, omega_rad_s: one
+/// continuous segment's samples. Example: a turn on the spot from rest (v = 0, omega = 0.5
+/// rad/s): both castors swivel through ~90 deg in ~0.3 s, the column is ~ +9 each meanwhile,
+/// then 0 while the turn goes on.
+std::vector<double> castorSwivelMoment(const std::vector<double>& t_s,
+                                       const std::vector<double>& v_m_s,
+                                       const std::vector<double>& omega_rad_s,
+                                       const CastorGeometry& g);
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
                     const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
 const std::vector<std::string>& dynLibNames();

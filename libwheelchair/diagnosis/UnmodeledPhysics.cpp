@@ -20,6 +20,7 @@ std::string dependenceOf(const std::string& t) {
   if (t == "v*omega" || t == "omega^2") return "rate_product";
   if (t == "vdot" || t == "omegadot") return "acceleration";
   if (t == "cos(phi)" || t == "sin(phi)") return "heading";
+  if (t == "castor_swivel") return "castor_swivel";
   return "command";  // a measured current or command as regressor: the actuator
 }
 
@@ -32,6 +33,7 @@ std::string dependenceWords(const std::string& d) {
       {"rate_product", "product of rates -> centripetal (a mass off the axle)"},
       {"acceleration", "acceleration -> inertia"},
       {"heading", "heading -> a field or slope fixed in the world"},
+      {"castor_swivel", "the castors swivelling (turn starts, reversals) -> swivel friction"},
       {"command", "command -> the actuator"}};
   auto it = w.find(d);
   return it == w.end() ? d : it->second;
@@ -95,6 +97,12 @@ std::string loadReading(const std::string& channel, const std::string& dep, cons
         "{} proportional to {}: {} (centripetal / Coriolis: a centre of mass off "
         "the axle)",
         q, term, num);
+  if (dep == "castor_swivel")
+    return fmt::format(
+        "{} while the castors swivel round (at the start of a turn, when it reverses or "
+        "tightens), acting through the castors' lever: a swivel friction of {} (dry friction "
+        "in the castor swivels, or castors that drag sideways before they align)",
+        q, num);
   if (dep == "acceleration")
     return fmt::format("inertia the model lacks: {} ({})", num,
                        yaw ? "a load far from the axle" : "an extra mass");
@@ -244,6 +252,12 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
     const double sf = std::sqrt(std::max(0.0, f.cov(2 * a, 2 * a)));
     const double sy = std::sqrt(std::max(0.0, f.cov(2 * a + 1, 2 * a + 1)));
     const bool tf = std::abs(bf) >= d.t_threshold * sf, ty = std::abs(by) >= d.t_threshold * sy;
+    // The castors' column is their yaw moment (castorSwivelMoment): a yaw term only (on MuJoCo
+    // its forward twin came with a negative held-out gain).
+    if (names[terms[a]] == "castor_swivel") {
+      if (ty) kept.push_back({terms[a], 1});
+      continue;
+    }
     // Per motor: right = f + y, left = f - y. One motor when the other's share is within
     // 2 sigma of zero or below a quarter of it.
     const double sd_m = std::sqrt(sf * sf + sy * sy);

@@ -28,7 +28,8 @@
 // Vocabulary (shared with simulation/UnknownEffects.h, the campaign's truth):
 //   channel    forward | yaw | wheels | current_right | current_left | gyro_vs_encoders
 //   dependence constant | sign_of_rate | rate | rate_squared | rate_product | heading |
-//              acceleration | command
+//              acceleration | command | castor_swivel (the castors turning round at turn
+//              starts and reversals: Stages.h castorSwivelMoment)
 //
 // Example (JSON of one component in Finding::physics):
 //   {"channel": "yaw", "dependence": "sign_of_rate", "term": "sgn(omega)",

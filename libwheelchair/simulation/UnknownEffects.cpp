@@ -155,16 +155,18 @@ UnknownEffectTruth unknownEffectTruth(const effects::EffectSpec& e) {
   // laws are dry, but MuJoCo's soft contact regularises dry friction:
   //   tyre_scrub (torsional friction)    yaw, rate: R^2 rate 0.84-0.87 vs sign 0.60-0.70
   //   rolling_resistance (rolling fr.)   forward, rate: R^2 rate 0.98-1.00 vs sign 0.67-0.73
-  //   castor_friction (swivel friction)  yaw, acceleration: R^2 0.79-0.86 (others <= 0.08):
-  //                                      the castors turning round at the start of a turn
+  //   castor_friction (swivel friction)  yaw, castor_swivel: the castors turning round at
+  //                                      the start of a turn (diagnosis::castorSwivelMoment;
+  //                                      before that class existed it read as acceleration,
+  //                                      R^2 0.79-0.86 on excite, 0.33 on square)
   if (id == "tyre_scrub")
     return {"yaw", "rate",
             "torsional friction of the contact patches (dry), realised by MuJoCo's soft contact "
             "as a viscous moment opposing the turn"};
   if (id == "castor_friction")
-    return {"yaw", "acceleration",
+    return {"yaw", "castor_swivel",
             "dry friction in the castor swivels, realised as a yaw moment while the castors "
-            "swivel round at the start of each turn (it follows the turn's acceleration)"};
+            "swivel round at the start of each turn and when it reverses"};
   if (id == "rolling_resistance")
     return {"forward", "rate",
             "rolling resistance (dry rolling friction), realised by MuJoCo's soft contact as "

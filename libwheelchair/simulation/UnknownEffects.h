@@ -20,7 +20,7 @@
 //   channel    forward | yaw | wheels (each drive wheel, both sides) | current_right |
 //              current_left | gyro_vs_encoders
 //   dependence constant | sign_of_rate | rate | rate_squared | rate_product | heading |
-//              acceleration | command
+//              acceleration | command | castor_swivel (a load while the castors swivel round)
 //
 // Example:
 //   auto e = effects::parseEffect("yaw_dry_friction:torque_Nm=0.8");

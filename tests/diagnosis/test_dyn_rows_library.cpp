@@ -21,7 +21,7 @@ TEST(DynRowsLibrary, EveryColumnIsTheNamedSignalOfItsRow) {
   const diagnosis::DynRows d = diagnosis::dynamicRows({s}, {}, cfg, opt);
   const int N = static_cast<int>(d.y.size()), nR = N / 2;
   ASSERT_GT(nR, 1000);  // 60 s at 50 Hz, minus the trimmed edges
-  ASSERT_EQ(diagnosis::dynLibNames().size(), 16u);
+  ASSERT_EQ(diagnosis::dynLibNames().size(), 17u);
   // Right rows first, then left; the groups cover both halves exactly.
   int covered = 0;
   for (auto [a, b] : d.groups) covered += b - a;
@@ -31,7 +31,8 @@ TEST(DynRowsLibrary, EveryColumnIsTheNamedSignalOfItsRow) {
   ASSERT_EQ(d.grid.t.size(), static_cast<std::size_t>(nR));
   ASSERT_EQ(d.grid.sin_phi.size(), static_cast<std::size_t>(nR));
   std::vector<Eigen::VectorXd> L;
-  for (int j = 0; j < 16; ++j) L.push_back(d.libColumn(j, 0, N));
+  for (int j = 0; j < 17; ++j) L.push_back(d.libColumn(j, 0, N));
+  ASSERT_EQ(d.castor.size(), static_cast<std::size_t>(nR));
   const double lw = cfg.vehicle.geom.track_width_m;
   double max_current = 0;
   const auto& g = d.grid;
@@ -49,6 +50,7 @@ TEST(DynRowsLibrary, EveryColumnIsTheNamedSignalOfItsRow) {
     EXPECT_EQ(L[9](k), g.omega[i] * g.omega[i]);
     EXPECT_EQ(L[14](k), g.v[i] * std::abs(g.v[i]));
     EXPECT_NEAR(L[15](k), std::tanh(g.omega[i] / 0.02), 1e-12);
+    EXPECT_EQ(L[16](k), d.castor[i]);  // the castors' swivel moment, the same on both motors
     // u is the motor's own rim speed: v +- omega l_w / 2 (right +, left -).
     EXPECT_NEAR(d.u[k], g.v[i] + (k < nR ? 0.5 : -0.5) * lw * g.omega[i], 1e-9);
     EXPECT_LE(std::abs(L[5](k)), 1.2);  // the smoothed, filtered sign of u
@@ -65,7 +67,7 @@ TEST(DynRowsLibrary, EveryColumnIsTheNamedSignalOfItsRow) {
   // A window of rows is the same window of the full column.
   const Eigen::VectorXd w = d.libColumn(13, nR + 10, 100);
   EXPECT_EQ(w, L[13].segment(nR + 10, 100));
-  EXPECT_THROW(d.libColumn(16, 0, 1), std::out_of_range);
+  EXPECT_THROW(d.libColumn(17, 0, 1), std::out_of_range);
 }
 
 // diagnose keeps a recording's whole streams (trajectory and Pozyx checks) only as its fit and
@@ -198,4 +200,45 @@ TEST(DynRowsLibrary, BlockwiseSelectionEqualsTheStoredDesignSelection) {
   }
   EXPECT_EQ(b.fit.beta, a.fit.beta);
   EXPECT_EQ(b.fit.cov, a.fit.cov);
+}
+
+TEST(DynRowsLibrary, CastorSwivelMomentActsWhileTheCastorsTurnRound) {
+  // A straight run forward (castors trailing: no swivel), then a turn on the spot to the left
+  // from rest, held at 0.5 rad/s, then reversed. The castors swivel round at the start of the
+  // turn and at the reversal (from their unstable balance: slowly at first), and roll without
+  // swivelling otherwise.
+  std::vector<double> t, v, w;
+  for (int i = 0; i < 1500; ++i) {
+    const double ts = 0.01 * i;
+    t.push_back(ts);
+    v.push_back(ts < 3 ? 0.5 : 0.0);
+    w.push_back(ts < 4 ? 0.0 : (ts < 8 ? 0.5 : -0.5));
+  }
+  const diagnosis::CastorGeometry g;  // 0.45 m ahead, +-0.22 m, 0.08 m
+  const auto m = diagnosis::castorSwivelMoment(t, v, w, g);
+  ASSERT_EQ(m.size(), t.size());
+  auto absMax = [&](double a, double b) {
+    double x = 0;
+    for (std::size_t i = 0; i < t.size(); ++i)
+      if (t[i] >= a && t[i] < b) x = std::max(x, std::abs(m[i]));
+    return x;
+  };
+  EXPECT_LT(absMax(0.5, 3.0), 1e-6);  // straight: aligned castors do not swivel
+  EXPECT_LT(absMax(3.0, 4.0), 1e-6);  // standing
+  // Turn start: both castors swivel with a lever ~ x / d = 5.6 each.
+  EXPECT_GT(absMax(4.0, 4.5), 5.0);
+  EXPECT_LT(absMax(6.0, 8.0), 0.05);  // steady turn: aligned again
+  EXPECT_GT(absMax(8.0, 11.0), 5.0);  // the reversal swivels them round again
+  EXPECT_LT(absMax(13.0, 15.0), 0.05);
+  // At the turn start and at the reversal the castors swivel in opposite senses.
+  double s_start = 0, s_rev = 0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    if (t[i] >= 4.0 && t[i] < 4.5) s_start += m[i];
+    if (t[i] >= 8.0 && t[i] < 11.0) s_rev += m[i];
+  }
+  EXPECT_LT(s_start * s_rev, 0);  // opposite swivels at the start and the reversal
+  // No castors modelled (relaxation 0): no column.
+  diagnosis::CastorGeometry none;
+  none.relaxation_m = 0;
+  for (double x : diagnosis::castorSwivelMoment(t, v, w, none)) EXPECT_EQ(x, 0.0);
 }

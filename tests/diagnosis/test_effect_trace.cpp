@@ -71,12 +71,13 @@ TEST(EffectTrace, MujocoContactEffectsRealisedLaws) {
   // (simulation::unknownEffectTruth), measured here: the contact laws are dry (torsional
   // friction, rolling friction, swivel friction), but MuJoCo's soft contact regularises dry
   // friction, which at these rates acts as viscous, and the castors' swivel friction acts
-  // while they turn round at the start of a turn (acceleration).
+  // while they turn round at the start of a turn (castor_swivel: diagnosis::castorSwivelMoment
+  // of the true motion; it read as acceleration before that class existed).
   const std::vector<std::pair<std::string, std::string>> cases = {
       {"tyre_scrub:torsion_m=0.005", "yaw rate"},
       {"tyre_scrub:torsion_m=0.02", "yaw rate"},
       {"rolling_resistance:coefficient_m=0.004", "forward rate"},
-      {"castor_friction:swivel_friction_Nm=1.5", "yaw acceleration"}};
+      {"castor_friction:swivel_friction_Nm=1.5", "yaw castor_swivel"}};
   for (const auto& [e, law] : cases) {
     const auto t = traceOf(e, "excite", 505502, "mujoco");
     ASSERT_FALSE(t["realised"].is_null()) << e;

@@ -29,7 +29,7 @@ nlohmann::json diagnoseWith(const std::string& effect, int seed,
   const TempDir d;
   const std::string rec = d / "u.rawlog", json = d / "u.json", ini = d / "u.ini";
   const auto sim = cli("simulate --scenario " + scenario + " --seed " + std::to_string(seed) +
-                       " --effect " + effect + " -o " + rec);
+                       (effect.empty() ? "" : " --effect " + effect) + " -o " + rec);
   EXPECT_EQ(sim.exit_code, 0) << sim.out;
   std::string config;
   if (where_excited) {
@@ -213,6 +213,32 @@ TEST(UnmodeledPhysics, MujocoSlopeHeadingTermOnOneMotorIsTheYawMomentNotPartOfTh
   for (const auto& u : j["findings"])
     for (const auto& p : u.value("physics", nlohmann::json::array()))
       if (p["dependence"] == "heading") EXPECT_EQ(p["channel"], "yaw") << p.dump();
+}
+
+TEST(UnmodeledPhysics, MujocoCastorFrictionIsAYawMomentWhileTheCastorsSwivel) {
+  // Swivel friction of MuJoCo's castors: a 10-30 sigma trace in the currents, bursts while the
+  // castors turn round at turn starts. No term of the library spanned it (omegadot R^2 0.33
+  // here) and nothing was found; the castors' swivel moment (castorSwivelMoment) does.
+  const std::string e = "castor_friction:swivel_friction_Nm=1.0";
+  const auto j = diagnoseWith(e, 673968, "square --engine mujoco");
+  const auto c = componentFor(j, e);
+  ASSERT_FALSE(c.is_null()) << j["findings"].dump();
+  EXPECT_EQ(c["term"], "castor_swivel");
+  EXPECT_EQ(c["physical"]["unit"], "N m");
+  // The swivel friction, read through a free castor's kinematics: the right size and sign
+  // (the castors' lag under friction is not modelled: within a factor of two).
+  EXPECT_GT(c["physical"]["value"].get<double>(), 0.5);
+  EXPECT_LT(c["physical"]["value"].get<double>(), 2.0);
+  EXPECT_GT(c["heldout_gain_A"].get<double>(), 0);
+  expectNoCatalogueName(j, {"coulomb_friction", "motor_asymmetry", "sensor_delay"});
+}
+
+TEST(UnmodeledPhysics, MujocoCleanDriveHasNoCastorTerm) {
+  // The same drive without the friction: free castors swivel too, but cost nothing.
+  const auto j = diagnoseWith("", 673968, "square --engine mujoco");
+  for (const auto& f : j["findings"])
+    for (const auto& p : f.value("physics", nlohmann::json::array()))
+      EXPECT_NE(p["dependence"], "castor_swivel") << p.dump();
 }
 
 }  // namespace
