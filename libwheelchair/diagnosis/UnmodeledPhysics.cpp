@@ -233,25 +233,17 @@ nlohmann::json collinearReadings(const std::vector<Col>& kept, std::size_t k,
   for (std::size_t i = 0; i < found.size() && i < 2; ++i) out.push_back(found[i].second);
   return out;
 }
-}  // namespace
 
-nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
-                                    const std::vector<std::string>& names, const DynamicTermData& d,
-                                    const config::WheelchairConfig& cfg) {
-  nlohmann::json out = nlohmann::json::array();
-  if (terms.empty() || d.y_fit.size() == 0) return out;
-  // 1. Forward and yaw column of every term, jointly.
-  std::vector<Col> cols;
-  for (int j : terms) cols.push_back({j, 0}), cols.push_back({j, 1});
-  stats::LinearFit f = stats::fitLinear(designOf(d, cols, true), d.y_fit, d.groups_fit, d.lags);
-  if (!f.ok) return out;
-  // 2. Channel per term.
+/// Step 2 of describeDynamicTerms: the channel of each term from the joint fit f of its forward
+/// (column 2a) and yaw (2a + 1) columns: forward, yaw, one motor (mode 2 right, 3 left) or both.
+std::vector<Col> termChannels(const stats::LinearFit& f, const std::vector<int>& terms,
+                              const std::vector<std::string>& names, double t_threshold) {
   std::vector<Col> kept;
   for (std::size_t a = 0; a < terms.size(); ++a) {
     const double bf = f.beta(2 * a), by = f.beta(2 * a + 1);
     const double sf = std::sqrt(std::max(0.0, f.cov(2 * a, 2 * a)));
     const double sy = std::sqrt(std::max(0.0, f.cov(2 * a + 1, 2 * a + 1)));
-    const bool tf = std::abs(bf) >= d.t_threshold * sf, ty = std::abs(by) >= d.t_threshold * sy;
+    const bool tf = std::abs(bf) >= t_threshold * sf, ty = std::abs(by) >= t_threshold * sy;
     // The castors' column is their yaw moment (castorSwivelMoment): a yaw term only (on MuJoCo
     // its forward twin came with a negative held-out gain).
     if (names[terms[a]] == "castor_swivel") {
@@ -270,6 +262,22 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
       if (ty) kept.push_back({terms[a], 1});
     }
   }
+  return kept;
+}
+}  // namespace
+
+nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
+                                    const std::vector<std::string>& names, const DynamicTermData& d,
+                                    const config::WheelchairConfig& cfg) {
+  nlohmann::json out = nlohmann::json::array();
+  if (terms.empty() || d.y_fit.size() == 0) return out;
+  // 1. Forward and yaw column of every term, jointly.
+  std::vector<Col> cols;
+  for (int j : terms) cols.push_back({j, 0}), cols.push_back({j, 1});
+  stats::LinearFit f = stats::fitLinear(designOf(d, cols, true), d.y_fit, d.groups_fit, d.lags);
+  if (!f.ok) return out;
+  // 2. Channel per term.
+  const std::vector<Col> kept = termChannels(f, terms, names, d.t_threshold);
   if (kept.empty()) return out;
   stats::LinearFit g = stats::fitLinear(designOf(d, kept, true), d.y_fit, d.groups_fit, d.lags);
   if (!g.ok) return out;
