@@ -1437,10 +1437,12 @@ Eigen::VectorXd unmodeledColumn(const DynRows& d, int j, int r0, int n) {
 }
 
 /// Stage 2 terms outside the catalogue: STLSQ per motor over the term library, on the residuals
-/// of the catalogue fit `rf` (fit rows) and `rv` (validation rows).
+/// of the catalogue fit `rf` (fit rows) and `rv` (validation rows), per motor (0 right, 1
+/// left: each its motor's rows; consumed: each motor's released once searched, memory).
 std::array<SparseResult, 2> dynamicUnmodeled(const DynRows& df2, const DynRows& dv2,
-                                             const Eigen::VectorXd& rf, const Eigen::VectorXd& rv,
-                                             int lags, const config::WheelchairConfig& cfg,
+                                             std::array<Eigen::VectorXd, 2>&& rf,
+                                             std::array<Eigen::VectorXd, 2>&& rv, int lags,
+                                             const config::WheelchairConfig& cfg,
                                              const DiagnosisOptions& opt) {
   std::array<SparseResult, 2> out;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
@@ -1457,11 +1459,12 @@ std::array<SparseResult, 2> dynamicUnmodeled(const DynRows& df2, const DynRows& 
     const Library Lv{nRv2, nlib, [&](int j, int r0, int n) {
                        return unmodeledColumn(dv2, j, s2 * nRv2 + r0, n);
                      }};
-    out[s2] = stlsq(L, rf.segment(s2 * nRf, nRf), half(df2.groups, nRf, s2 == 1), Lv,
-                    rv.segment(s2 * nRv2, nRv2), half(dv2.groups, nRv2, s2 == 1), lags, opt,
+    out[s2] = stlsq(L, rf[s2], half(df2.groups, nRf, s2 == 1), Lv, rv[s2],
+                    half(dv2.groups, nRv2, s2 == 1), lags, opt,
                     opt.min_relevance * cfg.motors.current_noise_A, 12, df2.noise_var, [](int j) {
                       return j == 10 ? 11 : j == 11 ? 10 : -1;
                     });
+    rf[s2] = Eigen::VectorXd(), rv[s2] = Eigen::VectorXd();
   }
   return out;
 }
@@ -1507,8 +1510,15 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
   // Df's QR (an n x k copy) is made after the search, not held through it (memory).
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrD;
   for (int pass = 0; pass < 2; ++pass) {
-    const Eigen::VectorXd rf = df2.y - Df * j.beta, rv = dv2.y - Dv * j.beta;
-    j.unmodeled = dynamicUnmodeled(df2, dv2, rf, rv, lags, cfg, opt);
+    // Each motor's residuals (not both motors' whole vectors held through the search).
+    std::array<Eigen::VectorXd, 2> rf, rv;
+    {
+      const Eigen::VectorXd f = df2.y - Df * j.beta, v = dv2.y - Dv * j.beta;
+      const Eigen::Index nRv = v.size() / 2;
+      for (int s2 = 0; s2 < 2; ++s2)
+        rf[s2] = f.segment(s2 * nR, nR), rv[s2] = v.segment(s2 * nRv, nRv);
+    }
+    j.unmodeled = dynamicUnmodeled(df2, dv2, std::move(rf), std::move(rv), lags, cfg, opt);
     if (Df.cols() == 0 || !(j.unmodeled[0].accepted || j.unmodeled[1].accepted)) break;
     if (pass == 0) qrD.compute(Df);
     // The unmodeled columns: (library column, sides) with sides 0 right, 1 left, 2 antisymmetric.
@@ -1902,12 +1912,15 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
 }
 
 /// Stage 2: the per-motor equation error of the drive model in current space, with the
-/// stage 1 corrections applied. Sets corr.delay_motors. false: too little data.
-bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
+/// stage 1 corrections applied. Sets corr.delay_motors. false: too little data. The fit parts'
+/// motor currents are released once their last rows are made (nothing after stage 2 reads
+/// them: makeWholeStreams; memory, docs/benchmarks.md).
+bool dynamicStage(StageData& data, const config::WheelchairConfig& cfg,
                   const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep) {
   auto cands = dynamicCandidates(cfg.vehicle.geom.body_mass_kg, opt.enable_delay);
   double alpha_b = selectionRule(opt, cands.size()).level();
-  DynRows df = dynamicRows(data.fit, corr, cfg, opt), dv = dynamicRows(data.val, corr, cfg, opt);
+  DynRows df = dynamicRows(data.fit, corr, cfg, opt);
+  DynRows dv = dynamicRows(data.val, corr, cfg, opt);
   // Stage 1 found nothing to correct: dv are the fully nominal model's rows too.
   const bool sensors_nominal = corr == Corrections{};
   int lags = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
@@ -1936,6 +1949,11 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     pf2 = &refit.fit;
     pv2 = &refit.val;
   }
+  // The last rows made of the fit parts (the held-out ones are read again for the fully
+  // nominal rows below); the selection's residual is not read after it (memory).
+  for (Streams& s : data.fit)
+    for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
+  sel.fit.residual = Eigen::VectorXd();
   std::array<SparseResult, 2> unmodeled;
   const DynRows& df2 = *pf2;
   const DynRows& dv2 = *pv2;
