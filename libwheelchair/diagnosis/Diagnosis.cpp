@@ -13,6 +13,7 @@
 #include "libwheelchair/sensors/Filtering.h"
 #include "libwheelchair/stats/Descriptive.h"
 #include "libwheelchair/stats/Distributions.h"
+#include "libwheelchair/util/SpilledColumns.h"
 
 #include <Eigen/LU>
 #include <Eigen/QR>
@@ -1911,16 +1912,86 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
   return sel;
 }
 
+/// The streams' columns set aside on a temporary file while stage 2 does not read them (memory:
+/// the rows and the streams of a long drive together; docs/benchmarks.md, "Tenth round"). Stage
+/// 2 never reads the gyro, Pozyx, ground truth nor the samples beyond the fit and held-out parts
+/// (`idle`); the encoders and motor currents of the fit and held-out parts only while it makes
+/// rows of them (`fit`, `val`; the fit parts' motor currents are never read after stage 2:
+/// makeWholeStreams).
+struct Stage2Spill {
+  util::SpilledColumns idle{"diagnose: streams set aside during stage 2"};
+  std::array<util::SpilledColumns, 2> rows{
+      util::SpilledColumns{"diagnose: the fit parts' streams"},
+      util::SpilledColumns{"diagnose: the held-out parts' streams"}};
+  StageData& data;
+  explicit Stage2Spill(StageData& d) : data(d) {
+    for (auto* parts : {&data.fit, &data.val})
+      for (Streams& s : *parts) idleColumns(s);
+    for (auto& b : data.beyond)
+      for (Streams& s : b) {
+        idleColumns(s);
+        for (auto* v : {&s.te, &s.sR, &s.sL, &s.tm, &s.iR, &s.iL}) idle.spill(*v);
+      }
+    setAside(false);
+  }
+  void idleColumns(Streams& s) {
+    for (auto* v : {&s.tg, &s.gz}) idle.spill(*v);
+    idle.spill(s.pozyx), idle.spill(s.gt);
+  }
+  /// The fit (true) or held-out (false) parts' encoders and motor currents onto the file (of
+  /// the part k only, k >= 0).
+  void setAside(bool fit, long k = -1) {
+    std::vector<Streams>& parts = fit ? data.fit : data.val;
+    for (std::size_t q = 0; q < parts.size(); ++q)
+      if (k < 0 || static_cast<long>(q) == k)
+        for (auto* v : {&parts[q].te, &parts[q].sR, &parts[q].sL, &parts[q].tm, &parts[q].iR,
+                        &parts[q].iL})
+          rows[fit ? 0 : 1].spill(*v);
+  }
+  using MakeRows =
+      std::function<DynRows(const std::vector<Streams>&, const std::function<void(std::size_t)>&)>;
+  /// Rows of the fit (true) or held-out (false) parts made by `make`, their streams read back
+  /// for it and each part's set aside again once copied (dynamicRows' `copied`).
+  DynRows rowsOf(bool fit, const MakeRows& make) {
+    rows[fit ? 0 : 1].restore();
+    DynRows d = make(fit ? data.fit : data.val, [&](std::size_t k) { setAside(fit, long(k)); });
+    setAside(fit);  // the parts without rows
+    return d;
+  }
+  /// Everything back but the fit parts' motor currents (released).
+  void restore() {
+    rows[0].restore(), rows[1].restore(), idle.restore();
+    for (Streams& s : data.fit)
+      for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
+  }
+};
+
+bool dynamicStageOn(Stage2Spill& sp, const config::WheelchairConfig& cfg,
+                    const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep);
+
 /// Stage 2: the per-motor equation error of the drive model in current space, with the
-/// stage 1 corrections applied. Sets corr.delay_motors. false: too little data. The fit parts'
-/// motor currents are released once their last rows are made (nothing after stage 2 reads
-/// them: makeWholeStreams; memory, docs/benchmarks.md).
+/// stage 1 corrections applied. Sets corr.delay_motors. false: too little data. The streams
+/// are set aside while not read (Stage2Spill); the fit parts' motor currents are released.
 bool dynamicStage(StageData& data, const config::WheelchairConfig& cfg,
                   const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep) {
+  Stage2Spill sp(data);
+  const bool ok = dynamicStageOn(sp, cfg, opt, corr, rep);
+  sp.restore();
+  return ok;
+}
+
+bool dynamicStageOn(Stage2Spill& sp, const config::WheelchairConfig& cfg,
+                    const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep) {
   auto cands = dynamicCandidates(cfg.vehicle.geom.body_mass_kg, opt.enable_delay);
   double alpha_b = selectionRule(opt, cands.size()).level();
-  DynRows df = dynamicRows(data.fit, corr, cfg, opt);
-  DynRows dv = dynamicRows(data.val, corr, cfg, opt);
+  auto rowsWith = [&](const Corrections& c) {
+    return [&cfg, &opt, c](const std::vector<Streams>& parts,
+                           const std::function<void(std::size_t)>& copied) {
+      return dynamicRows(parts, c, cfg, opt, copied);
+    };
+  };
+  DynRows df = sp.rowsOf(true, rowsWith(corr));
+  DynRows dv = sp.rowsOf(false, rowsWith(corr));
   // Stage 1 found nothing to correct: dv are the fully nominal model's rows too.
   const bool sensors_nominal = corr == Corrections{};
   int lags = static_cast<int>(std::ceil(2.0 * opt.grid_rate_hz / opt.cutoff_hz));
@@ -1943,16 +2014,13 @@ bool dynamicStage(StageData& data, const config::WheelchairConfig& cfg,
                                  [&](bool fit, double delay) {
                                    Corrections c2 = corr;
                                    c2.delay_motors = delay;
-                                   return dynamicRows(fit ? data.fit : data.val, c2, cfg, opt);
+                                   return sp.rowsOf(fit, rowsWith(c2));
                                  });
     corr.delay_motors = refit.delay;
     pf2 = &refit.fit;
     pv2 = &refit.val;
   }
-  // The last rows made of the fit parts (the held-out ones are read again for the fully
-  // nominal rows below); the selection's residual is not read after it (memory).
-  for (Streams& s : data.fit)
-    for (auto* v : {&s.tm, &s.iR, &s.iL}) std::vector<double>().swap(*v);
+  // The selection's residual is not read after it (memory).
   sel.fit.residual = Eigen::VectorXd();
   std::array<SparseResult, 2> unmodeled;
   const DynRows& df2 = *pf2;
@@ -1990,7 +2058,7 @@ bool dynamicStage(StageData& data, const config::WheelchairConfig& cfg,
   {
     // The fully nominal model (no sensor corrections either), as the report's figures show it.
     std::optional<DynRows> dn_rows;
-    if (!sensors_nominal) dn_rows = dynamicRows(data.val, Corrections{}, cfg, opt);
+    if (!sensors_nominal) dn_rows = sp.rowsOf(false, rowsWith(Corrections{}));
     dynamicChannels(df, dv, dv2, sensors_nominal ? dv : *dn_rows, rv_after, sel, lags, opt, rep);
   }
   std::vector<std::string> regimes;

@@ -581,7 +581,8 @@ void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveT
 }  // namespace
 
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
-                    const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
+                    const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
+                    const std::function<void(std::size_t)>& copied) {
   DynRows d;
   const auto& P = cfg.vehicle;
   const auto& g = P.geom;
@@ -601,7 +602,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   // (2 per grid step, ~30 doubles each) are written once into outputs of their final size:
   // no per-row temporaries, no growth slack (docs/benchmarks.md, "Memory").
   std::vector<signals::DriveSegment> segs;
-  for (const auto& s : recs) {
+  for (std::size_t k = 0; k < recs.size(); ++k) {
+    const Streams& s = recs[k];
     if (!s.hasEncoders() || !s.hasMotors()) continue;
     // The recording with the sensor corrections applied.
     signals::DriveStreams ds;
@@ -612,6 +614,7 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
     for (auto& v : ds.s[0]) v /= c.enc_scale[0];
     for (auto& v : ds.s[1]) v /= c.enc_scale[1];
     ds.i = {s.iR, s.iL};
+    if (copied) copied(k);  // s is not read after this
     for (signals::DriveSegment& seg : signals::prepare(ds, so)) segs.push_back(std::move(seg));
   }
   int nR = 0;

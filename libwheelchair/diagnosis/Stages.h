@@ -206,8 +206,13 @@ std::vector<double> castorSwivelMoment(const std::vector<double>& t_s,
                                        const std::vector<double>& v_m_s,
                                        const std::vector<double>& omega_rad_s,
                                        const CastorGeometry& g);
+/// The stage 2 rows of the recordings' streams with the corrections c. `copied` (optional):
+/// called with the index of each recording once its encoders and motor currents are copied
+/// (corrected) and no longer read here, e.g. to set them aside (memory: docs/benchmarks.md,
+/// "Tenth round").
 DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
-                    const config::WheelchairConfig& cfg, const DiagnosisOptions& opt);
+                    const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
+                    const std::function<void(std::size_t)>& copied = {});
 const std::vector<std::string>& dynLibNames();
 
 /// A catalogue term: its columns are X * S (S selects/combines base columns).

@@ -5,7 +5,11 @@
 #include "DiagnoseTestUtil.h"
 #include "libwheelchair/diagnosis/HeldOut.h"
 #include "libwheelchair/diagnosis/Stages.h"
+#include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/TextFormat.h"
+#include "libwheelchair/util/SpilledColumns.h"
+
+#include "../common/TestUtil.h"
 
 #include <gtest/gtest.h>
 
@@ -241,4 +245,63 @@ TEST(DynRowsLibrary, CastorSwivelMomentActsWhileTheCastorsTurnRound) {
   diagnosis::CastorGeometry none;
   none.relaxation_m = 0;
   for (double x : diagnosis::castorSwivelMoment(t, v, w, none)) EXPECT_EQ(x, 0.0);
+}
+
+// diagnose sets the streams aside on a temporary file while stage 2 does not read them
+// (util::SpilledColumns; docs/benchmarks.md, "Tenth round"): each recording's encoders and
+// motor currents go to the file as soon as dynamicRows has copied them (its `copied`). On a
+// bundled drive imported through the CLI, with sensor corrections, the rows made so must be the
+// rows of streams held in memory bit for bit, and the streams read back must be the same.
+TEST(DynRowsLibrary, RowsWithTheStreamsSetAsideEqualTheRowsOfHeldStreams) {
+  test::TempDir tmp;
+  const config::WheelchairConfig cfg;
+  const diagnosis::DiagnosisOptions opt;
+  const std::string out = tmp / "faulty.rawlog";
+  const auto r = test::cli("import " + test::sourcePath("datasets/three_task_faulty") + " -o " + out);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const diagnosis::Streams s = diagnosis::makeStreams(io::readRawlog(out), cfg);
+  ASSERT_TRUE(s.hasEncoders() && s.hasMotors());
+  ASSERT_FALSE(s.pozyx.empty());
+  diagnosis::Corrections c;
+  c.enc_scale[0] = 1.02, c.enc_scale[1] = 0.97, c.delay_enc = 0.013, c.delay_motors = 0.021;
+  const std::vector<diagnosis::Streams> held{s, s};  // two recordings
+  std::vector<diagnosis::Streams> parts{s, s};
+  util::SpilledColumns sp("test: the streams");
+  for (auto& p : parts) sp.spill(p.pozyx), sp.spill(p.gt), sp.spill(p.gz);  // never read
+  std::vector<std::size_t> seen;
+  const diagnosis::DynRows a = diagnosis::dynamicRows(held, c, cfg, opt);
+  const diagnosis::DynRows b = diagnosis::dynamicRows(parts, c, cfg, opt, [&](std::size_t k) {
+    seen.push_back(k);
+    for (auto* v : {&parts[k].te, &parts[k].sR, &parts[k].sL, &parts[k].tm, &parts[k].iR,
+                    &parts[k].iL})
+      sp.spill(*v);
+  });
+  EXPECT_EQ(seen, (std::vector<std::size_t>{0, 1}));
+  EXPECT_TRUE(parts[0].te.empty() && parts[1].iL.empty() && parts[1].pozyx.empty());
+  ASSERT_GT(a.y.size(), 1000);
+  EXPECT_TRUE(a.y == b.y);
+  for (auto f : {&diagnosis::DynRows::u, &diagnosis::DynRows::sgn_u, &diagnosis::DynRows::current,
+                 &diagnosis::DynRows::dcurrent_model, &diagnosis::DynRows::castor})
+    EXPECT_TRUE(a.*f == b.*f);
+  using G = diagnosis::DynRows::Grid;
+  for (auto f : {&G::t, &G::v, &G::omega, &G::vdot, &G::omegadot, &G::phi, &G::cos_phi,
+                 &G::sin_phi})
+    EXPECT_TRUE(a.grid.*f == b.grid.*f);
+  EXPECT_EQ(a.groups, b.groups);
+  EXPECT_EQ(a.noise_var, b.noise_var);
+  sp.restore();
+  EXPECT_EQ(sp.spilled(), 0u);
+  for (const auto& p : parts) {
+    for (auto f : {&diagnosis::Streams::te, &diagnosis::Streams::sR, &diagnosis::Streams::sL,
+                   &diagnosis::Streams::tm, &diagnosis::Streams::iR, &diagnosis::Streams::iL,
+                   &diagnosis::Streams::tg, &diagnosis::Streams::gz})
+      EXPECT_TRUE(p.*f == s.*f);
+    ASSERT_EQ(p.pozyx.size(), s.pozyx.size());
+    for (std::size_t k = 0; k < s.pozyx.size(); ++k) {
+      const io::PozyxSample &x = p.pozyx[k], &y = s.pozyx[k];
+      EXPECT_TRUE(x.t_s == y.t_s && x.x_m == y.x_m && x.y_m == y.y_m && x.has_z == y.has_z &&
+                  x.z_m == y.z_m);
+    }
+    ASSERT_EQ(p.gt.size(), s.gt.size());
+  }
 }
