@@ -1944,8 +1944,8 @@ struct Stage2Spill {
     std::vector<Streams>& parts = fit ? data.fit : data.val;
     for (std::size_t q = 0; q < parts.size(); ++q)
       if (k < 0 || static_cast<long>(q) == k)
-        for (auto* v : {&parts[q].te, &parts[q].sR, &parts[q].sL, &parts[q].tm, &parts[q].iR,
-                        &parts[q].iL})
+        for (auto* v :
+             {&parts[q].te, &parts[q].sR, &parts[q].sL, &parts[q].tm, &parts[q].iR, &parts[q].iL})
           rows[fit ? 0 : 1].spill(*v);
   }
   using MakeRows =
@@ -1972,8 +1972,8 @@ bool dynamicStageOn(Stage2Spill& sp, const config::WheelchairConfig& cfg,
 /// Stage 2: the per-motor equation error of the drive model in current space, with the
 /// stage 1 corrections applied. Sets corr.delay_motors. false: too little data. The streams
 /// are set aside while not read (Stage2Spill); the fit parts' motor currents are released.
-bool dynamicStage(StageData& data, const config::WheelchairConfig& cfg,
-                  const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep) {
+bool dynamicStage(StageData& data, const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
+                  Corrections& corr, DiagnosisReport& rep) {
   Stage2Spill sp(data);
   const bool ok = dynamicStageOn(sp, cfg, opt, corr, rep);
   sp.restore();

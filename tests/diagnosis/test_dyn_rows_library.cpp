@@ -257,7 +257,8 @@ TEST(DynRowsLibrary, RowsWithTheStreamsSetAsideEqualTheRowsOfHeldStreams) {
   const config::WheelchairConfig cfg;
   const diagnosis::DiagnosisOptions opt;
   const std::string out = tmp / "faulty.rawlog";
-  const auto r = test::cli("import " + test::sourcePath("datasets/three_task_faulty") + " -o " + out);
+  const auto r =
+      test::cli("import " + test::sourcePath("datasets/three_task_faulty") + " -o " + out);
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const diagnosis::Streams s = diagnosis::makeStreams(io::readRawlog(out), cfg);
   ASSERT_TRUE(s.hasEncoders() && s.hasMotors());
@@ -272,8 +273,8 @@ TEST(DynRowsLibrary, RowsWithTheStreamsSetAsideEqualTheRowsOfHeldStreams) {
   const diagnosis::DynRows a = diagnosis::dynamicRows(held, c, cfg, opt);
   const diagnosis::DynRows b = diagnosis::dynamicRows(parts, c, cfg, opt, [&](std::size_t k) {
     seen.push_back(k);
-    for (auto* v : {&parts[k].te, &parts[k].sR, &parts[k].sL, &parts[k].tm, &parts[k].iR,
-                    &parts[k].iL})
+    for (auto* v :
+         {&parts[k].te, &parts[k].sR, &parts[k].sL, &parts[k].tm, &parts[k].iR, &parts[k].iL})
       sp.spill(*v);
   });
   EXPECT_EQ(seen, (std::vector<std::size_t>{0, 1}));
@@ -284,8 +285,8 @@ TEST(DynRowsLibrary, RowsWithTheStreamsSetAsideEqualTheRowsOfHeldStreams) {
                  &diagnosis::DynRows::dcurrent_model, &diagnosis::DynRows::castor})
     EXPECT_TRUE(a.*f == b.*f);
   using G = diagnosis::DynRows::Grid;
-  for (auto f : {&G::t, &G::v, &G::omega, &G::vdot, &G::omegadot, &G::phi, &G::cos_phi,
-                 &G::sin_phi})
+  for (auto f :
+       {&G::t, &G::v, &G::omega, &G::vdot, &G::omegadot, &G::phi, &G::cos_phi, &G::sin_phi})
     EXPECT_TRUE(a.grid.*f == b.grid.*f);
   EXPECT_EQ(a.groups, b.groups);
   EXPECT_EQ(a.noise_var, b.noise_var);
