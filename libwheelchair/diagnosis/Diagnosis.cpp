@@ -360,7 +360,7 @@ struct Library {
   }
   Eigen::VectorXd times(const std::vector<int>& which, const Eigen::VectorXd& coef) const;
   void timesRows(const std::vector<int>& which, const Eigen::VectorXd& coef, int a, int b,
-                 Eigen::VectorXd& p) const;
+                 Eigen::VectorXd& p, Eigen::Index at = 0) const;
   Eigen::VectorXd solve(const std::vector<int>& which, const Eigen::VectorXd& y, int skip0 = 0,
                         int skip1 = 0) const;
 };
@@ -374,12 +374,12 @@ Eigen::VectorXd Library::times(const std::vector<int>& which, const Eigen::Vecto
   return p;
 }
 
-/// The same on rows [a, b) only, into p.segment(a, b - a).
+/// The same on rows [a, b) only, into p.segment(at + a, b - a).
 void Library::timesRows(const std::vector<int>& which, const Eigen::VectorXd& coef, int a, int b,
-                        Eigen::VectorXd& p) const {
+                        Eigen::VectorXd& p, Eigen::Index at) const {
   for (int r0 = a; r0 < b; r0 += kLibraryBlockRows) {
     const int nb = std::min(kLibraryBlockRows, b - r0);
-    p.segment(r0, nb).noalias() = block(which, r0, nb) * coef;
+    p.segment(at + r0, nb).noalias() = block(which, r0, nb) * coef;
   }
 }
 
@@ -600,30 +600,40 @@ std::vector<std::pair<int, double>> belowMisspecification(
     const Library& L, const Eigen::VectorXd& y, const Library& Lv, const Eigen::VectorXd& yv,
     const std::vector<int>& terms, double noise_var, const std::function<int(int)>& partner,
     bool all_rows, double& sigma_m) {
-  const Predictor heldOut = heldOutPredictor(L, y, Lv);
-  const Predictor cv = crossValidationPredictor(L, y, 5);
-  const Eigen::Index nf = all_rows ? y.size() : 0;
-  Eigen::VectorXd yall(nf + yv.size());
-  if (all_rows)
-    yall << y, yv;
-  else
-    yall = yv;
-  auto valPrediction = [&](const std::vector<int>& t) {
-    Eigen::VectorXd p = Eigen::VectorXd::Zero(yall.size());
-    if (!t.empty() && all_rows) p << cv(t), heldOut(t);
-    if (!t.empty() && !all_rows) p = heldOut(t);
-    return p;
+  // The judged rows yall = [y (all_rows); yv] and their out-of-sample prediction by the terms
+  // t, written into p: the fit rows' by blocked 5-fold cross-validation
+  // (crossValidationPredictor), the held-out rows' by the fit on the fit rows
+  // (heldOutPredictor), the same numbers without their full-length temporaries (memory).
+  const Eigen::Index nf = all_rows ? y.size() : 0, n = nf + yv.size();
+  auto valPrediction = [&](const std::vector<int>& t, Eigen::VectorXd& p) {
+    p.setZero(n);
+    if (t.empty()) return;
+    for (int k = 0; all_rows && k < 5; ++k) {
+      const int a = static_cast<int>(Eigen::Index(L.rows) * k / 5);
+      const int b = static_cast<int>(Eigen::Index(L.rows) * (k + 1) / 5);
+      L.timesRows(t, L.solve(t, y, a, b), a, b, p);
+    }
+    Lv.timesRows(t, L.solve(t, y), 0, Lv.rows, p, nf);
   };
-  const double nv = std::max<double>(1, yall.size());
-  const Eigen::VectorXd p_full = valPrediction(terms);
-  sigma_m = std::sqrt(std::max(0.0, (yall - p_full).squaredNorm() / nv - noise_var));
+  const double nv = std::max<double>(1, n);
+  Eigen::VectorXd p_full, p;
+  valPrediction(terms, p_full);
+  {
+    Eigen::VectorXd r(n);  // yall - p_full
+    if (all_rows)
+      r << y - p_full.head(nf), yv - p_full.tail(yv.size());
+    else
+      r = yv - p_full;
+    sigma_m = std::sqrt(std::max(0.0, r.squaredNorm() / nv - noise_var));
+  }
   std::vector<std::pair<int, double>> out;
   for (size_t k = 0; k < terms.size(); ++k) {
     const int mate = partner ? partner(terms[k]) : -1;
     std::vector<int> t;
     for (int j : terms)
       if (j != terms[k] && j != mate) t.push_back(j);
-    const double c = (valPrediction(t) - p_full).norm() / std::sqrt(nv);
+    valPrediction(t, p);
+    const double c = (p - p_full).norm() / std::sqrt(nv);
     if (c < sigma_m) out.push_back({static_cast<int>(k), c});
   }
   return out;
