@@ -1448,13 +1448,12 @@ Eigen::VectorXd unmodeledColumn(const DynRows& d, int j, int r0, int n) {
 }
 
 /// Stage 2 terms outside the catalogue: STLSQ per motor over the term library, on the residuals
-/// of the catalogue fit `rf` (fit rows) and `rv` (validation rows), per motor (0 right, 1
-/// left: each its motor's rows; consumed: each motor's released once searched, memory).
-std::array<SparseResult, 2> dynamicUnmodeled(const DynRows& df2, const DynRows& dv2,
-                                             std::array<Eigen::VectorXd, 2>&& rf,
-                                             std::array<Eigen::VectorXd, 2>&& rv, int lags,
-                                             const config::WheelchairConfig& cfg,
-                                             const DiagnosisOptions& opt) {
+/// of the catalogue fit on the fit rows and the validation rows of motor s2 (0 right, 1 left),
+/// `residuals(s2)`: made when that motor is searched and released after (memory).
+std::array<SparseResult, 2> dynamicUnmodeled(
+    const DynRows& df2, const DynRows& dv2,
+    const std::function<std::pair<Eigen::VectorXd, Eigen::VectorXd>(int)>& residuals, int lags,
+    const config::WheelchairConfig& cfg, const DiagnosisOptions& opt) {
   std::array<SparseResult, 2> out;
   int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   const int nlib = static_cast<int>(dynLibNames().size());
@@ -1470,12 +1469,12 @@ std::array<SparseResult, 2> dynamicUnmodeled(const DynRows& df2, const DynRows& 
     const Library Lv{nRv2, nlib, [&](int j, int r0, int n) {
                        return unmodeledColumn(dv2, j, s2 * nRv2 + r0, n);
                      }};
-    out[s2] = stlsq(L, rf[s2], half(df2.groups, nRf, s2 == 1), Lv, rv[s2],
-                    half(dv2.groups, nRv2, s2 == 1), lags, opt,
-                    opt.min_relevance * cfg.motors.current_noise_A, 12, df2.noise_var, [](int j) {
-                      return j == 10 ? 11 : j == 11 ? 10 : -1;
-                    });
-    rf[s2] = Eigen::VectorXd(), rv[s2] = Eigen::VectorXd();
+    const auto [rf, rv] = residuals(s2);
+    out[s2] =
+        stlsq(L, rf, half(df2.groups, nRf, s2 == 1), Lv, rv, half(dv2.groups, nRv2, s2 == 1), lags,
+              opt, opt.min_relevance * cfg.motors.current_noise_A, 12, df2.noise_var, [](int j) {
+                return j == 10 ? 11 : j == 11 ? 10 : -1;
+              });
   }
   return out;
 }
@@ -1521,15 +1520,15 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
   // Df's QR (an n x k copy) is made after the search, not held through it (memory).
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrD;
   for (int pass = 0; pass < 2; ++pass) {
-    // Each motor's residuals (not both motors' whole vectors held through the search).
-    std::array<Eigen::VectorXd, 2> rf, rv;
-    {
+    // Each motor's residuals, made when it is searched (not both motors' whole vectors held
+    // through the search).
+    auto residuals = [&](int s2) {
       const Eigen::VectorXd f = df2.y - Df * j.beta, v = dv2.y - Dv * j.beta;
       const Eigen::Index nRv = v.size() / 2;
-      for (int s2 = 0; s2 < 2; ++s2)
-        rf[s2] = f.segment(s2 * nR, nR), rv[s2] = v.segment(s2 * nRv, nRv);
-    }
-    j.unmodeled = dynamicUnmodeled(df2, dv2, std::move(rf), std::move(rv), lags, cfg, opt);
+      return std::pair<Eigen::VectorXd, Eigen::VectorXd>{f.segment(s2 * nR, nR),
+                                                         v.segment(s2 * nRv, nRv)};
+    };
+    j.unmodeled = dynamicUnmodeled(df2, dv2, residuals, lags, cfg, opt);
     if (Df.cols() == 0 || !(j.unmodeled[0].accepted || j.unmodeled[1].accepted)) break;
     if (pass == 0) qrD.compute(Df);
     // The unmodeled columns: (library column, sides) with sides 0 right, 1 left, 2 antisymmetric.

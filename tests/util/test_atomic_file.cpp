@@ -1,6 +1,9 @@
 // AtomicFile: complete or absent, on success, on a write failure at any point, and for
-// targets that are not regular files.
+// targets that are not regular files. SpilledColumns (the temporary file diagnose sets streams
+// aside on): read back bit for bit; a write failure (a full disk) is a one-line error that
+// loses nothing and leaves no file.
 #include "libwheelchair/util/AtomicFile.h"
+#include "libwheelchair/util/SpilledColumns.h"
 
 #include "../common/TestUtil.h"
 
@@ -10,10 +13,15 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cmath>
 #include <csignal>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
+#include <vector>
 
 namespace fs = std::filesystem;
 using wheelchair::util::AtomicFile;
@@ -171,4 +179,83 @@ TEST(AtomicFile, MissingDirectoryIsAOneLineError) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent_dir_wc/x.txt"), std::string::npos);
   }
+}
+
+namespace {
+
+/// The files this process holds open in `dir` (from /proc/self/fd; an unlinked one reads
+/// "DIR/#123 (deleted)" or "DIR/name (deleted)").
+std::vector<std::string> openFilesIn(const std::string& dir) {
+  std::vector<std::string> v;
+  for (const auto& e : fs::directory_iterator("/proc/self/fd")) {
+    std::error_code ec;
+    const std::string t = fs::read_symlink(e.path(), ec).string();
+    if (!ec && t.rfind(dir + "/", 0) == 0) v.push_back(t);
+  }
+  return v;
+}
+
+}  // namespace
+
+TEST(SpilledColumns, ColumnsComeBackBitForBitAndTheFileLeavesNoName) {
+  struct Pose {
+    double t_s;
+    float x_m;
+    int id;
+  };
+  std::vector<double> a(100000);
+  for (std::size_t i = 0; i < a.size(); ++i) a[i] = std::sin(0.001 * double(i)) / 3.0;
+  a[7] = std::numeric_limits<double>::quiet_NaN(), a[8] = -0.0;
+  std::vector<Pose> b = {{0.5, 1.25f, 3}, {1.0, -2.5f, 4}};
+  const std::vector<double> a0 = a;
+  const std::vector<Pose> b0 = b;
+  const auto before = openFilesIn("/tmp");
+  {
+    wheelchair::util::SpilledColumns sp("test: the columns");
+    sp.spill(a), sp.spill(b);
+    EXPECT_TRUE(a.empty() && b.empty());
+    EXPECT_EQ(a.capacity(), 0u) << "the memory is released";
+    EXPECT_EQ(sp.spilled(), 2u);
+    // The file is open in /tmp (std::tmpfile, TMPDIR not consulted) without a name.
+    const auto open = openFilesIn("/tmp");
+    ASSERT_EQ(open.size(), before.size() + 1);
+    for (const auto& f : open) EXPECT_NE(f.find("(deleted)"), std::string::npos) << f;
+    sp.restore();
+    EXPECT_EQ(sp.spilled(), 0u);
+    EXPECT_EQ(openFilesIn("/tmp").size(), before.size()) << "closed once restored";
+  }
+  ASSERT_EQ(a.size(), a0.size());
+  EXPECT_EQ(std::memcmp(a.data(), a0.data(), a.size() * sizeof(double)), 0);
+  ASSERT_EQ(b.size(), b0.size());
+  EXPECT_EQ(std::memcmp(b.data(), b0.data(), b.size() * sizeof(Pose)), 0);
+}
+
+TEST(SpilledColumns, FullDiskIsAOneLineErrorThatLosesNothingAndLeavesNoFile) {
+  std::vector<double> small(100, 1.5), big(100000, 2.5);  // 800 B and 800 kB
+  const auto before = openFilesIn("/tmp");
+  std::string err;
+  {
+    wheelchair::util::SpilledColumns sp("test: the streams");
+    {
+      const FileSizeLimit full(64 * 1024);  // the temporary file cannot grow past 64 kB
+      sp.spill(small);
+      EXPECT_TRUE(small.empty());
+      try {
+        sp.spill(big);
+        ADD_FAILURE() << "a write past the limit was not reported";
+      } catch (const std::runtime_error& e) {
+        err = e.what();
+      }
+    }
+    EXPECT_EQ(big.size(), 100000u) << "the column whose write failed stays in memory";
+    EXPECT_EQ(big.front(), 2.5);
+    EXPECT_EQ(big.back(), 2.5);
+    sp.restore();  // what was written before the failure is still read back
+    EXPECT_EQ(small, std::vector<double>(100, 1.5));
+  }
+  EXPECT_NE(err.find("test: the streams: temporary file (/tmp): cannot write: "), std::string::npos)
+      << err;
+  EXPECT_NE(err.find(std::strerror(EFBIG)), std::string::npos) << err;
+  EXPECT_EQ(err.find('\n'), std::string::npos) << "one line: " << err;
+  EXPECT_EQ(openFilesIn("/tmp").size(), before.size()) << "the temporary file is closed";
 }
