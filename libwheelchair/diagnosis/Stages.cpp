@@ -510,8 +510,18 @@ void release(std::initializer_list<std::vector<double>*> xs) {
   for (std::vector<double>* x : xs) std::vector<double>().swap(*x);
 }
 
+/// Gives each output column its final size `n` if it has none yet (its first segment): an
+/// output's memory is taken only when it is first written, after the segment's signals read
+/// before it are released (memory: the rows of a ten-hour drive's fit part and its segment do
+/// not all exist at once, docs/benchmarks.md "Tenth round").
+void sized(std::initializer_list<std::vector<double>*> xs, int n) {
+  for (std::vector<double>* x : xs)
+    if (x->empty()) x->resize(n);
+}
+
 /// The rows of one resampled segment (its grid samples [seg.i0, seg.i1)) written into d's
-/// outputs (sized already) from right-motor row bR on, the left motor's from bR + nR on. Each
+/// outputs (d.y sized already, the others sized here when first written: nR per grid sample,
+/// 2 nR per row) from right-motor row bR on, the left motor's from bR + nR on. Each
 /// signal of the segment is released once read and each temporary made only when needed
 /// (memory: the segment of a ten-hour drive is ~1.3 M grid steps, 10 MB per signal).
 /// lw: track width (m); eps: the Coulomb smoothing speed (m/s); fc, fs: cutoff, grid rate (Hz).
@@ -536,6 +546,8 @@ void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveT
   const auto &uRf = seg.u_f[0], &uLf = seg.u_f[1], &udR = seg.a_f[0], &udL = seg.a_f[1];
   std::array<std::vector<double>, 2> pred{std::vector<double>(n), std::vector<double>(n)};
   std::vector<double> vs(n), ws(n);  // the castors' swivel moment reads the whole segment's
+  sized({&G.t, &G.v, &G.omega, &G.vdot, &G.omegadot, &G.phi}, nR);
+  sized({&d.u}, 2 * nR);
   for (int i = 0; i < n; ++i) {
     const double v = 0.5 * (uRf[i] + uLf[i]), w = (uRf[i] - uLf[i]) / lw;
     vs[i] = v, ws[i] = w;
@@ -552,6 +564,7 @@ void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveT
   {
     const std::vector<double> castor = castorSwivelMoment(tg, vs, ws, castors);
     release({&vs, &ws});
+    sized({&d.castor}, nR);
     for (int i = i0; i < i1; ++i) d.castor[bR + i - i0] = castor[i];
   }
   // The heading's cos and sin, filtered.
@@ -560,6 +573,7 @@ void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveT
     for (int i = 0; i < n; ++i) x[i] = c == 0 ? std::cos(phi[i]) : std::sin(phi[i]);
     x = sensors::filtfiltButter2(x, fc, fs);
     std::vector<double>& out = c == 0 ? G.cos_phi : G.sin_phi;
+    sized({&out}, nR);
     for (int i = i0; i < i1; ++i) out[bR + i - i0] = x[i];
   }
   release({&phi});
@@ -567,6 +581,7 @@ void segmentRows(signals::DriveSegment& seg, int bR, int nR, const model::DriveT
   for (int s = 0; s < 2; ++s) {
     const std::vector<double> dp = sensors::centralDerivative(tg, pred[s]);
     const std::vector<double>& im = seg.i_f[s];
+    sized({&d.sgn_u, &d.dcurrent_model, &d.current}, 2 * nR);
     for (int i = i0; i < i1; ++i) {
       const int k = bR + i - i0 + s * nR;
       d.y(k) = im[i] - pred[s][i];
@@ -619,14 +634,8 @@ DynRows dynamicRows(const std::vector<Streams>& recs, const Corrections& c,
   }
   int nR = 0;
   for (const auto& seg : segs) nR += seg.i1 - seg.i0;
-  const int N = 2 * nR;
-  d.y.resize(N);
-  auto& G = d.grid;
-  for (auto* col :
-       {&G.t, &G.v, &G.omega, &G.vdot, &G.omegadot, &G.phi, &G.cos_phi, &G.sin_phi, &d.castor})
-    col->resize(nR);
+  d.y.resize(2 * nR);  // uninitialised: its memory is taken as it is written
   const CastorGeometry castors{opt.castor_x_m, opt.castor_half_spacing_m, opt.castor_relaxation_m};
-  for (auto* col : {&d.u, &d.sgn_u, &d.current, &d.dcurrent_model}) col->resize(N);
   int row_R = 0;  // next right-motor row; its left-motor row is row_R + nR
   for (signals::DriveSegment& seg : segs) {
     segmentRows(seg, row_R, nR, dt, lw, eps, fc, fs, castors, d);

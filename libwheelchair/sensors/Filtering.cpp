@@ -32,9 +32,12 @@ Biquad butter2Lowpass(double cutoff_hz, double sample_rate_hz) {
   return f;
 }
 
-std::vector<double> biquadFilter(const Biquad& f, const std::vector<double>& x, bool steady_start) {
-  std::vector<double> y(x.size());
-  if (x.empty()) return y;
+namespace {
+
+/// biquadFilter from x into y (y may be x: sample i is read before it is written).
+void biquadInto(const Biquad& f, const std::vector<double>& x, bool steady_start,
+                std::vector<double>& y) {
+  if (x.empty()) return;
   double z1 = 0, z2 = 0;
   if (steady_start) {
     // Steady state for constant input x0 (output g x0): z2 = (b2 - a2 g) x0, z1 = (g - b0) x0.
@@ -49,6 +52,18 @@ std::vector<double> biquadFilter(const Biquad& f, const std::vector<double>& x, 
     z2 = f.b2 * xi - f.a2 * yi;
     y[i] = yi;
   }
+}
+
+/// biquadFilter(f, x, true) written over x.
+void biquadFilterInPlace(const Biquad& f, std::vector<double>& x) {
+  biquadInto(f, x, true, x);
+}
+
+}  // namespace
+
+std::vector<double> biquadFilter(const Biquad& f, const std::vector<double>& x, bool steady_start) {
+  std::vector<double> y(x.size());
+  biquadInto(f, x, steady_start, y);
   return y;
 }
 
@@ -71,11 +86,15 @@ std::vector<double> filtfiltButter2(const std::vector<double>& x, double cutoff_
   ext.insert(ext.end(), x.begin(), x.end());
   for (std::size_t k = 1; k <= pad; ++k) ext.push_back(2.0 * x[n - 1] - x[n - 1 - k]);
 
-  std::vector<double> y = biquadFilter(f, ext, true);
-  std::reverse(y.begin(), y.end());
-  y = biquadFilter(f, y, true);
-  std::reverse(y.begin(), y.end());
-  return std::vector<double>(y.begin() + pad, y.begin() + pad + n);
+  // Both passes in place in the one buffer, the result its middle (memory: one series and its
+  // padding, not three; the same operations as biquadFilter's).
+  biquadFilterInPlace(f, ext);
+  std::reverse(ext.begin(), ext.end());
+  biquadFilterInPlace(f, ext);
+  std::reverse(ext.begin(), ext.end());
+  ext.erase(ext.begin(), ext.begin() + static_cast<std::ptrdiff_t>(pad));
+  ext.resize(n);
+  return ext;
 }
 
 double medianSpacing(const std::vector<double>& t_s) {

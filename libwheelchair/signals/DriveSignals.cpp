@@ -153,22 +153,28 @@ bool conditionSegment(const DriveStreams& s, const DriveSignalOptions& o, double
   for (int i = 0; i < n; ++i) seg.t[i] = glo + i / fs;
   // currents: filtered on their own time base, then resampled
   // (sized exactly first: no growth slack on a long drive's copy; memory, docs/benchmarks.md)
+  // (a window holding every sample, e.g. a drive without gaps, reads the streams themselves:
+  // no copy)
   auto inWindow = [&](double t) { return t >= glo - 2 && t <= ghi + 2; };
   const auto m = static_cast<std::size_t>(std::count_if(s.tm.begin(), s.tm.end(), inWindow));
+  if (m < 10) return false;
+  const bool whole = m == s.tm.size();
   std::vector<double> tmi;
   std::array<std::vector<double>, 2> is;
-  tmi.reserve(m), is[0].reserve(m), is[1].reserve(m);
-  for (size_t i = 0; i < s.tm.size(); ++i)
-    if (inWindow(s.tm[i]))
-      tmi.push_back(s.tm[i]), is[0].push_back(s.i[0][i]), is[1].push_back(s.i[1][i]);
-  if (tmi.size() < 10) return false;
+  if (!whole) {
+    tmi.reserve(m), is[0].reserve(m), is[1].reserve(m);
+    for (size_t i = 0; i < s.tm.size(); ++i)
+      if (inWindow(s.tm[i]))
+        tmi.push_back(s.tm[i]), is[0].push_back(s.i[0][i]), is[1].push_back(s.i[1][i]);
+  }
+  const std::vector<double>& tw = whole ? s.tm : tmi;
   for (int side = 0; side < 2; ++side) {
     seg.p[side] = sensors::resampleLinear(s.te, s.s[side], seg.t);
     seg.u[side] = sensors::centralDerivative(seg.t, seg.p[side]);
     seg.u_f[side] = sensors::filtfiltButter2(seg.u[side], fc, fs);
     seg.a_f[side] = sensors::centralDerivative(seg.t, seg.u_f[side]);
-    seg.i_f[side] =
-        sensors::resampleLinear(tmi, sensors::filtfiltButter2(tmi, is[side], fc), seg.t);
+    seg.i_f[side] = sensors::resampleLinear(
+        tw, sensors::filtfiltButter2(tw, whole ? s.i[side] : is[side], fc), seg.t);
     std::vector<double>().swap(is[side]);
   }
   seg.i0 = static_cast<int>(std::ceil(margin * fs));
