@@ -1520,13 +1520,20 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
   // Df's QR (an n x k copy) is made after the search, not held through it (memory).
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrD;
   for (int pass = 0; pass < 2; ++pass) {
-    // Each motor's residuals, made when it is searched (not both motors' whole vectors held
-    // through the search).
+    // Each motor's residuals, made when it is searched from its own rows only (not both
+    // motors' whole vectors, nor the whole products, held through the search). Row by row the
+    // same doubles as y - D beta: Eigen's matrix-vector product of a few columns sums each row
+    // over the columns in order, whichever rows it is given (not so its small-size products:
+    // a motor of fewer than 64 rows is cut from the whole product).
     auto residuals = [&](int s2) {
-      const Eigen::VectorXd f = df2.y - Df * j.beta, v = dv2.y - Dv * j.beta;
-      const Eigen::Index nRv = v.size() / 2;
-      return std::pair<Eigen::VectorXd, Eigen::VectorXd>{f.segment(s2 * nR, nR),
-                                                         v.segment(s2 * nRv, nRv)};
+      auto motor = [&](const Eigen::VectorXd& y, const Eigen::MatrixXd& D) -> Eigen::VectorXd {
+        const Eigen::Index n = y.size() / 2;
+        if (n < 64) return (y - D * j.beta).segment(s2 * n, n);
+        Eigen::VectorXd r = D.middleRows(s2 * n, n) * j.beta;
+        r = y.segment(s2 * n, n) - r;
+        return r;
+      };
+      return std::pair<Eigen::VectorXd, Eigen::VectorXd>{motor(df2.y, Df), motor(dv2.y, Dv)};
     };
     j.unmodeled = dynamicUnmodeled(df2, dv2, residuals, lags, cfg, opt);
     if (Df.cols() == 0 || !(j.unmodeled[0].accepted || j.unmodeled[1].accepted)) break;
@@ -2089,10 +2096,19 @@ bool dynamicStageOn(Stage2Spill& sp, const config::WheelchairConfig& cfg,
     Eigen::VectorXd b = sel.fit.beta.segment(i, k);
     Finding f =
         termFinding(c, sel.steps[a], alpha_b, regimes, "currents", "A", dv.y.size(), df.y.size());
-    Eigen::VectorXd contrib = Df.middleCols(i, k) * b;
+    // (time, contribution) per fit row: the contribution Df_a b made block by block of rows
+    // (row by row the same doubles, as in jointDynamicFit's residuals; the last block takes
+    // the rest, so no block is small), tc sized once and handed over (memory: no whole
+    // contribution vector, growth slack nor copy of tc).
     std::vector<std::pair<double, double>> tc;
-    for (int q = 0; q < contrib.size(); ++q) tc.push_back({df2.grid.t[df2.step(q)], contrib(q)});
-    f.segments = activeSegments(tc, sigma);
+    tc.reserve(static_cast<std::size_t>(Df.rows()));
+    for (Eigen::Index r0 = 0, nb = 0; r0 < Df.rows(); r0 += nb) {
+      nb = Df.rows() - r0 < 2 * stats::kDesignBlockRows ? Df.rows() - r0 : stats::kDesignBlockRows;
+      const Eigen::VectorXd contrib = Df.middleCols(i, k).middleRows(r0, nb) * b;
+      for (Eigen::Index q = 0; q < nb; ++q)
+        tc.push_back({df2.grid.t[df2.step(static_cast<int>(r0 + q))], contrib(q)});
+    }
+    f.segments = activeSegments(std::move(tc), sigma);
     f.channels = {"current_right", "current_left"};
     describeFinding(f, c, sel, a, fit);
     rep.addFinding(f);
