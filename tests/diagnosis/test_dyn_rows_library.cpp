@@ -7,13 +7,16 @@
 #include "libwheelchair/diagnosis/Stages.h"
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/TextFormat.h"
+#include "libwheelchair/stats/LeastSquares.h"
 #include "libwheelchair/util/SpilledColumns.h"
 
 #include "../common/TestUtil.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 
 using namespace wheelchair;
 
@@ -304,5 +307,45 @@ TEST(DynRowsLibrary, RowsWithTheStreamsSetAsideEqualTheRowsOfHeldStreams) {
                   x.z_m == y.z_m);
     }
     ASSERT_EQ(p.gt.size(), s.gt.size());
+  }
+}
+
+// Stage 2 makes products of the accepted catalogue design D (n x k, a few columns) by the
+// coefficients b for some rows only (memory, docs/benchmarks.md "Tenth round"): each motor's
+// residual y - D b from its own rows (jointDynamicFit) and a finding's contribution D_a b block
+// by block of rows, the last block taking the rest (its active segments). Both rely on Eigen's
+// matrix-vector product giving every row the same doubles whichever rows it is given: on the
+// rows of a simulated drive they must equal the rows of the whole product bit for bit.
+TEST(DynRowsLibrary, ProductsOverSomeRowsEqualTheRowsOfTheWholeProduct) {
+  const auto sim = diagnosis::testutil::simulateWith("excite", 3, 150.0, {});
+  config::WheelchairConfig cfg;
+  diagnosis::DiagnosisOptions opt;
+  const diagnosis::DynRows d =
+      diagnosis::dynamicRows({diagnosis::makeStreams(sim.recording, cfg)}, {}, cfg, opt);
+  const diagnosis::CatalogueDesign design = d.design();
+  const long n = design.rows(), p = design.cols();
+  ASSERT_GT(n, 4 * stats::kDesignBlockRows);  // several blocks and a merged tail
+  for (const long k : {1L, 3L, std::min(p, 7L)}) {
+    SCOPED_TRACE("columns " + std::to_string(k));
+    Eigen::MatrixXd S = Eigen::MatrixXd::Zero(p, k);
+    for (long c = 0; c < k; ++c) S((c * 5) % p, c) = 1.0;
+    const Eigen::MatrixXd D = design.times(S);
+    Eigen::VectorXd b(k);
+    for (long c = 0; c < k; ++c) b(c) = (c % 2 ? -1.0 : 1.0) * (0.37 + c) / 3.0;
+    const Eigen::VectorXd whole = d.y - D * b, contrib = D * b;
+    const Eigen::Index nR = n / 2;
+    for (int s2 = 0; s2 < 2; ++s2) {  // jointDynamicFit's residuals of motor s2
+      Eigen::VectorXd r = D.middleRows(s2 * nR, nR) * b;
+      r = d.y.segment(s2 * nR, nR) - r;
+      ASSERT_EQ(r.size(), nR);
+      EXPECT_EQ(std::memcmp(r.data(), whole.data() + s2 * nR, sizeof(double) * nR), 0)
+          << "motor " << s2;
+    }
+    Eigen::VectorXd blocks(n);  // the findings' contributions
+    for (Eigen::Index r0 = 0, nb = 0; r0 < n; r0 += nb) {
+      nb = n - r0 < 2 * stats::kDesignBlockRows ? n - r0 : stats::kDesignBlockRows;
+      blocks.segment(r0, nb) = D.middleRows(r0, nb) * b;
+    }
+    EXPECT_EQ(std::memcmp(blocks.data(), contrib.data(), sizeof(double) * n), 0);
   }
 }

@@ -3,8 +3,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstring>
 #include <stdexcept>
 #include <vector>
 
@@ -200,4 +202,32 @@ TEST(Filtering, CentralDerivativeUneven) {
   EXPECT_THROW(centralDerivative({0.0, 1.0}, {1.0}), std::invalid_argument);
   EXPECT_NEAR(medianSpacing({0.0, 0.1, 0.3, 0.4}), 0.1, 1e-12);
   EXPECT_NEAR(medianSpacing({0.0, 0.1, 0.3, 0.4, 0.8}), 0.15, 1e-12);
+}
+
+// filtfiltButter2 filters in one buffer (memory, docs/benchmarks.md "Tenth round"): bit for
+// bit the padded series run through biquadFilter forwards and backwards (as it was computed
+// with a new vector per pass), on a noisy current-like series.
+TEST(Filtering, FiltfiltInOneBufferEqualsTwoBiquadPasses) {
+  const double fs = 50.0, fc = 2.5;
+  std::vector<double> x(20000);
+  unsigned state = 12345u;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    state = state * 1103515245u + 12345u;
+    const double noise = (double((state >> 8) & 0xffff) / 65535.0 - 0.5) * 0.2;
+    x[i] = 2.0 * std::sin(0.01 * double(i)) + (i % 700 < 350 ? 0.8 : -0.3) + noise;
+  }
+  const std::size_t n = x.size(), pad = filtfiltPadLength(n, fc, fs);
+  std::vector<double> ext;
+  for (std::size_t k = pad; k >= 1; --k) ext.push_back(2.0 * x[0] - x[k]);
+  ext.insert(ext.end(), x.begin(), x.end());
+  for (std::size_t k = 1; k <= pad; ++k) ext.push_back(2.0 * x[n - 1] - x[n - 1 - k]);
+  const Biquad f = butter2Lowpass(fc, fs);
+  std::vector<double> y = biquadFilter(f, ext, true);
+  std::reverse(y.begin(), y.end());
+  y = biquadFilter(f, y, true);
+  std::reverse(y.begin(), y.end());
+  const std::vector<double> want(y.begin() + pad, y.begin() + pad + n);
+  const std::vector<double> got = filtfiltButter2(x, fc, fs);
+  ASSERT_EQ(got.size(), n);
+  EXPECT_EQ(std::memcmp(got.data(), want.data(), n * sizeof(double)), 0);
 }
