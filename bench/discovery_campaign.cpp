@@ -32,7 +32,9 @@
 // the engine's own castor friction, tyre scrub, rolling resistance, soft tyre, low grip); the
 // diagnosis does not know these names. Scored: flagged, located (a reported unmodeled term on
 // the effect's channel) and described (with the effect's dependence class), against the
-// truth the generator states (unknownEffectTruth).
+// truth the generator states (unknownEffectTruth). --unknown-only: the catalogue and clean
+// drives of the same command are drawn (same random stream) but not run, so the unknown drives
+// are those of the full command, in a fraction of its time.
 #include "libwheelchair/diagnosis/Campaign.h"
 #include "libwheelchair/simulation/UnknownEffects.h"
 
@@ -65,6 +67,8 @@ int main(int argc, char** argv) {
       o.triple_runs = std::stoi(next());
     else if (a == "--unknown")
       o.unknown_runs = std::stoi(next());
+    else if (a == "--unknown-only")
+      o.unknown_only = true;
     else if (a == "--engine")
       o.engine = next();
     else if (a == "--check-named-rate")
@@ -97,7 +101,7 @@ int main(int argc, char** argv) {
     else {
       std::cerr
           << "usage: discovery_campaign [--runs N] [--pairs N] [--triples N] "
-             "[--clean N] [--unknown N] [--seed S] [--duration S] [--effects a,b] "
+             "[--clean N] [--unknown N] [--unknown-only] [--seed S] [--duration S] [--effects a,b] "
              "[--scenarios a,b] [--engine model|mujoco] [--config F] [--json OUT] "
              "[--check-named-rate R] [--check-false-alarms N] [--check-described-rate R] [-v]\n"
              "       discovery_campaign --case SCENARIO:SEED [--effect SPEC ...] [--engine E]\n";
