@@ -104,14 +104,10 @@ TEST(DiagnoseCampaign, MujocoEngineTruthScoresOnlyTheEnginesOwnPhysics) {
 // +0.052, omegadot +0.116 right / -0.052 left), never the step from rest (vdot +0.005), and a
 // vdot term never without that measurement.
 TEST(DiagnoseCampaign, AccelerationTermsAreScoredAgainstTheDrivesRealisedValues) {
-  nlohmann::json truth = {{"radius_rel", {-0.00127, -0.00126}},
-                          {"track_rel", {0.0005, 0.0035}},
-                          {"v_omega_A", 2.06},
-                          {"omega2_A", -0.567},
-                          {"omegadot_A", 0.071},
-                          {"vdot_A", 0.005},
-                          {"slope_cos_A", 0.0},
-                          {"slope_sin_A", 0.0}};
+  nlohmann::json truth = {{"radius_rel", {-0.00127, -0.00126}}, {"track_rel", {0.0005, 0.0035}},
+                          {"v_omega_A", 2.06},  {"omega2_A", -0.567},
+                          {"omegadot_A", 0.071}, {"vdot_A", 0.005},
+                          {"slope_cos_A", 0.0},  {"slope_sin_A", 0.0}};
   diagnosis::Finding u;
   u.effect = "unmodeled";
   u.parameters = {{"channel", "current_left"}, {"omega^2", -0.55}, {"vdot", 0.055}};
