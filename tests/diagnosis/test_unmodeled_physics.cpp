@@ -233,6 +233,21 @@ TEST(UnmodeledPhysics, MujocoCastorFrictionIsAYawMomentWhileTheCastorsSwivel) {
   expectNoCatalogueName(j, {"coulomb_friction", "motor_asymmetry", "sensor_delay"});
 }
 
+TEST(UnmodeledPhysics, MujocoQuadraticDragOnBothMotorsIsNoMotorAsymmetry) {
+  // A drag along the heading loads both motors alike. The forward selection rejected both
+  // motor asymmetries; the out-of-catalogue terms then spanned the right motor's u_R and
+  // addSpannedTerms named `motor_asymmetry` right 1.086, although the left motor's asymmetry
+  // column, fitted beside it, takes the same coefficient: an equal extra load on both motors is
+  // no asymmetry (symmetricSpareAsymmetry). The drag is described instead.
+  const std::string e = "forward_quadratic_drag:c_N_s2_m2=5.135";
+  const auto j = diagnoseWith(e, 220317, "excite --duration 90 --engine mujoco");
+  expectNoCatalogueName(j, {"motor_asymmetry", "coulomb_friction"});
+  const auto c = componentFor(j, e);
+  ASSERT_FALSE(c.is_null()) << j["findings"].dump();
+  EXPECT_EQ(c["term"], "v*|v|");
+  EXPECT_GT(c["physical"]["value"].get<double>(), 0);  // a drag: opposing the motion
+}
+
 TEST(UnmodeledPhysics, MujocoCleanDriveHasNoCastorTerm) {
   // The same drive without the friction: free castors swivel too, but cost nothing.
   const auto j = diagnoseWith("", 673968, "square --engine mujoco");
