@@ -1386,19 +1386,40 @@ bool equalOnBothMotors(const double b[2], const double sd[2]) {
 }
 
 /// Whether the selection accepted a motor asymmetry on BOTH sides with equal coefficients
-/// (within 10 % of the larger, or 3 sigma): the same extra viscous friction on both motors.
-bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cands) {
+/// (equalOnBothMotors): the same extra viscous friction on both motors. Accepted on ONE side
+/// (the other's held-out check failed, e.g. on the held-out rows' other physics): the other
+/// side's column is fitted beside the accepted design (df's fit rows) and compared so (MuJoCo
+/// seed 7 square 699374, a viscous drag, was named a left motor asymmetry 1.081).
+bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cands,
+                        const DynRows& df, int lags) {
   double b[2] = {0, 0}, sd[2] = {0, 0};
-  int found = 0;
+  int found = 0, side_found = -1;
   for (std::size_t a = 0; a < sel.accepted.size(); ++a) {
     const std::string& n = cands[sel.accepted[a]].name;
     const int side = n == "motor_asymmetry/right" ? 0 : (n == "motor_asymmetry/left" ? 1 : -1);
     if (side < 0) continue;
     const int i = sel.ranges[a].first;
     b[side] = sel.fit.beta(i), sd[side] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
-    ++found;
+    ++found, side_found = side;
   }
-  return found == 2 && equalOnBothMotors(b, sd);
+  if (found == 2) return equalOnBothMotors(b, sd);
+  if (found != 1) return false;
+  const int other =
+      candidateIndex(cands, side_found == 0 ? "motor_asymmetry/left" : "motor_asymmetry/right");
+  if (other < 0) return false;
+  const Eigen::MatrixXd D = acceptedDesign(df.design(), cands, sel.accepted);
+  const Eigen::Index k = D.cols();
+  Eigen::MatrixXd X(D.rows(), k + 1);
+  X << D, df.design().times(cands[other].S.col(0));
+  const LinearFit f = fitLinear(X, df.y, df.groups, lags);
+  if (!f.ok) return false;
+  int i_found = -1;
+  for (std::size_t a = 0; a < sel.accepted.size(); ++a)
+    if (cands[sel.accepted[a]].effect == "motor_asymmetry") i_found = sel.ranges[a].first;
+  b[side_found] = f.beta(i_found),
+  sd[side_found] = std::sqrt(std::max(0.0, f.cov(i_found, i_found)));
+  b[1 - side_found] = f.beta(k), sd[1 - side_found] = std::sqrt(std::max(0.0, f.cov(k, k)));
+  return equalOnBothMotors(b, sd);
 }
 
 /// The terms of motor `ch`'s sparse fit that are reported as `unmodeled`: a friction finding
@@ -1909,7 +1930,8 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
                           int lags, const DiagnosisOptions& opt, double& alpha_b,
                           std::vector<SupersededTerm>& gone) {
   Selection sel = forwardSelect(sd, cands, opt);
-  if (symmetricAsymmetry(sel, cands)) {
+  std::vector<std::string> symmetric;
+  if (symmetricAsymmetry(sel, cands, df, lags)) {
     // Both motors' viscous friction up by the same amount is no asymmetry: it is a load the
     // catalogue does not have (e.g. a drag proportional to speed). Not forced onto the
     // catalogue name: selected again without it, so the unmodeled terms describe it.
@@ -1919,6 +1941,9 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
     cands = rest;
     alpha_b = selectionRule(opt, cands.size()).level();
     sel = forwardSelect(sd, cands, opt);
+    symmetric.push_back(
+        "motor_asymmetry: not named, the same extra viscous load on both motors (equal "
+        "coefficients on both sides) is no asymmetry: a load the catalogue does not have");
   }
   // A catalogue term that an out-of-catalogue term predicts better is not forced onto the
   // catalogue (issue 16 item 3): selected again without it; the unmodeled search describes it.
@@ -1935,6 +1960,7 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
     alpha_b = selectionRule(opt, cands.size()).level();
     sel = forwardSelect(sd, cands, opt);
   }
+  sel.log.insert(sel.log.end(), symmetric.begin(), symmetric.end());
   sel.log.insert(sel.log.end(), superseded.begin(), superseded.end());
   return sel;
 }

@@ -248,6 +248,20 @@ TEST(UnmodeledPhysics, MujocoQuadraticDragOnBothMotorsIsNoMotorAsymmetry) {
   EXPECT_GT(c["physical"]["value"].get<double>(), 0);  // a drag: opposing the motion
 }
 
+TEST(UnmodeledPhysics, MujocoViscousDragAcceptedOnOneMotorIsNoMotorAsymmetry) {
+  // A viscous drag is +8 % viscous friction on both motors at the drive's speed. The forward
+  // selection accepted the left motor's asymmetry (1.081) and rejected the right's on its
+  // held-out check, so the rule for both sides accepted did not apply: fitted beside the left,
+  // the right motor's column takes the same coefficient, and the asymmetry is not named.
+  const auto j =
+      diagnoseWith("forward_viscous_drag:c_N_s_m=3.041", 699374, "square --engine mujoco");
+  expectNoCatalogueName(j, {"motor_asymmetry"});
+  bool said = false;
+  for (const auto& l : j["channels"]["current_left"]["rejected_candidates"])
+    said |= l.get<std::string>().rfind("motor_asymmetry: not named, the same", 0) == 0;
+  EXPECT_TRUE(said) << j["channels"]["current_left"]["rejected_candidates"].dump();
+}
+
 TEST(UnmodeledPhysics, MujocoCleanDriveHasNoCastorTerm) {
   // The same drive without the friction: free castors swivel too, but cost nothing.
   const auto j = diagnoseWith("", 673968, "square --engine mujoco");
