@@ -32,8 +32,12 @@
 // the engine's own castor friction, tyre scrub, rolling resistance, soft tyre, low grip); the
 // diagnosis does not know these names. Scored: flagged, located (a reported unmodeled term on
 // the effect's channel) and described (with the effect's dependence class), against the
-// truth the generator states (unknownEffectTruth).
+// truth the generator states (unknownEffectTruth). --case with one such effect (the MuJoCo
+// engine's own too) adds its `unknown_score`. --unknown-only: the catalogue and clean
+// drives of the same command are drawn (same random stream) but not run, so the unknown drives
+// are those of the full command, in a fraction of its time.
 #include "libwheelchair/diagnosis/Campaign.h"
+#include "libwheelchair/simulation/MujocoEngine.h"
 #include "libwheelchair/simulation/UnknownEffects.h"
 
 #include <fmt/format.h>
@@ -49,8 +53,8 @@ int main(int argc, char** argv) {
   std::string cfg_path, json_path;
   double check_named_rate = -1, check_described_rate = -1;
   int check_false_alarms = -1;
-  std::string one_case;  // --case SCENARIO:SEED
-  std::vector<effects::EffectSpec> one_effects;
+  std::string one_case;                  // --case SCENARIO:SEED
+  std::vector<std::string> one_effects;  // --effect texts, parsed for --engine below
   for (int i = 1; i < argc; ++i) {
     std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -65,6 +69,8 @@ int main(int argc, char** argv) {
       o.triple_runs = std::stoi(next());
     else if (a == "--unknown")
       o.unknown_runs = std::stoi(next());
+    else if (a == "--unknown-only")
+      o.unknown_only = true;
     else if (a == "--engine")
       o.engine = next();
     else if (a == "--check-named-rate")
@@ -82,7 +88,7 @@ int main(int argc, char** argv) {
     else if (a == "--case")
       one_case = next();
     else if (a == "--effect")
-      one_effects.push_back(effects::parseValidEffect(next()));
+      one_effects.push_back(next());
     else if (a == "--config")
       cfg_path = next();
     else if (a == "--json")
@@ -97,7 +103,7 @@ int main(int argc, char** argv) {
     else {
       std::cerr
           << "usage: discovery_campaign [--runs N] [--pairs N] [--triples N] "
-             "[--clean N] [--unknown N] [--seed S] [--duration S] [--effects a,b] "
+             "[--clean N] [--unknown N] [--unknown-only] [--seed S] [--duration S] [--effects a,b] "
              "[--scenarios a,b] [--engine model|mujoco] [--config F] [--json OUT] "
              "[--check-named-rate R] [--check-false-alarms N] [--check-described-rate R] [-v]\n"
              "       discovery_campaign --case SCENARIO:SEED [--effect SPEC ...] [--engine E]\n";
@@ -125,9 +131,22 @@ int main(int argc, char** argv) {
     }
     const std::string sc = one_case.substr(0, colon);
     const uint64_t seed = std::stoull(one_case.substr(colon + 1));
-    const auto c = diagnosis::runCase(cfg, sc, seed, o.duration_s, one_effects, dopt, o.engine);
+    // The engine's own effects (castor_friction, tyre_scrub, ...) and those outside the
+    // catalogue are valid here too, as in the campaign's `truth`.
+    std::vector<effects::EffectSpec> es;
+    try {
+      for (const auto& t : one_effects) es.push_back(simulation::parseEngineEffect(t, o.engine));
+    } catch (const std::invalid_argument& e) {
+      std::cerr << "discovery_campaign: --effect: " << e.what() << "\n";
+      return 1;
+    }
+    const auto c = diagnosis::runCase(cfg, sc, seed, o.duration_s, es, dopt, o.engine);
     nlohmann::json j = c.toJson();
     j["scenario"] = sc, j["seed"] = seed;
+    if (es.size() == 1) try {  // one effect outside the catalogue: scored as the campaign does
+        j["unknown_score"] = diagnosis::unknownEffectScore(es, c.findings, o.engine);
+      } catch (const std::invalid_argument&) {  // a catalogue effect: no such score
+      }
     std::cout << j.dump(1) << "\n";
     return 0;
   }

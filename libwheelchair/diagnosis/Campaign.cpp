@@ -608,6 +608,7 @@ nlohmann::json cleanRuns(CampaignContext& x) {
   for (int k = 0; k < opt.clean_runs; ++k) {
     std::string sc = pickScenario();
     uint64_t seed = rng() % 1000000;
+    if (opt.unknown_only) continue;  // drawn, not run
     CaseResult c = runCase(cfg, sc, seed, opt.duration_s, {}, dopt, opt.engine);
     log(sc, c);
     ++n, alarms += !c.correct, named_alarms += !c.named_correct;
@@ -707,6 +708,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       auto e = randomEffect(id, rng);
       std::string sc = pickScenario();
       uint64_t seed = rng();
+      if (opt.unknown_only) continue;  // drawn, not run
       CaseResult c = runCase(cfg, sc, seed % 1000000, opt.duration_s, {e}, dopt, opt.engine);
       log(sc, c);
       ++n, ok += c.correct, named += c.named_correct, eng += c.engine_correct;
@@ -745,6 +747,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       for (std::size_t a : idx) es.push_back(randomEffect(opt.effects[a], rng));
       const std::string sc = pickScenario();
       const uint64_t seed = rng() % 1000000;
+      if (opt.unknown_only) continue;  // drawn, not run
       const CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
       log(sc, c);
       ++n, ok += c.correct, named += c.named_correct, eng += c.engine_correct;

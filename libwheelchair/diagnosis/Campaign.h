@@ -44,6 +44,9 @@ struct CampaignOptions {
   /// the catalogue names the diagnosis used for them.
   int unknown_runs = 0;
   std::function<std::vector<effects::EffectSpec>(std::mt19937_64&)> unknown_effects;
+  /// Run only the `unknown` drives: the catalogue and clean drives are drawn from the random
+  /// stream as before (so the unknown drives are the same as in the full command) but not run.
+  bool unknown_only = false;
 };
 
 /// A concealed effect with a random SMALL magnitude (docs/discovery.md lists the ranges).

@@ -1387,23 +1387,50 @@ void addFrictionShape(Finding& friction, const SparseResult& shape, const std::s
                           " A (the shape of the friction law, e.g. stiction; not a new effect).";
 }
 
+/// Whether two motors' coefficients b (1-sigma sd) are one: the same sign and equal within 10 %
+/// of the larger or 3 sigma of the difference.
+bool equalOnBothMotors(const double b[2], const double sd[2]) {
+  if (b[0] * b[1] <= 0) return false;
+  const double diff = std::abs(b[0] - b[1]);
+  return diff <= 0.1 * std::max(std::abs(b[0]), std::abs(b[1])) ||
+         diff <= 3 * std::hypot(sd[0], sd[1]);
+}
+
 /// Whether the selection accepted a motor asymmetry on BOTH sides with equal coefficients
-/// (within 10 % of the larger, or 3 sigma): the same extra viscous friction on both motors.
-bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cands) {
+/// (equalOnBothMotors): the same extra viscous friction on both motors. Accepted on ONE side
+/// (the other's held-out check failed, e.g. on the held-out rows' other physics): the other
+/// side's column is fitted beside the accepted design (df's fit rows) and compared so (MuJoCo
+/// seed 7 square 699374, a viscous drag, was named a left motor asymmetry 1.081).
+bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cands,
+                        const DynRows& df, int lags) {
   double b[2] = {0, 0}, sd[2] = {0, 0};
-  int found = 0;
+  int found = 0, side_found = -1;
   for (std::size_t a = 0; a < sel.accepted.size(); ++a) {
     const std::string& n = cands[sel.accepted[a]].name;
     const int side = n == "motor_asymmetry/right" ? 0 : (n == "motor_asymmetry/left" ? 1 : -1);
     if (side < 0) continue;
     const int i = sel.ranges[a].first;
     b[side] = sel.fit.beta(i), sd[side] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
-    ++found;
+    ++found, side_found = side;
   }
-  if (found < 2 || b[0] * b[1] <= 0) return false;
-  const double diff = std::abs(b[0] - b[1]);
-  return diff <= 0.1 * std::max(std::abs(b[0]), std::abs(b[1])) ||
-         diff <= 3 * std::hypot(sd[0], sd[1]);
+  if (found == 2) return equalOnBothMotors(b, sd);
+  if (found != 1) return false;
+  const int other =
+      candidateIndex(cands, side_found == 0 ? "motor_asymmetry/left" : "motor_asymmetry/right");
+  if (other < 0) return false;
+  const Eigen::MatrixXd D = acceptedDesign(df.design(), cands, sel.accepted);
+  const Eigen::Index k = D.cols();
+  Eigen::MatrixXd X(D.rows(), k + 1);
+  X << D, df.design().times(cands[other].S.col(0));
+  const LinearFit f = fitLinear(X, df.y, df.groups, lags);
+  if (!f.ok) return false;
+  int i_found = -1;
+  for (std::size_t a = 0; a < sel.accepted.size(); ++a)
+    if (cands[sel.accepted[a]].effect == "motor_asymmetry") i_found = sel.ranges[a].first;
+  b[side_found] = f.beta(i_found),
+  sd[side_found] = std::sqrt(std::max(0.0, f.cov(i_found, i_found)));
+  b[1 - side_found] = f.beta(k), sd[1 - side_found] = std::sqrt(std::max(0.0, f.cov(k, k)));
+  return equalOnBothMotors(b, sd);
 }
 
 /// The terms of motor `ch`'s sparse fit that are reported as `unmodeled`: a friction finding
@@ -1712,13 +1739,43 @@ std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candid
   return out;
 }
 
+/// Whether both motors' asymmetry columns are spare (neither accepted) and, fitted together
+/// beside the accepted design Df on the fit rows, take equal coefficients (equalOnBothMotors,
+/// the rule symmetricAsymmetry applies in the forward selection).
+bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
+                             const std::vector<SpareTerm>& spare, const Eigen::MatrixXd& Df,
+                             const DynRows& df2, int lags) {
+  int side_cand[2] = {-1, -1};  // right, left
+  for (const SpareTerm& sp : spare) {
+    const std::string& n = cands[sp.cand].name;
+    if (n == "motor_asymmetry/right") side_cand[0] = sp.cand;
+    if (n == "motor_asymmetry/left") side_cand[1] = sp.cand;
+  }
+  if (side_cand[0] < 0 || side_cand[1] < 0) return false;
+  const Eigen::Index k = Df.cols();
+  Eigen::MatrixXd X(Df.rows(), k + 2);
+  X.leftCols(k) = Df;
+  for (int s2 = 0; s2 < 2; ++s2) X.col(k + s2) = df2.design().times(cands[side_cand[s2]].S.col(0));
+  const LinearFit f = fitLinear(X, df2.y, df2.groups, lags);
+  if (!f.ok) return false;
+  const double b[2] = {f.beta(k), f.beta(k + 1)};
+  const double sd[2] = {std::sqrt(std::max(0.0, f.cov(k, k))),
+                        std::sqrt(std::max(0.0, f.cov(k + 1, k + 1)))};
+  return equalOnBothMotors(b, sd);
+}
+
 /// A catalogue term rejected by the forward selection (typically by its held-out check, the
 /// held-out residual being dominated by physics the catalogue lacks) that the out-of-catalogue
 /// terms found then describe in full (its column nearly in their span, inSpan: e.g. `v` and
 /// `omega` on the left motor in the ratio of u_L = v - omega l_w / 2, a left motor asymmetry)
 /// is that catalogue term: it is added to the accepted set (its evidence the fit-data
 /// likelihood ratio against the accepted terms) and the joint fit repeated, where
-/// failingAfterJointFit still tests it. true if a term was added.
+/// failingAfterJointFit still tests it. A motor asymmetry is not so added when the other
+/// motor's asymmetry column, fitted beside it, takes an equal coefficient
+/// (symmetricSpareAsymmetry): the same extra speed-dependent load on both motors is a load
+/// along the heading (a drag), not an asymmetry, and the out-of-catalogue terms describe it
+/// (MuJoCo 31337: quadratic drags 640403 and 220317 were named motor asymmetries). true if a
+/// term was added.
 bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
                      const std::vector<SpareTerm>& spare,
                      const std::array<SparseResult, 2>& unmodeled, Eigen::MatrixXd& Df,
@@ -1737,8 +1794,10 @@ bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
   for (size_t k = 0; k < u.size(); ++k) U.col(k) = u[k];
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrU(U);
   bool added = false;
+  const bool symmetric_load = symmetricSpareAsymmetry(cands, spare, Df, df2, lags);
   for (const SpareTerm& sp : spare) {
     const Candidate& c = cands[sp.cand];
+    if (symmetric_load && c.effect == "motor_asymmetry") continue;
     bool conflict = false;
     for (int a : sel.accepted)
       for (const auto& n : c.conflicts) conflict = conflict || cands[a].name == n;
@@ -1898,7 +1957,8 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
                           int lags, const DiagnosisOptions& opt, double& alpha_b,
                           std::vector<SupersededTerm>& gone) {
   Selection sel = forwardSelect(sd, cands, opt);
-  if (symmetricAsymmetry(sel, cands)) {
+  std::vector<std::string> symmetric;
+  if (symmetricAsymmetry(sel, cands, df, lags)) {
     // Both motors' viscous friction up by the same amount is no asymmetry: it is a load the
     // catalogue does not have (e.g. a drag proportional to speed). Not forced onto the
     // catalogue name: selected again without it, so the unmodeled terms describe it.
@@ -1908,6 +1968,9 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
     cands = rest;
     alpha_b = selectionRule(opt, cands.size()).level();
     sel = forwardSelect(sd, cands, opt);
+    symmetric.push_back(
+        "motor_asymmetry: not named, the same extra viscous load on both motors (equal "
+        "coefficients on both sides) is no asymmetry: a load the catalogue does not have");
   }
   // A catalogue term that an out-of-catalogue term predicts better is not forced onto the
   // catalogue (issue 16 item 3): selected again without it; the unmodeled search describes it.
@@ -1924,6 +1987,7 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
     alpha_b = selectionRule(opt, cands.size()).level();
     sel = forwardSelect(sd, cands, opt);
   }
+  sel.log.insert(sel.log.end(), symmetric.begin(), symmetric.end());
   sel.log.insert(sel.log.end(), superseded.begin(), superseded.end());
   return sel;
 }

@@ -100,8 +100,9 @@ std::string loadReading(const std::string& channel, const std::string& dep, cons
   if (dep == "castor_swivel")
     return fmt::format(
         "{} while the castors swivel round (at the start of a turn, when it reverses or "
-        "tightens), acting through the castors' lever: a swivel friction of {} (dry friction "
-        "in the castor swivels, or castors that drag sideways before they align)",
+        "tightens), acting through the castors' lever: a swivel friction of {} (whatever "
+        "resists the castors turning round: dry friction in their swivels, torsional scrub of "
+        "their tyres' contact patches, or castors that drag sideways before they align)",
         q, num);
   if (dep == "acceleration")
     return fmt::format("inertia the model lacks: {} ({})", num,

@@ -3,6 +3,7 @@
 #include "libwheelchair/diagnosis/KinematicCalibration.h"
 #include "libwheelchair/simulation/MujocoTruth.h"
 #include "libwheelchair/simulation/Simulator.h"
+#include "libwheelchair/simulation/UnknownEffects.h"
 
 #include <gtest/gtest.h>
 
@@ -287,4 +288,44 @@ TEST(DiagnoseCampaign, DISABLED_Explore) {
   auto res = diagnosis::runCampaign(cfg, o, d);
   res.erase("cases");
   std::cout << res.dump(1) << "\n";
+}
+
+// `--unknown-only` (CampaignOptions::unknown_only): the catalogue and clean drives are drawn
+// from the random stream but not run, so the unknown drives and their scores are exactly those
+// of the full command (docs/discovery.md measures the out-of-catalogue rows this way).
+TEST(DiagnoseCampaign, UnknownOnlyRunsTheFullCommandsUnknownDrives) {
+  const config::WheelchairConfig cfg;
+  diagnosis::CampaignOptions o;
+  o.seed = 2024;
+  o.runs_per_effect = 1;
+  o.pair_runs = 1;
+  o.triple_runs = 0;
+  o.clean_runs = 1;
+  o.unknown_runs = 2;
+  o.effects = {"gyro_bias", "payload_mass"};
+  o.unknown_effects = [](std::mt19937_64& rng) {
+    return std::vector<effects::EffectSpec>{simulation::randomUnknownEffect("model", rng)};
+  };
+  const diagnosis::DiagnosisOptions d;
+  const nlohmann::json full = diagnosis::runCampaign(cfg, o, d);
+  o.unknown_only = true;
+  const nlohmann::json only = diagnosis::runCampaign(cfg, o, d);
+  auto unknownCases = [](const nlohmann::json& r) {
+    nlohmann::json u = nlohmann::json::array();
+    for (const auto& c : r["cases"])
+      if (c["kind"] == "unknown") u.push_back(c);
+    return u;
+  };
+  const nlohmann::json uf = unknownCases(full), uo = unknownCases(only);
+  EXPECT_EQ(full["cases"].size(), 2u + 1u + 1u + 2u);  // singles, pair, clean, unknown
+  EXPECT_EQ(only["cases"].size(), 2u);                 // only the unknown drives ran
+  ASSERT_EQ(uf.size(), 2u);
+  ASSERT_EQ(uo.size(), 2u);
+  for (std::size_t k = 0; k < uf.size(); ++k) {
+    EXPECT_EQ(uf[k]["scenario"], uo[k]["scenario"]);
+    EXPECT_EQ(uf[k]["seed"], uo[k]["seed"]);
+    EXPECT_EQ(uf[k]["truth"], uo[k]["truth"]);
+    EXPECT_EQ(uf[k]["unknown_score"], uo[k]["unknown_score"]);
+  }
+  EXPECT_EQ(full["unknown"]["described"], only["unknown"]["described"]);
 }

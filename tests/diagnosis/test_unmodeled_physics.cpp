@@ -233,6 +233,35 @@ TEST(UnmodeledPhysics, MujocoCastorFrictionIsAYawMomentWhileTheCastorsSwivel) {
   expectNoCatalogueName(j, {"coulomb_friction", "motor_asymmetry", "sensor_delay"});
 }
 
+TEST(UnmodeledPhysics, MujocoQuadraticDragOnBothMotorsIsNoMotorAsymmetry) {
+  // A drag along the heading loads both motors alike. The forward selection rejected both
+  // motor asymmetries; the out-of-catalogue terms then spanned the right motor's u_R and
+  // addSpannedTerms named `motor_asymmetry` right 1.086, although the left motor's asymmetry
+  // column, fitted beside it, takes the same coefficient: an equal extra load on both motors is
+  // no asymmetry (symmetricSpareAsymmetry). The drag is described instead.
+  const std::string e = "forward_quadratic_drag:c_N_s2_m2=5.135";
+  const auto j = diagnoseWith(e, 220317, "excite --duration 90 --engine mujoco");
+  expectNoCatalogueName(j, {"motor_asymmetry", "coulomb_friction"});
+  const auto c = componentFor(j, e);
+  ASSERT_FALSE(c.is_null()) << j["findings"].dump();
+  EXPECT_EQ(c["term"], "v*|v|");
+  EXPECT_GT(c["physical"]["value"].get<double>(), 0);  // a drag: opposing the motion
+}
+
+TEST(UnmodeledPhysics, MujocoViscousDragAcceptedOnOneMotorIsNoMotorAsymmetry) {
+  // A viscous drag is +8 % viscous friction on both motors at the drive's speed. The forward
+  // selection accepted the left motor's asymmetry (1.081) and rejected the right's on its
+  // held-out check, so the rule for both sides accepted did not apply: fitted beside the left,
+  // the right motor's column takes the same coefficient, and the asymmetry is not named.
+  const auto j =
+      diagnoseWith("forward_viscous_drag:c_N_s_m=3.041", 699374, "square --engine mujoco");
+  expectNoCatalogueName(j, {"motor_asymmetry"});
+  bool said = false;
+  for (const auto& l : j["channels"]["current_left"]["rejected_candidates"])
+    said |= l.get<std::string>().rfind("motor_asymmetry: not named, the same", 0) == 0;
+  EXPECT_TRUE(said) << j["channels"]["current_left"]["rejected_candidates"].dump();
+}
+
 TEST(UnmodeledPhysics, MujocoCleanDriveHasNoCastorTerm) {
   // The same drive without the friction: free castors swivel too, but cost nothing.
   const auto j = diagnoseWith("", 673968, "square --engine mujoco");
