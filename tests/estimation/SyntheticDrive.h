@@ -39,6 +39,11 @@ struct SynthOptions {
   double encoder_extra_noise_m_s = 0.005;  ///< 1 sigma of the interval mean at 50 Hz, per wheel
   double left_encoder_scale = 1.0;         ///< fault: left ticks scaled
   double right_encoder_scale = 1.0;        ///< right ticks scaled (a rolling-radius error)
+  /// A slowly varying yaw-acceleration error of the model (rad/s^2, amplitude) while moving:
+  /// omegadot += a sin(0.23 t + yaw_error_phase), the kind of sustained yaw moment (6) leaves
+  /// out (one gearbox stiffer, the centre of mass ahead of the axle); 0 = none.
+  double yaw_accel_error_rad_s2 = 0.0;
+  double yaw_error_phase = 0.0;
   Eigen::Vector2d obstacle_world{3.0, 0.6};
   bool sonar_cone = false;           ///< only see the obstacle inside the 15 deg cone
   std::set<int> forced_sonar_zeros;  ///< indices of sonar samples that read 0
@@ -189,7 +194,9 @@ inline SynthRun synthesize(const config::WheelchairConfig& cfg, const SynthOptio
     const bool moving = tr >= o.start_pause_s;
     const double v1 = v + dt * (a.a3 * v + a.a1 * (im(0) + im(1))) +
                       (moving ? std::sqrt(o.q_v * dt) * N01(rng) : 0.0);
-    const double om1 = om + dt * (a.a4 * om + a.a2 * (im(0) - im(1))) +
+    const double yaw_err =
+        moving ? o.yaw_accel_error_rad_s2 * std::sin(0.23 * tr + o.yaw_error_phase) : 0.0;
+    const double om1 = om + dt * (a.a4 * om + a.a2 * (im(0) - im(1)) + yaw_err) +
                        (moving ? std::sqrt(o.q_omega * dt) * N01(rng) : 0.0);
     const double vm = 0.5 * (v + v1), omm = 0.5 * (om + om1);
     pose = model::integratePoseArc(pose, vm, omm, dt);
