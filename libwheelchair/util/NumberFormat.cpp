@@ -103,16 +103,18 @@ char* writeShortest(char* p, double x) {
   const auto dec = fmt::detail::dragonbox::to_decimal(x);
   const std::uint64_t sig = dec.significand;
   const int n = countDigits(sig);
-  const int exp10 = dec.exponent;       // x = sig * 10^exp10
-  const int out_exp = exp10 + n - 1;    // exponent of the first digit
+  const int exp10 = dec.exponent;     // x = sig * 10^exp10
+  const int out_exp = exp10 + n - 1;  // exponent of the first digit
+  // The digits are written one place to the right and the leading ones moved left by one
+  // to make room for the point (no variable-length copies: they were library calls).
   if (out_exp < -4 || out_exp >= 16) {  // d[.ddd]e+XX
-    char digits[24];
-    writeDigits(digits, sig, n);
-    *p++ = digits[0];
+    writeDigits(p + 1, sig, n);
+    p[0] = p[1];
     if (n > 1) {
-      *p++ = '.';
-      std::memcpy(p, digits + 1, static_cast<std::size_t>(n - 1));
-      p += n - 1;
+      p[1] = '.';
+      p += n + 1;
+    } else {
+      p += 1;
     }
     *p++ = 'e';
     int e = out_exp;
@@ -136,14 +138,11 @@ char* writeShortest(char* p, double x) {
     return p + exp10;
   }
   const int int_digits = n + exp10;
-  if (int_digits > 0) {  // dd.ddd
-    char digits[24];
-    writeDigits(digits, sig, n);
-    std::memcpy(p, digits, static_cast<std::size_t>(int_digits));
-    p += int_digits;
-    *p++ = '.';
-    std::memcpy(p, digits + int_digits, static_cast<std::size_t>(n - int_digits));
-    return p + (n - int_digits);
+  if (int_digits > 0) {  // dd.ddd (int_digits < n <= 17)
+    writeDigits(p + 1, sig, n);
+    for (int i = 0; i < int_digits; ++i) p[i] = p[i + 1];
+    p[int_digits] = '.';
+    return p + n + 1;
   }
   *p++ = '0';  // 0.000ddd
   *p++ = '.';
