@@ -3,6 +3,7 @@
 #include <fmt/compile.h>
 #include <fmt/format.h>
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 
@@ -89,21 +90,10 @@ char* viaFmt(char* p, double x) {
   return fmt::format_to(p, FMT_COMPILE("{}"), x);
 }
 
-}  // namespace
-
-char* writeShortest(char* p, double x) {
-#if WHEELCHAIR_FAST_DOUBLE_TEXT
-  std::uint64_t bits;
-  std::memcpy(&bits, &x, sizeof bits);
-  if ((bits & kExponentMask) == kExponentMask) return viaFmt(p, x);  // nan, inf
-  if (bits >> 63) {
-    *p++ = '-';
-    x = -x;
-  }
-  const auto dec = fmt::detail::dragonbox::to_decimal(x);
-  const std::uint64_t sig = dec.significand;
+/// x = sig 10^exp10 (sig > 0, the sign already written) in fmt's "{}" layout: fixed notation
+/// when the exponent of the first digit is in [-4, 16), d[.ddd]e+XX otherwise.
+char* writeDecimal(char* p, std::uint64_t sig, int exp10) {
   const int n = countDigits(sig);
-  const int exp10 = dec.exponent;     // x = sig * 10^exp10
   const int out_exp = exp10 + n - 1;  // exponent of the first digit
   // The digits are written one place to the right and the leading ones moved left by one
   // to make room for the point (no variable-length copies: they were library calls).
@@ -150,9 +140,149 @@ char* writeShortest(char* p, double x) {
   p += -int_digits;
   writeDigits(p, sig, n);
   return p + n;
+}
+
+/// sig 10^exp10 with the trailing zeros of sig moved into the exponent (sig > 0).
+inline void dropTrailingZeros(std::uint64_t& sig, int& exp10) {
+  while (sig % 100 == 0) {
+    sig /= 100;
+    exp10 += 2;
+  }
+  if (sig % 10 == 0) {
+    sig /= 10;
+    ++exp10;
+  }
+}
+
+/// |x| rounded to 10 significant digits by fmt's "{:.9e}" (exact decimal conversion), as
+/// q 10^exp10 with 10^9 <= q < 10^10. The fallback of write10Significant.
+void round10ViaFmt(double x, std::uint64_t& q, int& exp10) {
+  char buf[40];
+  const char* end = fmt::format_to(buf, FMT_COMPILE("{:.9e}"), std::fabs(x));
+  // "d.ddddddddde[+-]XX[X]"
+  q = static_cast<std::uint64_t>(buf[0] - '0');
+  for (int i = 2; i < 11; ++i) q = q * 10 + static_cast<std::uint64_t>(buf[i] - '0');
+  int e = 0;
+  for (const char* c = buf + 13; c < end; ++c) e = e * 10 + (*c - '0');
+  exp10 = (buf[12] == '-' ? -e : e) - 9;
+}
+
+}  // namespace
+
+char* writeShortest(char* p, double x) {
+#if WHEELCHAIR_FAST_DOUBLE_TEXT
+  std::uint64_t bits;
+  std::memcpy(&bits, &x, sizeof bits);
+  if ((bits & kExponentMask) == kExponentMask) return viaFmt(p, x);  // nan, inf
+  if (bits >> 63) {
+    *p++ = '-';
+    x = -x;
+  }
+  const auto dec = fmt::detail::dragonbox::to_decimal(x);
+  return writeDecimal(p, dec.significand, dec.exponent);
 #else
   return viaFmt(p, x);
 #endif
+}
+
+char* write10Significant(char* p, double x) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &x, sizeof bits);
+  if ((bits & kExponentMask) == kExponentMask) return viaFmt(p, x);  // nan, inf
+  // |x| >= 2^1023: 10 digits may round above the largest double (reads back as inf).
+  if ((bits & kExponentMask) == 0x7fe0000000000000ULL) return writeShortest(p, x);
+  if (bits >> 63) *p++ = '-';
+  const int biased = static_cast<int>((bits >> 52) & 0x7ff);
+  const std::uint64_t m = bits & 0x000fffffffffffffULL;
+  if (biased == 0 && m == 0) {  // +-0
+    *p++ = '0';
+    return p;
+  }
+  std::uint64_t q = 0;
+  int exp10 = 0;
+  if (biased == 0) {  // subnormal: not a filter's value
+    round10ViaFmt(x, q, exp10);
+  } else {
+    // |x| = M 2^e2 exactly, M = 2^52 + m, and 10^e <= |x| < 10^(e + 1) for e = floor(log10 |x|):
+    // estimated from the binary exponent (log10 2 ~ 78913 / 2^18), corrected by comparing the
+    // result with 10^10 below.
+    using u128 = unsigned __int128;
+    const std::uint64_t M = m | (1ULL << 52);
+    const int e2 = biased - 1075;
+    int e = ((biased - 1023) * 78913) >> 18;  // floor(log10 2^(biased - 1023)): e or e - 1
+    // q = round(|x| 10^k), k = 9 - e, half to even on the exact binary value.
+    static constexpr std::uint64_t kPow5[28] = {
+        1ULL,
+        5ULL,
+        25ULL,
+        125ULL,
+        625ULL,
+        3125ULL,
+        15625ULL,
+        78125ULL,
+        390625ULL,
+        1953125ULL,
+        9765625ULL,
+        48828125ULL,
+        244140625ULL,
+        1220703125ULL,
+        6103515625ULL,
+        30517578125ULL,
+        152587890625ULL,
+        762939453125ULL,
+        3814697265625ULL,
+        19073486328125ULL,
+        95367431640625ULL,
+        476837158203125ULL,
+        2384185791015625ULL,
+        11920928955078125ULL,
+        59604644775390625ULL,
+        298023223876953125ULL,
+        1490116119384765625ULL,
+        7450580596923828125ULL};
+    // round(v / d) half to even (d > 0); only for |x| >= 10^10.
+    const auto roundDiv = [](u128 v, u128 d) -> std::uint64_t {
+      const u128 quo = v / d, rest = v % d;
+      auto r = static_cast<std::uint64_t>(quo);
+      if (2 * rest > d || (2 * rest == d && (r & 1))) ++r;
+      return r;
+    };
+    bool fast = true;
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      const int k = 9 - e;
+      if (k >= 0 && k <= 27) {  // |x| 10^k = M 5^k 2^(e2 + k), M 5^k < 2^116, e2 + k < 0
+        const int s = -(e2 + k);  // 19 <= s <= ~85 for the k of this branch
+        const u128 v = static_cast<u128>(M) * kPow5[k];
+        if (s > 0 && s < 127) {  // round(v / 2^s), half to even
+          const u128 rest = v & ((static_cast<u128>(1) << s) - 1);
+          const u128 half = static_cast<u128>(1) << (s - 1);
+          q = static_cast<std::uint64_t>(v >> s);
+          if (rest > half || (rest == half && (q & 1))) ++q;
+        } else {
+          q = 0;  // (not reached) to the fallback
+        }
+      } else if (k < 0 && k >= -19 && e2 <= 127 - 53) {  // |x| / 10^-k, 10^10 <= |x| < 2^127
+        std::uint64_t p10 = 1;
+        for (int i = 0; i < -k; ++i) p10 *= 10;  // 10^19 < 2^64
+        q = e2 >= 0 ? roundDiv(static_cast<u128>(M) << e2, p10)
+                    : roundDiv(M, static_cast<u128>(p10) << -e2);
+      } else {
+        fast = false;
+        break;
+      }
+      exp10 = -k;
+      if (q < 10000000000ULL) break;
+      if (q == 10000000000ULL) {  // rounded up to 10^10 = 1.000000000 10^(e + 1)
+        q = 1000000000ULL;
+        exp10 = -k + 1;
+        break;
+      }
+      ++e;  // the estimate of e was one too low: round again at one digit less
+    }
+    if (!fast || q < 1000000000ULL || q > 10000000000ULL) round10ViaFmt(x, q, exp10);
+  }
+  dropTrailingZeros(q, exp10);
+  return writeDecimal(p, q, exp10);
 }
 
 char* writeFixed6(char* p, double x) {
