@@ -142,16 +142,59 @@ char* writeDecimal(char* p, std::uint64_t sig, int exp10) {
   return p + n;
 }
 
-/// sig 10^exp10 with the trailing zeros of sig moved into the exponent (sig > 0).
-inline void dropTrailingZeros(std::uint64_t& sig, int& exp10) {
-  while (sig % 100 == 0) {
-    sig /= 100;
-    exp10 += 2;
+/// q 10^exp10 (10^9 <= q < 10^10, the sign already written) with q's trailing zeros dropped,
+/// in writeDecimal's layout. The digits go through a local buffer and fixed 16-byte copies
+/// (no variable-length library calls): it writes up to kMaxDoubleChars characters at p,
+/// beyond the returned end too.
+char* writeTenDigits(char* p, std::uint64_t q, int exp10) {
+  // Furthest byte written: sign, up to 11 characters before the last copy, 16 copied.
+  static_assert(kMaxDoubleChars >= 1 + 11 + 16, "room for the fixed-size copies");
+  char d[32] = {};
+  std::memcpy(d, &kDigits2.d[(q / 100000000) * 2], 2);  // 10..99
+  writeDigits8(d + 2, static_cast<std::uint32_t>(q % 100000000));
+  int n = 10;
+  while (d[n - 1] == '0') --n;  // d[0] != '0'
+  const int out_exp = exp10 + 9;  // exponent of the first digit
+  if (out_exp < -4 || out_exp >= 16) {  // d[.ddd]e+XX
+    p[0] = d[0];
+    if (n > 1) {
+      p[1] = '.';
+      std::memcpy(p + 2, d + 1, 16);
+      p += n + 1;
+    } else {
+      p += 1;
+    }
+    *p++ = 'e';
+    int e = out_exp;
+    if (e < 0) {
+      *p++ = '-';
+      e = -e;
+    } else {
+      *p++ = '+';
+    }
+    if (e >= 100) {
+      *p++ = static_cast<char>('0' + e / 100);
+      e %= 100;
+    }
+    std::memcpy(p, &kDigits2.d[e * 2], 2);
+    return p + 2;
   }
-  if (sig % 10 == 0) {
-    sig /= 10;
-    ++exp10;
+  if (out_exp >= n - 1) {  // ddd000 (out_exp <= 15)
+    std::memcpy(p, d, 16);
+    std::memset(p + n, '0', 16);
+    return p + out_exp + 1;
   }
+  if (out_exp >= 0) {  // dd.ddd
+    const int int_digits = out_exp + 1;
+    std::memcpy(p, d, 16);
+    p[int_digits] = '.';
+    std::memcpy(p + int_digits + 1, d + int_digits, 16);
+    return p + n + 1;
+  }
+  std::memcpy(p, "0.000", 6);  // 0.000ddd (-4 <= out_exp < 0)
+  p += 1 - out_exp;
+  std::memcpy(p, d, 16);
+  return p + n;
 }
 
 /// |x| rounded to 10 significant digits by fmt's "{:.9e}" (exact decimal conversion), as
@@ -281,8 +324,7 @@ char* write10Significant(char* p, double x) {
     }
     if (!fast || q < 1000000000ULL || q > 10000000000ULL) round10ViaFmt(x, q, exp10);
   }
-  dropTrailingZeros(q, exp10);
-  return writeDecimal(p, q, exp10);
+  return writeTenDigits(p, q, exp10);
 }
 
 char* writeFixed6(char* p, double x) {
