@@ -153,8 +153,8 @@ char* writeTenDigits(char* p, std::uint64_t q, int exp10) {
   std::memcpy(d, &kDigits2.d[(q / 100000000) * 2], 2);  // 10..99
   writeDigits8(d + 2, static_cast<std::uint32_t>(q % 100000000));
   int n = 10;
-  while (d[n - 1] == '0') --n;  // d[0] != '0'
-  const int out_exp = exp10 + 9;  // exponent of the first digit
+  while (d[n - 1] == '0') --n;          // d[0] != '0'
+  const int out_exp = exp10 + 9;        // exponent of the first digit
   if (out_exp < -4 || out_exp >= 16) {  // d[.ddd]e+XX
     p[0] = d[0];
     if (n > 1) {
@@ -210,6 +210,88 @@ void round10ViaFmt(double x, std::uint64_t& q, int& exp10) {
   exp10 = (buf[12] == '-' ? -e : e) - 9;
 }
 
+// 5^k for k <= 27 (5^27 < 2^63).
+constexpr std::uint64_t kPow5[28] = {1ULL,
+                                     5ULL,
+                                     25ULL,
+                                     125ULL,
+                                     625ULL,
+                                     3125ULL,
+                                     15625ULL,
+                                     78125ULL,
+                                     390625ULL,
+                                     1953125ULL,
+                                     9765625ULL,
+                                     48828125ULL,
+                                     244140625ULL,
+                                     1220703125ULL,
+                                     6103515625ULL,
+                                     30517578125ULL,
+                                     152587890625ULL,
+                                     762939453125ULL,
+                                     3814697265625ULL,
+                                     19073486328125ULL,
+                                     95367431640625ULL,
+                                     476837158203125ULL,
+                                     2384185791015625ULL,
+                                     11920928955078125ULL,
+                                     59604644775390625ULL,
+                                     298023223876953125ULL,
+                                     1490116119384765625ULL,
+                                     7450580596923828125ULL};
+
+/// round(|x| 10^(9 - e)) for the normal |x| = M 2^e2 (M = 2^52 + mantissa, biased exponent
+/// `biased`), e = floor(log10 |x|), half to even on the exact binary value, in integer
+/// arithmetic: q 10^exp10 with 10^9 <= q < 10^10. False outside 1e-18 <~ |x| < 1e29 (then
+/// round10ViaFmt).
+bool round10Exact(std::uint64_t M, int biased, std::uint64_t& q, int& exp10) {
+  // |x| = M 2^e2 exactly; e = floor(log10 |x|) is estimated from the binary exponent
+  // (log10 2 ~ 78913 / 2^18) as e or e - 1, corrected by comparing q with 10^10 below.
+  using u128 = unsigned __int128;
+  const int e2 = biased - 1075;
+  int e = ((biased - 1023) * 78913) >> 18;
+  // round(v / d) half to even (d > 0); only for |x| >= 10^10.
+  const auto roundDiv = [](u128 v, u128 d) -> std::uint64_t {
+    const u128 quo = v / d, rest = v % d;
+    auto r = static_cast<std::uint64_t>(quo);
+    if (2 * rest > d || (2 * rest == d && (r & 1))) ++r;
+    return r;
+  };
+  bool fast = true;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    const int k = 9 - e;
+    if (k >= 0 && k <= 27) {    // |x| 10^k = M 5^k 2^(e2 + k), M 5^k < 2^116, e2 + k < 0
+      const int s = -(e2 + k);  // 19 <= s <= ~85 for the k of this branch
+      const u128 v = static_cast<u128>(M) * kPow5[k];
+      if (s > 0 && s < 127) {  // round(v / 2^s), half to even
+        const u128 rest = v & ((static_cast<u128>(1) << s) - 1);
+        const u128 half = static_cast<u128>(1) << (s - 1);
+        q = static_cast<std::uint64_t>(v >> s);
+        if (rest > half || (rest == half && (q & 1))) ++q;
+      } else {
+        q = 0;  // (not reached) to the fallback
+      }
+    } else if (k < 0 && k >= -19 && e2 <= 127 - 53) {  // |x| / 10^-k, 10^10 <= |x| < 2^127
+      std::uint64_t p10 = 1;
+      for (int i = 0; i < -k; ++i) p10 *= 10;  // 10^19 < 2^64
+      q = e2 >= 0 ? roundDiv(static_cast<u128>(M) << e2, p10)
+                  : roundDiv(M, static_cast<u128>(p10) << -e2);
+    } else {
+      fast = false;
+      break;
+    }
+    exp10 = -k;
+    if (q < 10000000000ULL) break;
+    if (q == 10000000000ULL) {  // rounded up to 10^10 = 1.000000000 10^(e + 1)
+      q = 1000000000ULL;
+      exp10 = -k + 1;
+      break;
+    }
+    ++e;  // the estimate of e was one too low: round again at one digit less
+  }
+  return fast && q >= 1000000000ULL && q < 10000000000ULL;
+}
+
 }  // namespace
 
 char* writeShortest(char* p, double x) {
@@ -243,87 +325,8 @@ char* write10Significant(char* p, double x) {
   }
   std::uint64_t q = 0;
   int exp10 = 0;
-  if (biased == 0) {  // subnormal: not a filter's value
-    round10ViaFmt(x, q, exp10);
-  } else {
-    // |x| = M 2^e2 exactly, M = 2^52 + m, and 10^e <= |x| < 10^(e + 1) for e = floor(log10 |x|):
-    // estimated from the binary exponent (log10 2 ~ 78913 / 2^18), corrected by comparing the
-    // result with 10^10 below.
-    using u128 = unsigned __int128;
-    const std::uint64_t M = m | (1ULL << 52);
-    const int e2 = biased - 1075;
-    int e = ((biased - 1023) * 78913) >> 18;  // floor(log10 2^(biased - 1023)): e or e - 1
-    // q = round(|x| 10^k), k = 9 - e, half to even on the exact binary value.
-    static constexpr std::uint64_t kPow5[28] = {
-        1ULL,
-        5ULL,
-        25ULL,
-        125ULL,
-        625ULL,
-        3125ULL,
-        15625ULL,
-        78125ULL,
-        390625ULL,
-        1953125ULL,
-        9765625ULL,
-        48828125ULL,
-        244140625ULL,
-        1220703125ULL,
-        6103515625ULL,
-        30517578125ULL,
-        152587890625ULL,
-        762939453125ULL,
-        3814697265625ULL,
-        19073486328125ULL,
-        95367431640625ULL,
-        476837158203125ULL,
-        2384185791015625ULL,
-        11920928955078125ULL,
-        59604644775390625ULL,
-        298023223876953125ULL,
-        1490116119384765625ULL,
-        7450580596923828125ULL};
-    // round(v / d) half to even (d > 0); only for |x| >= 10^10.
-    const auto roundDiv = [](u128 v, u128 d) -> std::uint64_t {
-      const u128 quo = v / d, rest = v % d;
-      auto r = static_cast<std::uint64_t>(quo);
-      if (2 * rest > d || (2 * rest == d && (r & 1))) ++r;
-      return r;
-    };
-    bool fast = true;
-    for (int attempt = 0; attempt < 2; ++attempt) {
-      const int k = 9 - e;
-      if (k >= 0 && k <= 27) {  // |x| 10^k = M 5^k 2^(e2 + k), M 5^k < 2^116, e2 + k < 0
-        const int s = -(e2 + k);  // 19 <= s <= ~85 for the k of this branch
-        const u128 v = static_cast<u128>(M) * kPow5[k];
-        if (s > 0 && s < 127) {  // round(v / 2^s), half to even
-          const u128 rest = v & ((static_cast<u128>(1) << s) - 1);
-          const u128 half = static_cast<u128>(1) << (s - 1);
-          q = static_cast<std::uint64_t>(v >> s);
-          if (rest > half || (rest == half && (q & 1))) ++q;
-        } else {
-          q = 0;  // (not reached) to the fallback
-        }
-      } else if (k < 0 && k >= -19 && e2 <= 127 - 53) {  // |x| / 10^-k, 10^10 <= |x| < 2^127
-        std::uint64_t p10 = 1;
-        for (int i = 0; i < -k; ++i) p10 *= 10;  // 10^19 < 2^64
-        q = e2 >= 0 ? roundDiv(static_cast<u128>(M) << e2, p10)
-                    : roundDiv(M, static_cast<u128>(p10) << -e2);
-      } else {
-        fast = false;
-        break;
-      }
-      exp10 = -k;
-      if (q < 10000000000ULL) break;
-      if (q == 10000000000ULL) {  // rounded up to 10^10 = 1.000000000 10^(e + 1)
-        q = 1000000000ULL;
-        exp10 = -k + 1;
-        break;
-      }
-      ++e;  // the estimate of e was one too low: round again at one digit less
-    }
-    if (!fast || q < 1000000000ULL || q > 10000000000ULL) round10ViaFmt(x, q, exp10);
-  }
+  // Subnormals (not a filter's value) and very large or small |x| through fmt.
+  if (biased == 0 || !round10Exact(m | (1ULL << 52), biased, q, exp10)) round10ViaFmt(x, q, exp10);
   return writeTenDigits(p, q, exp10);
 }
 

@@ -153,7 +153,7 @@ TEST(EstimateStreaming, EveryCsvRowReadsBackToTheSameDoubles) {
       char digits[40];  // printf's exactly rounded 10 significant digits
       std::snprintf(digits, sizeof digits, "%.9e", expected[i]);
       const double want = std::fabs(expected[i]) < 0x1p1023 ? std::strtod(digits, nullptr)
-                                                             : expected[i];  // shortest form
+                                                            : expected[i];  // shortest form
       ASSERT_EQ(std::memcmp(&v[1 + i], &want, sizeof(double)), 0)
           << "row " << k + 1 << " column " << i + 2 << ": " << line;
       if (std::isfinite(expected[i])) {
