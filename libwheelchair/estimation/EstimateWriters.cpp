@@ -34,7 +34,7 @@ EstimatesCsvWriter::EstimatesCsvWriter(const std::string& path) : file_(path), b
 char* writeEstimateRow(char* p, const EstimateSample& e) {
   // t: fmt's "{:.6f}" characters (util::writeFixed6); the rest 10 significant digits
   // (util::write10Significant: a third fewer characters and cheaper digits than the shortest
-  // round-trip form; docs/benchmarks.md, "Eleventh round").
+  // round-trip form; docs/benchmarks.md, "Tenth round").
   p = util::writeFixed6(p, e.t_s);
   const auto num = [&p](double v) {
     *p++ = ',';
