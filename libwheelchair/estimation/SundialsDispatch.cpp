@@ -93,11 +93,11 @@ realtype SUNRpowerR(realtype base, realtype exponent) {
   if (base <= RCONST(0.0)) return RCONST(0.0);
   // CVODE's step-size rule takes the 1/(q+1)-th, 1/q-th and 1/(q+2)-th roots of error ratios;
   // after every restart (one per measurement) it runs at orders 1-3, so square and fourth
-  // roots are about half of the calls. sqrt is the correctly rounded square root, which glibc's pow
-  // approximates
-  // (<= 0.52 ulp: they differ for ~0.1 % of arguments); sqrt(sqrt(x)) is within ~1 ulp of
-  // pow(x, 0.25). Only step sizes change, by an ulp, and with them the estimates at the rounding
-  // level (docs/benchmarks.md, "Tenth round", second part): not bit-identical to the library.
+  // roots are about half of the calls. sqrt is the correctly rounded square root, which
+  // glibc's pow approximates (<= 0.52 ulp: they differ for ~0.1 % of arguments);
+  // sqrt(sqrt(x)) is within ~1 ulp of pow(x, 0.25). Only step sizes change, by an ulp, and
+  // with them the estimates at the rounding level (docs/benchmarks.md, "Tenth round", second
+  // part): not bit-identical to the library.
   if (exponent == RCONST(0.5)) return std::sqrt(base);
   if (exponent == RCONST(0.25)) return std::sqrt(std::sqrt(base));
   return std::pow(base, exponent);
