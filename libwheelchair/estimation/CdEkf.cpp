@@ -78,11 +78,11 @@ struct CdEkfAccess {
     const double* yd = NV_DATA_S(y);
     const double* at = NV_DATA_S(self->act_->abstol);
     double* wd = NV_DATA_S(w);
-    const double rtol = self->opt_.rel_tol;
-#pragma GCC ivdep
-    for (sunindextype i = 0; i < n; ++i) wd[i] = ws / (rtol * std::fabs(yd[i]) + 1.0 * at[i]);
+    errorWeights(n, ws, self->opt_.rel_tol, yd, at, wd);
     return 0;
   }
+  static void errorWeights(sunindextype n, double ws, double rtol, const double* yd,
+                           const double* at, double* wd);
 };
 
 namespace {
@@ -273,6 +273,19 @@ WHEELCHAIR_KERN int constVectorArray(int nvec, sunrealtype c, N_Vector* Z) {
   return 0;
 }
 
+}  // namespace kern
+}  // namespace
+
+/// w_i = ws / (rtol |y_i| + 1 atol_i) (CdEkfAccess::ewt), 4 divisions at a time on AVX2.
+WHEELCHAIR_KERN void CdEkfAccess::errorWeights(sunindextype n, double ws, double rtol,
+                                               const double* yd, const double* at, double* wd) {
+#pragma GCC ivdep
+  for (sunindextype i = 0; i < n; ++i) wd[i] = ws / (rtol * std::fabs(yd[i]) + 1.0 * at[i]);
+}
+
+namespace {
+namespace kern {
+
 void install(N_Vector v) {
   N_Vector_Ops o = v->ops;
   o->nvlinearsum = linearSum;
@@ -374,9 +387,10 @@ namespace {
 // column-major with leading dimension LD (0: ld at run time), of which the leading n x n
 // block is used. Work arrays P and FP: n x n.
 template <int NC, int LD = NC>
-void riccatiPacked(int n_rt, int ld_rt, const double* __restrict yP, const double* __restrict F,
-                   const double* __restrict Qs, double* __restrict out, double* __restrict P,
-                   double* __restrict FP) {
+inline __attribute__((always_inline)) void riccatiPacked(
+    int n_rt, int ld_rt, const double* __restrict yP, const double* __restrict F,
+    const double* __restrict Qs, double* __restrict out, double* __restrict P,
+    double* __restrict FP) {
   const int n = NC > 0 ? NC : n_rt;
   const int ld = LD > 0 ? LD : ld_rt;  // leading dimension of F (>= n: its leading block)
   int k = 0;
@@ -417,6 +431,25 @@ void riccatiPacked(int n_rt, int ld_rt, const double* __restrict yP, const doubl
     for (int r = c; r < n; ++r, ++k) out[k] = FP[r + c * n] + FP[c + r * n] + Qs[k];
 }
 
+// The fixed-size instantiations the wheelchair filter uses, built for AVX2 and the baseline
+// ISA like the vector kernels (kern::): the same IEEE operations on either path (no FMA, no
+// reassociation), so the same bits; the 9-long axpys take 2 + 1 instead of 4 + 1 steps.
+WHEELCHAIR_KERN void riccatiPacked9(const double* __restrict yP, const double* __restrict F,
+                                    const double* __restrict Qs, double* __restrict out,
+                                    double* __restrict P, double* __restrict FP) {
+  riccatiPacked<9>(9, 9, yP, F, Qs, out, P, FP);
+}
+WHEELCHAIR_KERN void riccatiPacked9held(const double* __restrict yP, const double* __restrict F,
+                                        const double* __restrict Qs, double* __restrict out,
+                                        double* __restrict P, double* __restrict FP) {
+  riccatiPacked<9, 12>(9, 12, yP, F, Qs, out, P, FP);
+}
+WHEELCHAIR_KERN void riccatiPacked12(const double* __restrict yP, const double* __restrict F,
+                                     const double* __restrict Qs, double* __restrict out,
+                                     double* __restrict P, double* __restrict FP) {
+  riccatiPacked<12>(12, 12, yP, F, Qs, out, P, FP);
+}
+
 template <class Mat>
 void packSymmetrised(const Mat& Q, double* out) {
   const int n = static_cast<int>(Q.rows());
@@ -447,11 +480,11 @@ void CdEkf::evalRhs(double tau, const double* y, double* ydot) {
   // With a held tail only F's leading n x n block is used (the held rows of P are zero).
   const double* F = wF_.data();
   if (n == 9 && n_ == 9)  // the wheelchair filter
-    riccatiPacked<9>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
+    riccatiPacked9(y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
   else if (n == 9 && n_ == 12)  // its sensor-error states held (all closed)
-    riccatiPacked<9, 12>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
+    riccatiPacked9held(y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
   else if (n == 12)  // the wheelchair filter with its sensor-error states
-    riccatiPacked<12>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
+    riccatiPacked12(y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
   else
     riccatiPacked<0, 0>(n, n_, y + n, F, qp.data(), ydot + n, wP_.data(), wFP_.data());
 }

@@ -32,12 +32,13 @@ EstimatesCsvWriter::EstimatesCsvWriter(const std::string& path) : file_(path), b
 }
 
 char* writeEstimateRow(char* p, const EstimateSample& e) {
-  // util::writeFixed6 / writeShortest: the characters of fmt's "{:.6f}" and "{}" in ~15 % less
-  // time per row (bench_playback BM_FormatRows; docs/benchmarks.md, "Fifth round").
+  // t: fmt's "{:.6f}" characters (util::writeFixed6); the rest 10 significant digits
+  // (util::write10Significant: a third fewer characters and cheaper digits than the shortest
+  // round-trip form; docs/benchmarks.md, "Tenth round").
   p = util::writeFixed6(p, e.t_s);
   const auto num = [&p](double v) {
     *p++ = ',';
-    p = util::writeShortest(p, v);
+    p = util::write10Significant(p, v);
   };
   for (int i = 0; i < 7; ++i) num(e.x(i));
   num(e.obstacle_distance_m);

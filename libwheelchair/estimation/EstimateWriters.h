@@ -6,9 +6,10 @@
 // Estimates CSV (one row per estimate, canonical layout of EstimationTypes.h):
 //   t_s,v_m_s,omega_rad_s,x_m,y_m,phi_rad,obstacle_x_m,obstacle_y_m,obstacle_distance_m,
 //   sd_v_m_s,...,sd_obstacle_distance_m
-// t with 6 decimals, every other number in the shortest form that reads back to the same
-// double (fmt's "{:.6f}" and "{}" characters, written by util/NumberFormat.h). Frames: pose in the
-// start frame, obstacle in the body frame (m, rad, m/s, rad/s).
+// t with 6 decimals (fmt's "{:.6f}"), every other number rounded to 10 significant digits
+// (relative error <= 5e-10: sub-nanometre on metres, far below any sd the filter reports;
+// trailing zeros dropped, e.g. "0.1", "-1.234567891", "3.2e-07"; util::write10Significant).
+// Frames: pose in the start frame, obstacle in the body frame (m, rad, m/s, rad/s).
 //
 // Command-driven EKF CSV (map frame): t_s,x_m,y_m,phi_rad,v_m_s,omega_rad_s,sd_x_m,sd_y_m,
 // sd_phi_rad,sd_v_m_s,sd_omega_rad_s,cov_xy_m2.

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
@@ -21,6 +22,27 @@ namespace {
 std::string shortest(double x) {
   char buf[kMaxDoubleChars];
   return std::string(buf, writeShortest(buf, x));
+}
+
+std::string sig10(double x) {
+  char buf[kMaxDoubleChars];
+  return std::string(buf, write10Significant(buf, x));
+}
+
+// The reference for write10Significant: printf's "%.9e" digits (exact, half to even), read
+// back and written in the shortest form, which for a normal double is those digits without
+// trailing zeros (two decimals of <= 10 digits differ by far more than one ulp).
+std::string sig10Reference(double x) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.9e", x);
+  return fmt::format("{}", std::strtod(buf, nullptr));
+}
+
+// Normal and below 2^1023 (above, the shortest form: 10 digits may read back as inf;
+// subnormals have fewer digits than 10).
+bool hasReference(double x) {
+  return x == 0.0 ||
+         (std::fabs(x) >= std::numeric_limits<double>::min() && std::fabs(x) < 0x1p1023);
 }
 
 std::string fixed6(double x) {
@@ -130,4 +152,48 @@ TEST(NumberFormat, Fixed6IsFmtsFormIncludingTiesNegativeZeroAndLargeValues) {
   }
   EXPECT_EQ(fixed6(12.5), "12.500000");
   EXPECT_EQ(fixed6(-0.0), "-0.000000");
+}
+
+TEST(NumberFormat, TenSignificantDigitsAreExactlyRoundedAndInTheShortestLayout) {
+  for (double x : edgeValues()) {
+    if (std::isnan(x) || std::isinf(x)) {
+      ASSERT_EQ(sig10(x), fmt::format("{}", x));
+    } else if (hasReference(x)) {
+      ASSERT_EQ(sig10(x), sig10Reference(x)) << x;
+    }
+  }
+  std::mt19937_64 rng(11);
+  for (int i = 0; i < 300000; ++i) {  // every normal exponent (fast path and fmt fallback)
+    const double x = fromBits(rng());
+    if (hasReference(x)) {
+      ASSERT_EQ(sig10(x), sig10Reference(x)) << i << " " << x;
+    }
+  }
+  std::uniform_real_distribution<double> state(-200.0, 200.0), logsd(-12.0, 3.0);
+  for (int i = 0; i < 200000; ++i) {  // a filter's values: within 5e-10 relative
+    for (double x : {state(rng), std::pow(10.0, logsd(rng)), 1.7e9 + state(rng)}) {
+      const std::string s = sig10(x);
+      ASSERT_EQ(s, sig10Reference(x)) << i;
+      ASSERT_LE(std::fabs(std::strtod(s.c_str(), nullptr) - x), 5e-10 * std::fabs(x)) << s;
+    }
+  }
+  // Exact ties go to the even digit, as printf; rounding up to the next power of ten.
+  for (std::int64_t j = 1000000000; j < 1000200000; ++j) {
+    const double x = static_cast<double>(j * 10 + 5);  // d...d5: a tie at the 10th digit
+    ASSERT_EQ(sig10(x), sig10Reference(x)) << j;
+    ASSERT_EQ(sig10(x / 1024), sig10Reference(x / 1024)) << j;
+  }
+  EXPECT_EQ(sig10(12345678905.0), "12345678900");
+  EXPECT_EQ(sig10(12345678915.0), "12345678920");
+  EXPECT_EQ(sig10(9999999999.5), "10000000000");
+  EXPECT_EQ(sig10(0.99999999996), "1");
+  EXPECT_EQ(sig10(1.0 / 3), "0.3333333333");
+  EXPECT_EQ(sig10(-2.0 / 3), "-0.6666666667");
+  EXPECT_EQ(sig10(1e-5), "1e-05");
+  EXPECT_EQ(sig10(0.1), "0.1");
+  EXPECT_EQ(sig10(-0.0), "-0");
+  EXPECT_EQ(sig10(3600.0), "3600");
+  EXPECT_EQ(sig10(-1.7976931348623157e308), "-1.7976931348623157e+308");  // not -inf
+  EXPECT_EQ(sig10(8e307), "8e+307");
+  EXPECT_EQ(sig10(5e-324), "4.940656458e-324");
 }
