@@ -69,7 +69,7 @@ struct EkfOptions {
 
   // --- process noise (continuous-time spectral densities) ---------------------------------
   double q_v_m2_s3 = 0.01;                  ///< on vdot (model error of (6))
-  double q_omega_rad2_s3 = 0.02;            ///< on omegadot
+  double q_omega_rad2_s3 = 0.02;  ///< on omegadot; config/wheelchair.ini ships 0.003 (derived there)
   double q_xy_m2_s = 1e-8;                  ///< on xdot, ydot (lateral tyre creep only)
   double q_phi_rad2_s = 0;                  ///< on phidot (0: phi integrates omega exactly)
   double q_obstacle_m2_s = 1e-5;            ///< on the obstacle (px, py) or d
