@@ -291,26 +291,28 @@ TEST(NeesMonteCarlo, AYawMomentTwiceTheOneTheYawNoiseIsSizedForIsNotCovered) {
   EXPECT_GT(r.heading, 1.3);
 }
 
-TEST(NeesMonteCarlo, TheShippedYawNoiseCoversTheCentreOfMassMomentAtTheDriversLimits) {
-  // config/wheelchair.ini derives q_omega from the yaw moment (6) leaves out at the driver's
-  // limits, a = m d v omega / I_z = 130 kg x 0.07 m x 0.8 m/s x 0.6 rad/s / 8 kg m^2 = 0.55
-  // rad/s^2: yawNoiseFor(0.55) = 0.0028, shipped 0.003. On drives with that moment the gyro
-  // innovations and the heading are consistent, not over-confident.
+TEST(NeesMonteCarlo, TheShippedYawNoiseIsNotOverConfidentAtTheCentreOfMassMoment) {
+  // The yaw moment (6) leaves out at the driver's limits from the centre of mass ahead of the
+  // axle alone, a = m d v omega / I_z = 130 kg x 0.07 m x 0.8 m/s x 0.6 rad/s / 8 kg m^2 = 0.55
+  // rad/s^2, would be covered by yawNoiseFor(0.55) = 0.0028. The shipped q_omega is sized for
+  // 2.4 rad/s^2 (castor swivel torques on a real chair; 0.003 made position worse:
+  // docs/estimation.md, "Error budget of the three-task NEES"): on drives with the centre-of-mass
+  // moment the shipped filter is conservative, never over-confident.
   const EkfOptions shipped = shippedOptions();
   const double a_max = 130.0 * 0.07 * 0.8 * 0.6 / 8.0;
-  EXPECT_NEAR(shipped.q_omega_rad2_s3, yawNoiseFor(a_max), 0.1 * shipped.q_omega_rad2_s3);
+  EXPECT_NEAR(yawNoiseFor(a_max), 0.0028, 0.0001);
+  EXPECT_NEAR(shipped.q_omega_rad2_s3, yawNoiseFor(2.4), 0.1 * shipped.q_omega_rad2_s3);
   const McNees r =
       monteCarlo(sustainedYawMoment("shipped q_omega, yaw moment 0.55 rad/s^2", a_max, -1));
   const auto band1 = stats::chi2MeanBand(0.95, 1, kRuns);
-  EXPECT_GT(r.nis_gyro, 0.8);
-  EXPECT_LT(r.nis_gyro, 1.2);
+  EXPECT_LT(r.nis_gyro, 1.0);
   EXPECT_LT(r.heading, band1.second);
   EXPECT_LT(r.position, r.band2.second);
   EXPECT_LT(r.pose, r.band3.second);
 }
 
-TEST(NeesMonteCarlo, TheFormerYawNoiseWasTenTimesTheSimulatorsYawMoment) {
-  // The former q_omega = 0.02 covers yawNoiseFor^-1(0.02) = 2.4 rad/s^2: on a 0.25 rad/s^2
+TEST(NeesMonteCarlo, TheShippedYawNoiseIsTenTimesTheSimulatorsYawMoment) {
+  // The shipped q_omega = 0.02 covers yawNoiseFor^-1(0.02) = 2.4 rad/s^2: on a 0.25 rad/s^2
   // moment it lets omega wander by sqrt(q dt) = 14 mrad/s between 10 ms gyro samples, which no
   // slowly varying moment does: gyro NIS 0.20 (the campaigns' 0.19) and a heading NEES of 0.67
   // (the campaigns' 0.53-0.55), the conservatism the error budget found.
