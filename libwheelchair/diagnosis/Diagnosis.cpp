@@ -1492,11 +1492,73 @@ bool inSpan(const Eigen::ColPivHouseholderQR<Eigen::MatrixXd>& qrD, const Eigen:
 ///  - terms below stlsq_threshold_sigma in the joint fit are dropped one at a time.
 /// Then the sparse search runs again on the residual of the joint catalogue coefficients and the
 /// joint fit is repeated once. Without out-of-catalogue terms nothing changes.
+/// |cosine| of two library columns on a motor's rows above which the drive cannot tell the two
+/// terms apart (harmoniseUntold).
+constexpr double kUntoldCosine = 0.98;
+
+/// Two out-of-catalogue terms the drive cannot tell apart, one found on each motor (e.g. on a
+/// `square` drive whose turns on the spot all go one way at one rate, omega and omega^2 are
+/// the same column up to a factor: |cosine| >= kUntoldCosine on both motors' rows): which
+/// motor gets which is the noise's choice, and two different laws on the two motors read as
+/// two physical effects (a yaw-rate term on one motor, a centripetal term on the other) where
+/// the data show one. One law is used on both motors: the one whose single-column fits of both
+/// motors' residuals (rf: right rows, then left) leave the smaller sum of squares; the motor
+/// that had the other gets it in its place (coefficient: its least-squares fit there). Returns
+/// what could not be told (for info.cannot_tell), empty when nothing was changed.
+std::string harmoniseUntold(std::array<SparseResult, 2>& u, const DynRows& df2,
+                            const Eigen::VectorXd& rf) {
+  if (!(u[0].accepted && u[1].accepted)) return {};
+  const int nR = static_cast<int>(df2.y.size() / 2);
+  auto has = [&](int s2, int lib) {
+    return std::find(u[s2].terms.begin(), u[s2].terms.end(), lib) != u[s2].terms.end();
+  };
+  // heading halves (10, 11) are one term; measured currents (12, 13) are no law
+  auto law = [](int lib) { return lib < 10 || lib > 13; };
+  for (int a : u[0].terms)
+    for (int b : u[1].terms) {
+      if (a == b || !law(a) || !law(b) || has(1, a) || has(0, b)) continue;
+      double cos_min = 1, rss[2] = {0, 0};  // rss: a, b on both motors
+      for (int s2 = 0; s2 < 2; ++s2) {
+        const Eigen::VectorXd xa = df2.libColumn(a, s2 * nR, nR),
+                              xb = df2.libColumn(b, s2 * nR, nR);
+        const Eigen::VectorXd r = rf.segment(s2 * nR, nR);
+        const double na = xa.squaredNorm(), nb = xb.squaredNorm();
+        if (!(na > 0) || !(nb > 0))
+          cos_min = 0;
+        else
+          cos_min = std::min(cos_min, std::abs(xa.dot(xb)) / std::sqrt(na * nb));
+        if (na > 0) rss[0] += r.squaredNorm() - std::pow(xa.dot(r), 2) / na;
+        if (nb > 0) rss[1] += r.squaredNorm() - std::pow(xb.dot(r), 2) / nb;
+      }
+      if (cos_min < kUntoldCosine) continue;
+      const int keep = rss[0] <= rss[1] ? a : b, drop = keep == a ? b : a, s2 = keep == a ? 1 : 0;
+      SparseResult& sr = u[s2];
+      const auto it = std::find(sr.terms.begin(), sr.terms.end(), drop);
+      const Eigen::Index q = it - sr.terms.begin();
+      const Eigen::VectorXd x = df2.libColumn(keep, s2 * nR, nR);
+      const double coef = x.dot(rf.segment(s2 * nR, nR)) / x.squaredNorm();
+      if (sr.coef(q) != 0) sr.se(q) *= std::abs(coef / sr.coef(q));
+      sr.coef(q) = coef;
+      *it = keep;
+      sr.cv.erase(std::to_string(drop));
+      const auto& nm = dynLibNames();
+      return fmt::format(
+          "out-of-catalogue terms {} ({} motor) and {} ({} motor): the same column on this drive "
+          "(|cosine| {:.3f} on both motors' rows), which one acts cannot be told; reported as "
+          "{} on both motors (the better fit of both). To tell: drive where they differ (e.g. "
+          "turns at several rates and in both directions for omega vs omega^2)",
+          nm[drop], s2 == 0 ? "right" : "left", nm[keep], s2 == 0 ? "left" : "right", cos_min,
+          nm[keep]);
+    }
+  return {};
+}
+
 struct JointDynamicFit {
   Eigen::VectorXd beta;
   Eigen::MatrixXd cov;
   std::array<SparseResult, 2> unmodeled;
   bool refitted = false;  ///< the catalogue was refitted with out-of-catalogue terms
+  std::string untold;     ///< harmoniseUntold's note (empty: none)
 };
 JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
                                 const Eigen::MatrixXd& Dv, const DynRows& df2, const DynRows& dv2,
@@ -1509,6 +1571,7 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
   for (int pass = 0; pass < 2; ++pass) {
     const Eigen::VectorXd rf = df2.y - Df * j.beta, rv = dv2.y - Dv * j.beta;
     j.unmodeled = dynamicUnmodeled(df2, dv2, rf, rv, lags, cfg, opt);
+    j.untold = harmoniseUntold(j.unmodeled, df2, rf);
     if (Df.cols() == 0 || !(j.unmodeled[0].accepted || j.unmodeled[1].accepted)) break;
     if (pass == 0) qrD.compute(Df);
     // The unmodeled columns: (library column, sides) with sides 0 right, 1 left, 2 antisymmetric.
@@ -2012,10 +2075,12 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
     // The unmodeled-term search reads the rows' signals (DynRows::libColumn).
     std::vector<SpareTerm> spare = spareTerms(sel, cands, df2);
     std::vector<int> named;  // candidates addSpannedTerms named (unconfirmedNamedTerm)
+    std::string untold;      // the last joint fit's harmoniseUntold note
     for (bool retested = false;;) {
       JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
       sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;
       unmodeled = std::move(joint.unmodeled);
+      untold = joint.untold;
       if (std::string why; !named.empty()) {
         if (const int a = unconfirmedNamedTerm(sel, cands, named, unmodeled, Df, Dv, df2, dv2, lags,
                                                alpha_b, why);
@@ -2047,6 +2112,7 @@ bool dynamicStage(const StageData& data, const config::WheelchairConfig& cfg,
                         "out-of-catalogue terms");
       removeAccepted(sel, a, Df, Dv, df2, lags);
     }
+    if (!untold.empty()) rep.info["cannot_tell"].push_back(untold);
   }
   Eigen::VectorXd rv_after = dv2.y - Dv * sel.fit.beta;
   {
