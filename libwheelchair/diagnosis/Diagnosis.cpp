@@ -1477,21 +1477,6 @@ bool inSpan(const Eigen::ColPivHouseholderQR<Eigen::MatrixXd>& qrD, const Eigen:
   return (x - D * qrD.solve(x)).squaredNorm() <= 0.1 * n2;
 }
 
-/// The catalogue's coefficients estimated jointly with the out-of-catalogue terms (issue 16).
-/// Physics the model (6) lacks (on a multibody: the centre of mass ahead of the axle costs
-/// -(m d c / 2) omega^2 on both motors) is correlated with catalogue columns (omega^2 >= 0 and
-/// sgn(u) mostly > 0): fitted alone, a catalogue term absorbs part of it (Coulomb friction
-/// 10-15 % low on MuJoCo drives) and the per-motor sparse search then finds the rest of the
-/// catalogue term itself (`sgn(u)`). Here the terms the sparse search found are refitted
-/// together with the catalogue design D on both motors' rows:
-///  - a term found on one motor that D nearly spans there (inSpan) is the catalogue's: dropped;
-///  - a term found on both motors whose sum over the motors D spans (D is symmetric, e.g.
-///    coulomb_friction/both, ground_slope) enters as its antisymmetric part (+ right, - left):
-///    the symmetric part is the catalogue's (a slope's cos(phi) on both motors is the slope,
-///    the centre of mass' turn across the slope is the difference);
-///  - terms below stlsq_threshold_sigma in the joint fit are dropped one at a time.
-/// Then the sparse search runs again on the residual of the joint catalogue coefficients and the
-/// joint fit is repeated once. Without out-of-catalogue terms nothing changes.
 /// |cosine| of two library columns on a motor's rows above which the drive cannot tell the two
 /// terms apart (harmoniseUntold).
 constexpr double kUntoldCosine = 0.98;
@@ -1553,6 +1538,21 @@ std::string harmoniseUntold(std::array<SparseResult, 2>& u, const DynRows& df2,
   return {};
 }
 
+/// The catalogue's coefficients estimated jointly with the out-of-catalogue terms (issue 16).
+/// Physics the model (6) lacks (on a multibody: the centre of mass ahead of the axle costs
+/// -(m d c / 2) omega^2 on both motors) is correlated with catalogue columns (omega^2 >= 0 and
+/// sgn(u) mostly > 0): fitted alone, a catalogue term absorbs part of it (Coulomb friction
+/// 10-15 % low on MuJoCo drives) and the per-motor sparse search then finds the rest of the
+/// catalogue term itself (`sgn(u)`). Here the terms the sparse search found are refitted
+/// together with the catalogue design D on both motors' rows:
+///  - a term found on one motor that D nearly spans there (inSpan) is the catalogue's: dropped;
+///  - a term found on both motors whose sum over the motors D spans (D is symmetric, e.g.
+///    coulomb_friction/both, ground_slope) enters as its antisymmetric part (+ right, - left):
+///    the symmetric part is the catalogue's (a slope's cos(phi) on both motors is the slope,
+///    the centre of mass' turn across the slope is the difference);
+///  - terms below stlsq_threshold_sigma in the joint fit are dropped one at a time.
+/// Then the sparse search runs again on the residual of the joint catalogue coefficients and the
+/// joint fit is repeated once. Without out-of-catalogue terms nothing changes.
 struct JointDynamicFit {
   Eigen::VectorXd beta;
   Eigen::MatrixXd cov;
@@ -1564,7 +1564,7 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
                                 const Eigen::MatrixXd& Dv, const DynRows& df2, const DynRows& dv2,
                                 int lags, const config::WheelchairConfig& cfg,
                                 const DiagnosisOptions& opt) {
-  JointDynamicFit j{sel.fit.beta, sel.fit.cov, {}};
+  JointDynamicFit j{sel.fit.beta, sel.fit.cov, {}, false, {}};
   const int nR = static_cast<int>(df2.y.size() / 2);
   // Df's QR (an n x k copy) is made after the search, not held through it (memory).
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrD;
