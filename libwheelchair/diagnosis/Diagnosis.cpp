@@ -1862,7 +1862,6 @@ bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
   const bool symmetric_load = symmetricSpareAsymmetry(cands, spare, Df, df2, lags);
   for (const SpareTerm& sp : spare) {
     const Candidate& c = cands[sp.cand];
-    if (symmetric_load && c.effect == "motor_asymmetry") continue;
     bool conflict = false;
     for (int a : sel.accepted)
       for (const auto& n : c.conflicts) conflict = conflict || cands[a].name == n;
@@ -1871,6 +1870,13 @@ bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
     if (conflict) continue;
     const Eigen::VectorXd xf = df2.design().times(c.S.col(0));
     if (!inSpan(qrU, U, xf)) continue;
+    if (symmetric_load && c.effect == "motor_asymmetry") {
+      sel.log.push_back(c.name +
+                        ": described by the out-of-catalogue terms, but not named: both motors' "
+                        "asymmetry columns fitted together take equal coefficients (a load on "
+                        "both motors, not an asymmetry)");
+      continue;
+    }
     const LinearFit f0 = fitLinear(Df, df2.y, df2.groups, lags);
     Df.conservativeResize(Eigen::NoChange, Df.cols() + 1);
     Df.col(Df.cols() - 1) = xf;
