@@ -1396,11 +1396,28 @@ bool equalOnBothMotors(const double b[2], const double sd[2]) {
          diff <= 3 * std::hypot(sd[0], sd[1]);
 }
 
+/// Whether one extra load on both motors (b_R = b_L = c, c their inverse-variance mean) fits
+/// the two coefficients b (1-sigma sd) at least as well as a load on one motor only (the other
+/// zero; the better side): chi^2 of the first sum_i (b_i - c)^2 / sd_i^2 against min_i
+/// (b_i / sd_i)^2, one free parameter each. equalOnBothMotors alone cannot tell "equal" from
+/// "one poorly determined": MuJoCo triple 976019, a left asymmetry 1.49 with the right
+/// column fitted beside it, 0.073 +- 0.099 against 0.465 +- 0.103, is within 3 sigma of the
+/// difference, but the right motor's zero fits it (chi^2 0.55 against 7.5 for one load).
+bool loadOnBothMotorsFitsBetter(const double b[2], const double sd[2]) {
+  if (!(sd[0] > 0) || !(sd[1] > 0)) return true;  // no sd: equalOnBothMotors decides
+  const double w0 = 1 / (sd[0] * sd[0]), w1 = 1 / (sd[1] * sd[1]);
+  const double c = (w0 * b[0] + w1 * b[1]) / (w0 + w1);
+  const double chi2_both = w0 * (b[0] - c) * (b[0] - c) + w1 * (b[1] - c) * (b[1] - c);
+  return chi2_both <= std::min(w0 * b[0] * b[0], w1 * b[1] * b[1]);
+}
+
 /// Whether the selection accepted a motor asymmetry on BOTH sides with equal coefficients
 /// (equalOnBothMotors): the same extra viscous friction on both motors. Accepted on ONE side
 /// (the other's held-out check failed, e.g. on the held-out rows' other physics): the other
-/// side's column is fitted beside the accepted design (df's fit rows) and compared so (MuJoCo
-/// seed 7 square 699374, a viscous drag, was named a left motor asymmetry 1.081).
+/// side's column is fitted beside the accepted design (df's fit rows) and compared so, and a
+/// load on both motors must fit them better than one on the accepted side alone
+/// (loadOnBothMotorsFitsBetter; MuJoCo seed 7 square 699374, a viscous drag, was named a left
+/// motor asymmetry 1.081).
 bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cands,
                         const DynRows& df, int lags) {
   double b[2] = {0, 0}, sd[2] = {0, 0};
@@ -1430,7 +1447,7 @@ bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cand
   b[side_found] = f.beta(i_found),
   sd[side_found] = std::sqrt(std::max(0.0, f.cov(i_found, i_found)));
   b[1 - side_found] = f.beta(k), sd[1 - side_found] = std::sqrt(std::max(0.0, f.cov(k, k)));
-  return equalOnBothMotors(b, sd);
+  return equalOnBothMotors(b, sd) && loadOnBothMotorsFitsBetter(b, sd);
 }
 
 /// The terms of motor `ch`'s sparse fit that are reported as `unmodeled`: a friction finding
@@ -1580,6 +1597,21 @@ std::string harmoniseUntold(std::array<SparseResult, 2>& u, const DynRows& df2,
   return {};
 }
 
+/// One motor's residual y - D beta (s2 = 0: right, the first half of the rows; 1: left) made
+/// from its own rows only (not both motors' whole vectors, nor the whole products, held through
+/// the search: memory). Row by row the same doubles as y - D beta: Eigen's matrix-vector
+/// product of a few columns sums each row over the columns in order, whichever rows it is
+/// given (not so its small-size products: a motor of fewer than 64 rows is cut from the whole
+/// product).
+Eigen::VectorXd motorResidual(const Eigen::VectorXd& y, const Eigen::MatrixXd& D,
+                              const Eigen::VectorXd& beta, int s2) {
+  const Eigen::Index n = y.size() / 2;
+  if (n < 64) return (y - D * beta).segment(s2 * n, n);
+  Eigen::VectorXd r = D.middleRows(s2 * n, n) * beta;
+  r = y.segment(s2 * n, n) - r;
+  return r;
+}
+
 /// The catalogue's coefficients estimated jointly with the out-of-catalogue terms (issue 16).
 /// Physics the model (6) lacks (on a multibody: the centre of mass ahead of the axle costs
 /// -(m d c / 2) omega^2 on both motors) is correlated with catalogue columns (omega^2 >= 0 and
@@ -1611,20 +1643,10 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
   // Df's QR (an n x k copy) is made after the search, not held through it (memory).
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrD;
   for (int pass = 0; pass < 2; ++pass) {
-    // Each motor's residuals, made when it is searched from its own rows only (not both
-    // motors' whole vectors, nor the whole products, held through the search). Row by row the
-    // same doubles as y - D beta: Eigen's matrix-vector product of a few columns sums each row
-    // over the columns in order, whichever rows it is given (not so its small-size products:
-    // a motor of fewer than 64 rows is cut from the whole product).
+    // Each motor's residuals, made when it is searched (motorResidual).
     auto residuals = [&](int s2) {
-      auto motor = [&](const Eigen::VectorXd& y, const Eigen::MatrixXd& D) -> Eigen::VectorXd {
-        const Eigen::Index n = y.size() / 2;
-        if (n < 64) return (y - D * j.beta).segment(s2 * n, n);
-        Eigen::VectorXd r = D.middleRows(s2 * n, n) * j.beta;
-        r = y.segment(s2 * n, n) - r;
-        return r;
-      };
-      return std::pair<Eigen::VectorXd, Eigen::VectorXd>{motor(df2.y, Df), motor(dv2.y, Dv)};
+      return std::pair<Eigen::VectorXd, Eigen::VectorXd>{motorResidual(df2.y, Df, j.beta, s2),
+                                                         motorResidual(dv2.y, Dv, j.beta, s2)};
     };
     j.unmodeled = dynamicUnmodeled(df2, dv2, residuals, lags, cfg, opt);
     j.untold = harmoniseUntold(j.unmodeled, df2, [&](int s2) { return residuals(s2).first; });
@@ -1805,8 +1827,8 @@ std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candid
 }
 
 /// Whether both motors' asymmetry columns are spare (neither accepted) and, fitted together
-/// beside the accepted design Df on the fit rows, take equal coefficients (equalOnBothMotors,
-/// the rule symmetricAsymmetry applies in the forward selection).
+/// beside the accepted design Df on the fit rows, take equal coefficients (equalOnBothMotors and
+/// loadOnBothMotorsFitsBetter, the rule symmetricAsymmetry applies to one accepted side).
 bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
                              const std::vector<SpareTerm>& spare, const Eigen::MatrixXd& Df,
                              const DynRows& df2, int lags) {
@@ -1826,7 +1848,7 @@ bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
   const double b[2] = {f.beta(k), f.beta(k + 1)};
   const double sd[2] = {std::sqrt(std::max(0.0, f.cov(k, k))),
                         std::sqrt(std::max(0.0, f.cov(k + 1, k + 1)))};
-  return equalOnBothMotors(b, sd);
+  return equalOnBothMotors(b, sd) && loadOnBothMotorsFitsBetter(b, sd);
 }
 
 /// A catalogue term rejected by the forward selection (typically by its held-out check, the
@@ -2194,6 +2216,61 @@ struct Stage2Spill {
   }
 };
 
+/// The accepted catalogue terms (sel, their designs Df, Dv) estimated jointly with the
+/// out-of-catalogue terms the sparse search finds (jointDynamicFit), repeated until stable:
+/// a term addSpannedTerms named that does not predict in their place is removed
+/// (unconfirmedNamedTerm), a term no longer significant beside them is removed
+/// (failingAfterJointFit), and once, rejected catalogue terms the found terms describe in full
+/// are named (addSpannedTerms). `unmodeled`: the last search's terms; what the drive cannot
+/// tell apart goes to rep.info["cannot_tell"].
+void catalogueWithUnmodeled(Selection& sel, std::vector<Candidate>& cands,
+                            const std::vector<SupersededTerm>& superseded, Eigen::MatrixXd& Df,
+                            Eigen::MatrixXd& Dv, const DynRows& df2, const DynRows& dv2, int lags,
+                            double min_contribution_rms, double alpha_b,
+                            const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
+                            std::array<SparseResult, 2>& unmodeled, DiagnosisReport& rep) {
+  // The unmodeled-term search reads the rows' signals (DynRows::libColumn).
+  std::vector<SpareTerm> spare = spareTerms(sel, cands, df2);
+  std::vector<int> named;  // candidates addSpannedTerms named (unconfirmedNamedTerm)
+  std::string untold;      // the last joint fit's harmoniseUntold note
+  for (bool retested = false;;) {
+    JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
+    sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;
+    unmodeled = std::move(joint.unmodeled);
+    untold = joint.untold;
+    if (std::string why; !named.empty()) {
+      if (const int a = unconfirmedNamedTerm(sel, cands, named, unmodeled, Df, Dv, df2, dv2, lags,
+                                             opt.alpha, why);
+          a >= 0) {
+        sel.log.push_back(why);
+        named.erase(std::find(named.begin(), named.end(), sel.accepted[a]));
+        removeAccepted(sel, a, Df, Dv, df2, lags);
+        continue;
+      }
+    }
+    // No catalogue term left (e.g. the only one failed the joint fit): the out-of-catalogue
+    // terms may still describe a rejected catalogue term in full (addSpannedTerms).
+    if (!joint.refitted && !(Df.cols() == 0 && !retested)) break;
+    int a = failingAfterJointFit(sel, cands, Df, min_contribution_rms, alpha_b);
+    if (a < 0 && !retested) {
+      retested = true;
+      const std::size_t before = sel.accepted.size();
+      if (addSpannedTerms(sel, cands, unconfirmedSupersessions(spare, cands, superseded, unmodeled),
+                          unmodeled, Df, Dv, df2, dv2, lags)) {
+        named.assign(sel.accepted.begin() + static_cast<std::ptrdiff_t>(before),
+                     sel.accepted.end());
+        continue;
+      }
+    }
+    if (a < 0) break;
+    sel.log.push_back(cands[sel.accepted[a]].name +
+                      ": no longer significant and relevant when fitted jointly with the "
+                      "out-of-catalogue terms");
+    removeAccepted(sel, a, Df, Dv, df2, lags);
+  }
+  if (!untold.empty()) rep.info["cannot_tell"].push_back(untold);
+}
+
 bool dynamicStageOn(Stage2Spill& sp, const config::WheelchairConfig& cfg,
                     const DiagnosisOptions& opt, Corrections& corr, DiagnosisReport& rep);
 
@@ -2257,49 +2334,9 @@ bool dynamicStageOn(Stage2Spill& sp, const config::WheelchairConfig& cfg,
   // with what it does not contain (jointDynamicFit).
   Eigen::MatrixXd Df = acceptedDesign(df2.design(), cands, sel.accepted);
   Eigen::MatrixXd Dv = acceptedDesign(dv2.design(), cands, sel.accepted);
-  if (opt.enable_unmodeled) {
-    // The unmodeled-term search reads the rows' signals (DynRows::libColumn).
-    std::vector<SpareTerm> spare = spareTerms(sel, cands, df2);
-    std::vector<int> named;  // candidates addSpannedTerms named (unconfirmedNamedTerm)
-    std::string untold;      // the last joint fit's harmoniseUntold note
-    for (bool retested = false;;) {
-      JointDynamicFit joint = jointDynamicFit(sel, Df, Dv, df2, dv2, lags, cfg, opt);
-      sel.fit.beta = joint.beta, sel.fit.cov = joint.cov;
-      unmodeled = std::move(joint.unmodeled);
-      untold = joint.untold;
-      if (std::string why; !named.empty()) {
-        if (const int a = unconfirmedNamedTerm(sel, cands, named, unmodeled, Df, Dv, df2, dv2, lags,
-                                               opt.alpha, why);
-            a >= 0) {
-          sel.log.push_back(why);
-          named.erase(std::find(named.begin(), named.end(), sel.accepted[a]));
-          removeAccepted(sel, a, Df, Dv, df2, lags);
-          continue;
-        }
-      }
-      // No catalogue term left (e.g. the only one failed the joint fit): the out-of-catalogue
-      // terms may still describe a rejected catalogue term in full (addSpannedTerms).
-      if (!joint.refitted && !(Df.cols() == 0 && !retested)) break;
-      int a = failingAfterJointFit(sel, cands, Df, sd.min_contribution_rms, alpha_b);
-      if (a < 0 && !retested) {
-        retested = true;
-        const std::size_t before = sel.accepted.size();
-        if (addSpannedTerms(sel, cands,
-                            unconfirmedSupersessions(spare, cands, superseded, unmodeled),
-                            unmodeled, Df, Dv, df2, dv2, lags)) {
-          named.assign(sel.accepted.begin() + static_cast<std::ptrdiff_t>(before),
-                       sel.accepted.end());
-          continue;
-        }
-      }
-      if (a < 0) break;
-      sel.log.push_back(cands[sel.accepted[a]].name +
-                        ": no longer significant and relevant when fitted jointly with the "
-                        "out-of-catalogue terms");
-      removeAccepted(sel, a, Df, Dv, df2, lags);
-    }
-    if (!untold.empty()) rep.info["cannot_tell"].push_back(untold);
-  }
+  if (opt.enable_unmodeled)
+    catalogueWithUnmodeled(sel, cands, superseded, Df, Dv, df2, dv2, lags, sd.min_contribution_rms,
+                           alpha_b, cfg, opt, unmodeled, rep);
   Eigen::VectorXd rv_after = dv2.y - Dv * sel.fit.beta;
   {
     // The fully nominal model (no sensor corrections either), as the report's figures show it.
