@@ -90,6 +90,23 @@ char* viaFmt(char* p, double x) {
   return fmt::format_to(p, FMT_COMPILE("{}"), x);
 }
 
+/// "e+XX", "e-XX" or "e+XXX" (|e| <= 324 for a double) at p; returns the end.
+char* writeExponent(char* p, int e) {
+  *p++ = 'e';
+  if (e < 0) {
+    *p++ = '-';
+    e = -e;
+  } else {
+    *p++ = '+';
+  }
+  if (e >= 100) {
+    *p++ = static_cast<char>('0' + e / 100);
+    e %= 100;
+  }
+  std::memcpy(p, &kDigits2.d[e * 2], 2);
+  return p + 2;
+}
+
 /// x = sig 10^exp10 (sig > 0, the sign already written) in fmt's "{}" layout: fixed notation
 /// when the exponent of the first digit is in [-4, 16), d[.ddd]e+XX otherwise.
 char* writeDecimal(char* p, std::uint64_t sig, int exp10) {
@@ -106,20 +123,7 @@ char* writeDecimal(char* p, std::uint64_t sig, int exp10) {
     } else {
       p += 1;
     }
-    *p++ = 'e';
-    int e = out_exp;
-    if (e < 0) {
-      *p++ = '-';
-      e = -e;
-    } else {
-      *p++ = '+';
-    }
-    if (e >= 100) {  // |e| <= 324 for a double
-      *p++ = static_cast<char>('0' + e / 100);
-      e %= 100;
-    }
-    std::memcpy(p, &kDigits2.d[e * 2], 2);
-    return p + 2;
+    return writeExponent(p, out_exp);
   }
   if (exp10 >= 0) {  // ddd000
     writeDigits(p, sig, n);
@@ -164,20 +168,7 @@ char* writeTenDigits(char* p, std::uint64_t q, int exp10) {
     } else {
       p += 1;
     }
-    *p++ = 'e';
-    int e = out_exp;
-    if (e < 0) {
-      *p++ = '-';
-      e = -e;
-    } else {
-      *p++ = '+';
-    }
-    if (e >= 100) {
-      *p++ = static_cast<char>('0' + e / 100);
-      e %= 100;
-    }
-    std::memcpy(p, &kDigits2.d[e * 2], 2);
-    return p + 2;
+    return writeExponent(p, out_exp);
   }
   if (out_exp >= n - 1) {  // ddd000 (out_exp <= 15)
     std::memcpy(p, d, 16);
