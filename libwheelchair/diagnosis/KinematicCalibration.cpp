@@ -444,6 +444,42 @@ void foldRadiusIntoEncoderScale(KinematicCalibration& kc, Corrections& corr, Dia
   }
 }
 
+namespace {
+
+/// The accepted calibration's geometry in words: the wheels' effective radii, the track and the
+/// travel angle, each that the chosen model changed, with its uncertainty.
+std::string geometryWords(const KinematicCalibration& kc) {
+  const auto& n = kc.nominal;
+  const auto& g = kc.fitted;
+  const double dR = rel(g.m_per_tick_right, n.m_per_tick_right),
+               dL = rel(g.m_per_tick_left, n.m_per_tick_left), db = rel(g.track_m, n.track_m);
+  std::string what;
+  if (kc.model == "scale" || kc.model == "scale+track")
+    what = fmt::format("both wheels' effective radius is {} than configured",
+                       percentText(dR, kc.sd_rel[0], "larger", "smaller"));
+  else if (kc.model != "track" && kc.model != "travel_angle")  // wheels(+track), heading-*
+    what = fmt::format(
+        "the right wheel's effective radius is {} and the left wheel's {} than configured "
+        "(ratio right/left {:.4f})",
+        percentText(dR, kc.sd_rel[0], "larger", "smaller"),
+        percentText(dL, kc.sd_rel[1], "larger", "smaller"),
+        g.m_per_tick_right / g.m_per_tick_left * n.m_per_tick_left / n.m_per_tick_right);
+  if (kc.model.find("track") != std::string::npos || kc.model.rfind("heading", 0) == 0)
+    what += fmt::format("{}the effective track is {}", what.empty() ? "" : "; ",
+                        percentText(db, kc.sd_rel[2], "wider", "narrower"));
+  const double beta = g.travel_angle_rad - n.travel_angle_rad;
+  if (std::abs(beta) >= kMinRelativeChange)
+    what += fmt::format(
+        "{}the body travels {:.2f} deg (+- {:.2f} deg) to the {} of the heading the ground truth "
+        "measures (a motion-capture body frame rotated off the axle, or an axle not square to "
+        "the body: the same in these data)",
+        what.empty() ? "" : "; ", std::abs(beta) * 180 / M_PI, kc.sd_travel_angle_rad * 180 / M_PI,
+        beta > 0 ? "left" : "right");
+  return what;
+}
+
+}  // namespace
+
 void addKinematicCalibration(const KinematicCalibration& kc, const config::WheelchairConfig& cfg,
                              DiagnosisReport& rep) {
   nlohmann::json info = {{"tested", kc.tested}};
@@ -501,28 +537,7 @@ void addKinematicCalibration(const KinematicCalibration& kc, const config::Wheel
   Finding f;
   f.effect = kWheelGeometryEffect;
   f.channels = {"encoders", "ground_truth"};
-  std::string what;
-  if (kc.model == "scale" || kc.model == "scale+track")
-    what = fmt::format("both wheels' effective radius is {} than configured",
-                       percentText(dR, kc.sd_rel[0], "larger", "smaller"));
-  else if (kc.model != "track" && kc.model != "travel_angle")  // wheels(+track), heading-*
-    what = fmt::format(
-        "the right wheel's effective radius is {} and the left wheel's {} than configured "
-        "(ratio right/left {:.4f})",
-        percentText(dR, kc.sd_rel[0], "larger", "smaller"),
-        percentText(dL, kc.sd_rel[1], "larger", "smaller"),
-        g.m_per_tick_right / g.m_per_tick_left * n.m_per_tick_left / n.m_per_tick_right);
-  if (kc.model.find("track") != std::string::npos || kc.model.rfind("heading", 0) == 0)
-    what += fmt::format("{}the effective track is {}", what.empty() ? "" : "; ",
-                        percentText(db, kc.sd_rel[2], "wider", "narrower"));
-  const double beta = g.travel_angle_rad - n.travel_angle_rad;
-  if (std::abs(beta) >= kMinRelativeChange)
-    what += fmt::format(
-        "{}the body travels {:.2f} deg (+- {:.2f} deg) to the {} of the heading the ground truth "
-        "measures (a motion-capture body frame rotated off the axle, or an axle not square to "
-        "the body: the same in these data)",
-        what.empty() ? "" : "; ", std::abs(beta) * 180 / M_PI, kc.sd_travel_angle_rad * 180 / M_PI,
-        beta > 0 ? "left" : "right");
+  const std::string what = geometryWords(kc);
   std::string why;
   if (kc.whole_run_misspecified)
     why = fmt::format(
