@@ -1411,6 +1411,27 @@ bool loadOnBothMotorsFitsBetter(const double b[2], const double sd[2]) {
   return chi2_both <= std::min(w0 * b[0] * b[0], w1 * b[1] * b[1]);
 }
 
+/// The fit of the design D with the candidates' columns `extra` beside it (df's rows, HAC
+/// covariance), and a column's coefficient with its 1-sigma sd.
+LinearFit fitBeside(const Eigen::MatrixXd& D, std::initializer_list<const Candidate*> extra,
+                    const DynRows& df, int lags) {
+  Eigen::MatrixXd X(D.rows(), D.cols() + static_cast<Eigen::Index>(extra.size()));
+  X.leftCols(D.cols()) = D;
+  Eigen::Index q = D.cols();
+  for (const Candidate* c : extra) X.col(q++) = df.design().times(c->S.col(0));
+  return fitLinear(X, df.y, df.groups, lags);
+}
+void coefficientOf(const LinearFit& f, Eigen::Index q, double& b, double& sd) {
+  b = f.beta(q), sd = std::sqrt(std::max(0.0, f.cov(q, q)));
+}
+
+/// A motor asymmetry's column and the other motor's, fitted together (b, sd), are one extra
+/// load on both motors, not an asymmetry: equal (equalOnBothMotors) and better fitted by one
+/// load on both than by one on either motor alone (loadOnBothMotorsFitsBetter).
+bool oneLoadOnBothMotors(const double b[2], const double sd[2]) {
+  return equalOnBothMotors(b, sd) && loadOnBothMotorsFitsBetter(b, sd);
+}
+
 /// Whether the selection accepted a motor asymmetry on BOTH sides with equal coefficients
 /// (equalOnBothMotors): the same extra viscous friction on both motors. Accepted on ONE side
 /// (the other's held-out check failed, e.g. on the held-out rows' other physics): the other
@@ -1436,18 +1457,13 @@ bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cand
       candidateIndex(cands, side_found == 0 ? "motor_asymmetry/left" : "motor_asymmetry/right");
   if (other < 0) return false;
   const Eigen::MatrixXd D = acceptedDesign(df.design(), cands, sel.accepted);
-  const Eigen::Index k = D.cols();
-  Eigen::MatrixXd X(D.rows(), k + 1);
-  X << D, df.design().times(cands[other].S.col(0));
-  const LinearFit f = fitLinear(X, df.y, df.groups, lags);
+  const LinearFit f = fitBeside(D, {&cands[other]}, df, lags);
   if (!f.ok) return false;
-  int i_found = -1;
   for (std::size_t a = 0; a < sel.accepted.size(); ++a)
-    if (cands[sel.accepted[a]].effect == "motor_asymmetry") i_found = sel.ranges[a].first;
-  b[side_found] = f.beta(i_found),
-  sd[side_found] = std::sqrt(std::max(0.0, f.cov(i_found, i_found)));
-  b[1 - side_found] = f.beta(k), sd[1 - side_found] = std::sqrt(std::max(0.0, f.cov(k, k)));
-  return equalOnBothMotors(b, sd) && loadOnBothMotorsFitsBetter(b, sd);
+    if (cands[sel.accepted[a]].effect == "motor_asymmetry")
+      coefficientOf(f, sel.ranges[a].first, b[side_found], sd[side_found]);
+  coefficientOf(f, D.cols(), b[1 - side_found], sd[1 - side_found]);
+  return oneLoadOnBothMotors(b, sd);
 }
 
 /// The terms of motor `ch`'s sparse fit that are reported as `unmodeled`: a friction finding
@@ -1558,29 +1574,34 @@ std::string harmoniseUntold(std::array<SparseResult, 2>& u, const DynRows& df2,
   };
   // heading halves (10, 11) are one term; measured currents (12, 13) are no law
   auto law = [](int lib) { return lib < 10 || lib > 13; };
+  std::array<std::optional<Eigen::VectorXd>, 2> r;  // each motor's residual, once needed
   for (int a : u[0].terms)
     for (int b : u[1].terms) {
       if (a == b || !law(a) || !law(b) || has(1, a) || has(0, b)) continue;
-      double cos_min = 1, rss[2] = {0, 0};  // rss: a, b on both motors
+      double cos_min = 1;
       for (int s2 = 0; s2 < 2; ++s2) {
         const Eigen::VectorXd xa = df2.libColumn(a, s2 * nR, nR),
                               xb = df2.libColumn(b, s2 * nR, nR);
-        const Eigen::VectorXd r = motorResidual(s2);
         const double na = xa.squaredNorm(), nb = xb.squaredNorm();
-        if (!(na > 0) || !(nb > 0))
-          cos_min = 0;
-        else
-          cos_min = std::min(cos_min, std::abs(xa.dot(xb)) / std::sqrt(na * nb));
-        if (na > 0) rss[0] += r.squaredNorm() - std::pow(xa.dot(r), 2) / na;
-        if (nb > 0) rss[1] += r.squaredNorm() - std::pow(xb.dot(r), 2) / nb;
+        cos_min =
+            na > 0 && nb > 0 ? std::min(cos_min, std::abs(xa.dot(xb)) / std::sqrt(na * nb)) : 0.0;
       }
       if (cos_min < kUntoldCosine) continue;
+      double rss[2] = {0, 0};  // a, b on both motors
+      for (int s2 = 0; s2 < 2; ++s2) {
+        const Eigen::VectorXd xa = df2.libColumn(a, s2 * nR, nR),
+                              xb = df2.libColumn(b, s2 * nR, nR);
+        if (!r[s2]) r[s2] = motorResidual(s2);
+        const double na = xa.squaredNorm(), nb = xb.squaredNorm(), rr = r[s2]->squaredNorm();
+        rss[0] += rr - std::pow(xa.dot(*r[s2]), 2) / na;
+        rss[1] += rr - std::pow(xb.dot(*r[s2]), 2) / nb;
+      }
       const int keep = rss[0] <= rss[1] ? a : b, drop = keep == a ? b : a, s2 = keep == a ? 1 : 0;
       SparseResult& sr = u[s2];
       const auto it = std::find(sr.terms.begin(), sr.terms.end(), drop);
       const Eigen::Index q = it - sr.terms.begin();
       const Eigen::VectorXd x = df2.libColumn(keep, s2 * nR, nR);
-      const double coef = x.dot(motorResidual(s2)) / x.squaredNorm();
+      const double coef = x.dot(*r[s2]) / x.squaredNorm();
       if (sr.coef(q) != 0) sr.se(q) *= std::abs(coef / sr.coef(q));
       sr.coef(q) = coef;
       *it = keep;
@@ -1610,6 +1631,35 @@ Eigen::VectorXd motorResidual(const Eigen::VectorXd& y, const Eigen::MatrixXd& D
   Eigen::VectorXd r = D.middleRows(s2 * n, n) * beta;
   r = y.segment(s2 * n, n) - r;
   return r;
+}
+
+/// An out-of-catalogue column of the joint fit: library column `lib` on the right (sides 0) or
+/// left (1) motor's rows, or antisymmetric (2: + right, - left).
+struct JointColumn {
+  int lib, sides;
+};
+
+/// The unmodeled terms u carry the joint fit's coefficients: each motor's terms become the
+/// columns `cols` on its rows (coefficient and sd of column k + c of f; an antisymmetric
+/// column's coefficient negated on the left motor); a motor without any is no longer accepted.
+void carryJointCoefficients(const std::vector<JointColumn>& cols, const LinearFit& f,
+                            Eigen::Index k, std::array<SparseResult, 2>& u) {
+  for (int s2 = 0; s2 < 2; ++s2) {
+    SparseResult& sr = u[s2];
+    std::vector<int> terms;
+    std::vector<double> coef, se;
+    for (size_t c = 0; c < cols.size(); ++c)
+      if (cols[c].sides == s2 || cols[c].sides == 2) {
+        const Eigen::Index q = k + static_cast<Eigen::Index>(c);
+        terms.push_back(cols[c].lib);
+        coef.push_back((cols[c].sides == 2 && s2 == 1 ? -1.0 : 1.0) * f.beta(q));
+        se.push_back(std::sqrt(std::max(0.0, f.cov(q, q))));
+      }
+    sr.accepted = sr.accepted && !terms.empty();
+    sr.terms = terms;
+    sr.coef = Eigen::Map<Eigen::VectorXd>(coef.data(), coef.size());
+    sr.se = Eigen::Map<Eigen::VectorXd>(se.data(), se.size());
+  }
 }
 
 /// The catalogue's coefficients estimated jointly with the out-of-catalogue terms (issue 16).
@@ -1649,14 +1699,11 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
                                                          motorResidual(dv2.y, Dv, j.beta, s2)};
     };
     j.unmodeled = dynamicUnmodeled(df2, dv2, residuals, lags, cfg, opt);
-    j.untold = harmoniseUntold(j.unmodeled, df2, [&](int s2) { return residuals(s2).first; });
+    j.untold = harmoniseUntold(j.unmodeled, df2,
+                               [&](int s2) { return motorResidual(df2.y, Df, j.beta, s2); });
     if (Df.cols() == 0 || !(j.unmodeled[0].accepted || j.unmodeled[1].accepted)) break;
     if (pass == 0) qrD.compute(Df);
-    // The unmodeled columns: (library column, sides) with sides 0 right, 1 left, 2 antisymmetric.
-    struct Col {
-      int lib, sides;
-    };
-    std::vector<Col> cols;
+    std::vector<JointColumn> cols;
     auto has = [&](int s2, int lib) {
       const auto& t = j.unmodeled[s2].terms;
       return j.unmodeled[s2].accepted && std::find(t.begin(), t.end(), lib) != t.end();
@@ -1736,23 +1783,7 @@ JointDynamicFit jointDynamicFit(const Selection& sel, const Eigen::MatrixXd& Df,
     j.beta = f.beta.head(Df.cols());
     j.cov = f.cov.topLeftCorner(Df.cols(), Df.cols());
     j.refitted = j.refitted || !cols.empty();
-    // The unmodeled findings carry the joint coefficients.
-    for (int s2 = 0; s2 < 2; ++s2) {
-      SparseResult& sr = j.unmodeled[s2];
-      std::vector<int> terms;
-      std::vector<double> coef, se;
-      for (size_t c = 0; c < cols.size(); ++c)
-        if (cols[c].sides == s2 || cols[c].sides == 2) {
-          const Eigen::Index q = Df.cols() + static_cast<Eigen::Index>(c);
-          terms.push_back(cols[c].lib);
-          coef.push_back((cols[c].sides == 2 && s2 == 1 ? -1.0 : 1.0) * f.beta(q));
-          se.push_back(std::sqrt(std::max(0.0, f.cov(q, q))));
-        }
-      sr.accepted = sr.accepted && !terms.empty();
-      sr.terms = terms;
-      sr.coef = Eigen::Map<Eigen::VectorXd>(coef.data(), coef.size());
-      sr.se = Eigen::Map<Eigen::VectorXd>(se.data(), se.size());
-    }
+    carryJointCoefficients(cols, f, Df.cols(), j.unmodeled);
   }
   return j;
 }
@@ -1827,8 +1858,8 @@ std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candid
 }
 
 /// Whether both motors' asymmetry columns are spare (neither accepted) and, fitted together
-/// beside the accepted design Df on the fit rows, take equal coefficients (equalOnBothMotors and
-/// loadOnBothMotorsFitsBetter, the rule symmetricAsymmetry applies to one accepted side).
+/// beside the accepted design Df on the fit rows, are one load on both motors
+/// (oneLoadOnBothMotors, the rule symmetricAsymmetry applies to one accepted side).
 bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
                              const std::vector<SpareTerm>& spare, const Eigen::MatrixXd& Df,
                              const DynRows& df2, int lags) {
@@ -1839,16 +1870,11 @@ bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
     if (n == "motor_asymmetry/left") side_cand[1] = sp.cand;
   }
   if (side_cand[0] < 0 || side_cand[1] < 0) return false;
-  const Eigen::Index k = Df.cols();
-  Eigen::MatrixXd X(Df.rows(), k + 2);
-  X.leftCols(k) = Df;
-  for (int s2 = 0; s2 < 2; ++s2) X.col(k + s2) = df2.design().times(cands[side_cand[s2]].S.col(0));
-  const LinearFit f = fitLinear(X, df2.y, df2.groups, lags);
+  const LinearFit f = fitBeside(Df, {&cands[side_cand[0]], &cands[side_cand[1]]}, df2, lags);
   if (!f.ok) return false;
-  const double b[2] = {f.beta(k), f.beta(k + 1)};
-  const double sd[2] = {std::sqrt(std::max(0.0, f.cov(k, k))),
-                        std::sqrt(std::max(0.0, f.cov(k + 1, k + 1)))};
-  return equalOnBothMotors(b, sd) && loadOnBothMotorsFitsBetter(b, sd);
+  double b[2], sd[2];
+  for (int s2 = 0; s2 < 2; ++s2) coefficientOf(f, Df.cols() + s2, b[s2], sd[s2]);
+  return oneLoadOnBothMotors(b, sd);
 }
 
 /// A catalogue term rejected by the forward selection (typically by its held-out check, the
