@@ -222,9 +222,11 @@ TEST(SpilledColumns, ColumnsComeBackBitForBitAndTheFileLeavesNoName) {
     ASSERT_EQ(open.size(), before.size() + 1);
     // (only the new one: files the test runner holds open under /tmp, e.g. ctest's log when
     // the build tree is there, are inherited and named)
-    for (const auto& f : open)
-      if (std::find(before.begin(), before.end(), f) == before.end())
+    for (const auto& f : open) {
+      if (std::find(before.begin(), before.end(), f) == before.end()) {
         EXPECT_NE(f.find("(deleted)"), std::string::npos) << f;
+      }
+    }
     sp.restore();
     EXPECT_EQ(sp.spilled(), 0u);
     EXPECT_EQ(openFilesIn("/tmp").size(), before.size()) << "closed once restored";
