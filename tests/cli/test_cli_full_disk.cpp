@@ -14,6 +14,7 @@ namespace fs = std::filesystem;
 using wheelchair::test::cli;
 using wheelchair::test::readFile;
 using wheelchair::test::run;
+using wheelchair::test::sourcePath;
 using wheelchair::test::TempDir;
 
 namespace {
@@ -129,6 +130,19 @@ TEST(CliFullDisk, DiagnoseJsonAndConfig) {
               "d.json",
               "diagnose: streams set aside during stage 2: temporary file (/tmp): "
               "cannot write: File too large");
+}
+
+TEST(CliFullDisk, DiagnoseJsonWithoutMotorCurrents) {
+  // A recording without motor currents (the bundled MRCLAM slice: the command-response
+  // analysis, no stage 2 and no temporary file): the late failure is d.json's own write.
+  const TempDir t;
+  const std::string rec = t / "r3.rawlog";
+  const auto r =
+      cli("import --format mrclam " + sourcePath("datasets/mrclam") + " --robot 3 -o " + rec);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  checkWriter(
+      "diagnose " + rec + " --config " + sourcePath("config/mrclam.ini") + " --json OUT/d.json",
+      "d.json");
 }
 
 TEST(CliFullDisk, Report) {
