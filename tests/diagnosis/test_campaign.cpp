@@ -341,7 +341,7 @@ TEST(DiagnoseCampaign, MujocoUnknownScoreSetsAsideOnlyTheCentreOfMassReadings) {
   // mass: on a `square` drive, whose turns go one way at one rate, a yaw viscous moment reads
   // as one, ambiguous with omega (MuJoCo square 290234, yaw viscous friction 3.1 N m s/rad).
   const auto truth = std::vector<effects::EffectSpec>{
-      effects::parseValidEffect("yaw_viscous_friction:c_N_m_s_rad=3.107")};
+      effects::parseEffect("yaw_viscous_friction:c_N_m_s_rad=3.107")};
   auto component = [](const std::string& channel, const std::string& term) {
     return nlohmann::json{
         {"channel", channel},
