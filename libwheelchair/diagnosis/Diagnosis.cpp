@@ -824,11 +824,11 @@ SparseResult stlsqSearch(const Library& L, const Eigen::VectorXd& y, const Group
 /// one column, the same search again with only replacements that stand the fit rows'
 /// thresholding (issue 16 item 3). The replacement is meant to say the same structure in fewer
 /// terms; when the fewer-term set does not stand the thresholding and the whole structure then
-/// dissolves (MuJoCo `square` drives: a heading moment of 0.64 N m, a quadratic drag with a
-/// 1-sigma current trace, both with nothing reported), it was not the same structure, and the
-/// search that keeps what the fit rows support is judged instead, by the same held-out and
-/// cross-validation rules. Where the first search accepts a set, it stands (the replacement
-/// then did what it is for, and over-fitted sets are still replaced by ones that do not stand).
+/// dissolves (MuJoCo `square` 785894: a quadratic drag of 4.32 N s^2/m^2 with a 1-sigma current
+/// trace, nothing reported), it was not the same structure, and the search that keeps what the
+/// fit rows support is judged instead, by the same held-out and cross-validation rules. Where
+/// the first search accepts a set, it stands (the replacement then did what it is for, and
+/// over-fitted sets are still replaced by ones that do not stand).
 SparseResult stlsq(const Library& L, const Eigen::VectorXd& y, const Groups& g, const Library& Lv,
                    const Eigen::VectorXd& yv, const Groups& gv, int lags,
                    const DiagnosisOptions& opt, double min_contribution_rms, int excluded = -1,
