@@ -221,10 +221,19 @@ nlohmann::json unknownEffectScore(const std::vector<effects::EffectSpec>& truth,
     }
     for (const auto& c : f.value("physics", nlohmann::json::array())) {
       const std::string term = c.value("term", std::string());
-      // The multibody's centre of mass ahead of the axle (v*omega, omega^2 per motor; on
-      // every clean MuJoCo drive, engineTruthFinding) is the engine's, not this effect's.
-      if (engine == "mujoco" && (term == "v*omega" || term == "omega^2")) continue;
       const std::string ch = c.value("channel", std::string());
+      // The multibody's centre of mass ahead of the axle (on every clean MuJoCo drive,
+      // engineTruthFinding) is the engine's, not this effect's: a rigid body whose centre of
+      // mass lies a distance d ahead of the axle needs a forward force -m d omega^2 (the same
+      // current on both motors) and a yaw moment m d v omega (opposite currents), and nothing
+      // else of these two products (a lateral offset adds only vdot and omegadot terms). Those
+      // readings, or one motor's share of them, are set aside; a YAW omega^2 or a FORWARD
+      // v*omega is not the centre of mass (e.g. a yaw viscous moment on a `square` drive, whose
+      // turns go one way at one rate, reads as a yaw omega^2 ambiguous with omega).
+      const bool one_motor = ch == "current_right" || ch == "current_left";
+      if (engine == "mujoco" && ((term == "omega^2" && (ch == "forward" || one_motor)) ||
+                                 (term == "v*omega" && (ch == "yaw" || one_motor))))
+        continue;
       const std::string dep = c.value("dependence", std::string());
       seen.push_back(ch + ": " + dep + " (" + term + ")");
       if (ch == t.channel) {

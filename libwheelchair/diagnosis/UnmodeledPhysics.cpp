@@ -16,7 +16,8 @@ std::string dependenceOf(const std::string& t) {
   if (t == "1") return "constant";
   if (t == "v" || t == "omega" || t == "|omega|" || t == "|u|") return "rate";
   if (t == "sgn(u)" || t == "sgn(omega)") return "sign_of_rate";
-  if (t == "u^2" || t == "v*|v|" || t == "omega*|omega|") return "rate_squared";
+  if (t == "u^2" || t == "v*|v|" || t == "omega*|omega|" || t == "(u_R^3-u_L^3)/l_w")
+    return "rate_squared";
   if (t == "v*omega" || t == "omega^2") return "rate_product";
   if (t == "vdot" || t == "omegadot") return "acceleration";
   if (t == "cos(phi)" || t == "sin(phi)") return "heading";
@@ -64,7 +65,8 @@ std::string termUnit(const std::string& t) {
                                                        {"v*|v|", "m^2/s^2"},
                                                        {"sgn(omega)", ""},
                                                        {"|omega|", "rad/s"},
-                                                       {"omega*|omega|", "rad^2/s^2"}};
+                                                       {"omega*|omega|", "rad^2/s^2"},
+                                                       {"(u_R^3-u_L^3)/l_w", "m^2/s^3"}};
   auto it = u.find(t);
   return it == u.end() ? "" : it->second;
 }

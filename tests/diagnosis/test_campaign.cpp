@@ -104,10 +104,14 @@ TEST(DiagnoseCampaign, MujocoEngineTruthScoresOnlyTheEnginesOwnPhysics) {
 // +0.052, omegadot +0.116 right / -0.052 left), never the step from rest (vdot +0.005), and a
 // vdot term never without that measurement.
 TEST(DiagnoseCampaign, AccelerationTermsAreScoredAgainstTheDrivesRealisedValues) {
-  nlohmann::json truth = {{"radius_rel", {-0.00127, -0.00126}}, {"track_rel", {0.0005, 0.0035}},
-                          {"v_omega_A", 2.06},  {"omega2_A", -0.567},
-                          {"omegadot_A", 0.071}, {"vdot_A", 0.005},
-                          {"slope_cos_A", 0.0},  {"slope_sin_A", 0.0}};
+  nlohmann::json truth = {{"radius_rel", {-0.00127, -0.00126}},
+                          {"track_rel", {0.0005, 0.0035}},
+                          {"v_omega_A", 2.06},
+                          {"omega2_A", -0.567},
+                          {"omegadot_A", 0.071},
+                          {"vdot_A", 0.005},
+                          {"slope_cos_A", 0.0},
+                          {"slope_sin_A", 0.0}};
   diagnosis::Finding u;
   u.effect = "unmodeled";
   u.parameters = {{"channel", "current_left"}, {"omega^2", -0.55}, {"vdot", 0.055}};
@@ -328,4 +332,38 @@ TEST(DiagnoseCampaign, UnknownOnlyRunsTheFullCommandsUnknownDrives) {
     EXPECT_EQ(uf[k]["unknown_score"], uo[k]["unknown_score"]);
   }
   EXPECT_EQ(full["unknown"]["described"], only["unknown"]["described"]);
+}
+
+TEST(DiagnoseCampaign, MujocoUnknownScoreSetsAsideOnlyTheCentreOfMassReadings) {
+  // A centre of mass ahead of the axle costs a forward force -m d omega^2 (the same current on
+  // both motors) and a yaw moment m d v omega (opposite currents): those readings are the
+  // multibody's own on every MuJoCo drive and are set aside. A YAW omega^2 is not the centre of
+  // mass: on a `square` drive, whose turns go one way at one rate, a yaw viscous moment reads
+  // as one, ambiguous with omega (MuJoCo square 290234, yaw viscous friction 3.1 N m s/rad).
+  const auto truth = std::vector<effects::EffectSpec>{
+      effects::parseEffect("yaw_viscous_friction:c_N_m_s_rad=3.107")};
+  auto component = [](const std::string& channel, const std::string& term) {
+    return nlohmann::json{
+        {"channel", channel},
+        {"term", term},
+        {"dependence", "rate_product"},
+        {"ambiguous_with", {{{"channel", channel}, {"dependence", "rate"}, {"term", "omega"}}}}};
+  };
+  auto findings = [&](const std::string& channel, const std::string& term) {
+    return nlohmann::json::array(
+        {{{"effect", "unmodeled"}, {"physics", {component(channel, term)}}}});
+  };
+  const auto yaw = diagnosis::unknownEffectScore(truth, findings("yaw", "omega^2"), "mujoco");
+  EXPECT_TRUE(yaw["described"].get<bool>()) << yaw.dump();
+  EXPECT_TRUE(yaw["described_in_group"].get<bool>()) << yaw.dump();
+  // the centre of mass' own readings, on the forward channel or one motor's current: set aside
+  for (const auto& [ch, term] : std::vector<std::pair<std::string, std::string>>{
+           {"forward", "omega^2"}, {"yaw", "v*omega"}, {"current_left", "omega^2"}}) {
+    const auto s = diagnosis::unknownEffectScore(truth, findings(ch, term), "mujoco");
+    EXPECT_FALSE(s["located"].get<bool>()) << ch << " " << term << " " << s.dump();
+    EXPECT_TRUE(s["components"].empty()) << s.dump();
+  }
+  // the model engine has no centre of mass off the axle: nothing is set aside there
+  const auto model = diagnosis::unknownEffectScore(truth, findings("yaw", "v*omega"), "model");
+  EXPECT_TRUE(model["located"].get<bool>()) << model.dump();
 }
