@@ -69,6 +69,14 @@ class CdModel {
   virtual void Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& Q) const = 0;
   /// True when Q depends on neither x nor u: CdEkf then evaluates it once.
   virtual bool constantQ() const { return false; }
+  /// A constant Q but for one diagonal entry Q(i, i), i = varyingQIndex() (-1: none): CdEkf
+  /// evaluates Q once and rewrites only that entry with varyingQ() at each right-hand side.
+  virtual int varyingQIndex() const { return -1; }
+  /// Q(i, i), i = varyingQIndex(), at (x, u), with xdot = f(x, u) already evaluated.
+  virtual double varyingQ(const Eigen::VectorXd& /*x*/, const Eigen::VectorXd& /*u*/,
+                          const Eigen::VectorXd& /*xdot*/) const {
+    return 0.0;
+  }
 };
 
 /// u(t) over one propagation interval.

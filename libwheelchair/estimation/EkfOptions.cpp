@@ -73,6 +73,10 @@ config::Options EkfOptions::options(const std::string& section) {
             "restart CVODE at every motor-current sample")
       .real("q_v_m2_s3", q_v_m2_s3, "process noise density on vdot (m^2/s^3)", nonneg)
       .real("q_omega_rad2_s3", q_omega_rad2_s3, "on omegadot (rad^2/s^3)", nonneg)
+      .flag("yaw_noise_from_manoeuvre", yaw_noise_from_manoeuvre, "yaw noise from the manoeuvre")
+      .real("yaw_noise_floor_rad_s2", yaw_noise_floor_rad_s2, "a_0, standing (rad/s^2)", nonneg)
+      .real("yaw_noise_com_ahead_m", yaw_noise_com_ahead_m, "centre of mass ahead of axle (m)", any)
+      .real("yaw_noise_side_fraction", yaw_noise_side_fraction, "drive sides' error (-)", nonneg)
       .real("q_xy_m2_s", q_xy_m2_s, "on xdot, ydot (m^2/s)", nonneg)
       .real("q_phi_rad2_s", q_phi_rad2_s, "on phidot (rad^2/s)", nonneg)
       .real("q_obstacle_m2_s", q_obstacle_m2_s, "on the obstacle px, py or d (m^2/s)", nonneg)
@@ -139,8 +143,7 @@ config::Options EkfOptions::options(const std::string& section) {
             "baseline: density of omega (rad^2/s^3)", nonneg)
       .real("baseline_q_xy_m2_s", baseline_q_xy_m2_s, "baseline: on x, y (m^2/s)", nonneg)
       .real("baseline_q_phi_rad2_s", baseline_q_phi_rad2_s, "baseline: on phi (rad^2/s)", nonneg)
-      .real("baseline_q_obstacle_m2_s", baseline_q_obstacle_m2_s,
-            "baseline: on the obstacle (m^2/s)", nonneg);
+      .real("baseline_q_obstacle_m2_s", baseline_q_obstacle_m2_s, "obstacle (m^2/s)", nonneg);
 }
 
 void EkfOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,
@@ -193,6 +196,8 @@ void EkfOptions::validate() const {
   if (cvode.max_order < 0) throw std::invalid_argument("cvode_max_order must be >= 0");
   for (auto [v, k] : {std::pair{q_v_m2_s3, "q_v_m2_s3"},
                       {q_omega_rad2_s3, "q_omega_rad2_s3"},
+                      {yaw_noise_floor_rad_s2, "yaw_noise_floor_rad_s2"},
+                      {yaw_noise_side_fraction, "yaw_noise_side_fraction"},
                       {q_xy_m2_s, "q_xy_m2_s"},
                       {q_phi_rad2_s, "q_phi_rad2_s"},
                       {q_obstacle_m2_s, "q_obstacle_m2_s"},

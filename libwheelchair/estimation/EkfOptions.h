@@ -70,6 +70,16 @@ struct EkfOptions {
   // --- process noise (continuous-time spectral densities) ---------------------------------
   double q_v_m2_s3 = 0.01;                  ///< on vdot (model error of (6))
   double q_omega_rad2_s3 = 0.02;  ///< on omegadot; config/wheelchair.ini ships 0.003 (derived there)
+  /// Yaw noise that follows the manoeuvre (WheelchairEkf.h ManoeuvreYawNoise): q_omega(t) =
+  /// a(t)^(4/3) (gyro variance / rate)^(1/3) with the yaw-acceleration error of (6) a(t) =
+  /// yaw_noise_floor_rad_s2 + m_b yaw_noise_com_ahead_m / I_z |v omega| +
+  /// yaw_noise_side_fraction (|a2| (|i_R| + |i_L|) + |a4 / l_w| (|u_R| + |u_L|)), instead of the
+  /// constant q_omega_rad2_s3 (physics filter only).
+  bool yaw_noise_from_manoeuvre = false;
+  double yaw_noise_floor_rad_s2 = 0.05;  ///< a_0: yaw-acceleration error standing (rad/s^2)
+  double yaw_noise_com_ahead_m = 0.07;   ///< d: centre of mass (chair + user) ahead of the axle
+  /// epsilon: each drive side's torque and friction in (6) known to this fraction (-)
+  double yaw_noise_side_fraction = 0.3;
   double q_xy_m2_s = 1e-8;                  ///< on xdot, ydot (lateral tyre creep only)
   double q_phi_rad2_s = 0;                  ///< on phidot (0: phi integrates omega exactly)
   double q_obstacle_m2_s = 1e-5;            ///< on the obstacle (px, py) or d

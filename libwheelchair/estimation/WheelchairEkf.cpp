@@ -22,8 +22,9 @@ using model::ObstacleForm;
 WheelchairProcessModel::WheelchairProcessModel(const model::FilterModel& fm,
                                                const Eigen::Matrix<double, 7, 1>& q,
                                                double current_density,
-                                               const Eigen::VectorXd& error_q)
-    : fm_(fm), n_(kPhysicsStateDim + static_cast<int>(error_q.size())) {
+                                               const Eigen::VectorXd& error_q,
+                                               const ManoeuvreYawNoise& yaw)
+    : fm_(fm), n_(kPhysicsStateDim + static_cast<int>(error_q.size())), yaw_(yaw) {
   Q_.setZero(n_, n_);
   if (error_q.size() > 0)
     Q_.bottomRightCorner(error_q.size(), error_q.size()) = error_q.asDiagonal();
@@ -73,9 +74,19 @@ void WheelchairProcessModel::fAndF(const Eigen::VectorXd& x, const Eigen::Vector
   augmentJacobian(n_, F7, F);
 }
 
-void WheelchairProcessModel::Q(const Eigen::VectorXd&, const Eigen::VectorXd&,
+void WheelchairProcessModel::Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
                                Eigen::MatrixXd& Q) const {
   Q = Q_;
+  if (!yaw_.on) return;
+  Eigen::VectorXd xdot;
+  f(x, u, xdot);
+  Q(model::kIdxOmega, model::kIdxOmega) = varyingQ(x, u, xdot);
+}
+
+double WheelchairProcessModel::varyingQ(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
+                                        const Eigen::VectorXd&) const {
+  return Q_(model::kIdxOmega, model::kIdxOmega) +
+         yaw_.qOmega(x(model::kIdxV), x(model::kIdxOmega), u(0), u(1));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -136,8 +147,9 @@ model::FilterModel makeFilterModel(const config::WheelchairConfig& cfg, const Ek
 Eigen::Matrix<double, 7, 1> processNoiseDiag(const EkfOptions& o) {
   const bool polar = o.obstacle_form == ObstacleFormOption::Polar;
   Eigen::Matrix<double, 7, 1> q;
-  q << o.q_v_m2_s3, o.q_omega_rad2_s3, o.q_xy_m2_s, o.q_xy_m2_s, o.q_phi_rad2_s, o.q_obstacle_m2_s,
-      polar ? o.q_obstacle_bearing_rad2_s : o.q_obstacle_m2_s;
+  // With the manoeuvre-scaled yaw noise q_omega_rad2_s3 is replaced (manoeuvreYawNoise).
+  q << o.q_v_m2_s3, o.yaw_noise_from_manoeuvre ? 0.0 : o.q_omega_rad2_s3, o.q_xy_m2_s, o.q_xy_m2_s,
+      o.q_phi_rad2_s, o.q_obstacle_m2_s, polar ? o.q_obstacle_bearing_rad2_s : o.q_obstacle_m2_s;
   return q;
 }
 
@@ -150,6 +162,24 @@ Eigen::VectorXd errorStateNoise(const EkfOptions& o) {
   const double qk = o.estimate_encoder_scales ? o.q_encoder_scale_1_s : 0.0;
   // Independent walks of k_R, k_L of density q: k_s gets q / 2, k_d 2 q, uncorrelated.
   return Eigen::Vector3d(0.5 * qk, 2.0 * qk, o.estimate_gyro_bias ? o.q_gyro_bias_rad2_s3 : 0.0);
+}
+
+/// The manoeuvre-scaled yaw noise of [estimator] (off unless yaw_noise_from_manoeuvre):
+/// kappa = m_b d / I_z, a2, a4 / l_w from [vehicle], r = gyro variance / [imu] rate_hz.
+ManoeuvreYawNoise manoeuvreYawNoise(const config::WheelchairConfig& cfg, const EkfOptions& o) {
+  ManoeuvreYawNoise y;
+  y.on = o.yaw_noise_from_manoeuvre;
+  y.floor_rad_s2 = o.yaw_noise_floor_rad_s2;
+  y.kappa_1_m =
+      cfg.vehicle.geom.body_mass_kg * o.yaw_noise_com_ahead_m / cfg.vehicle.yaw_inertia_kg_m2;
+  y.side_fraction = o.yaw_noise_side_fraction;
+  const model::OdeCoefficients a =
+      model::odeCoefficients(cfg.vehicle.geom, model::lumpedTheta(cfg.vehicle));
+  y.a2_rad_s2_A = std::fabs(a.a2);
+  y.a4_per_track_1_ms = std::fabs(a.a4) / cfg.vehicle.geom.track_width_m;
+  y.half_track_m = 0.5 * cfg.vehicle.geom.track_width_m;
+  y.cbrt_r = std::cbrt(o.gyro_noise_rad_s * o.gyro_noise_rad_s / std::max(cfg.imu.rate_hz, 1e-9));
+  return y;
 }
 
 }  // namespace
@@ -167,7 +197,7 @@ WheelchairEkf::WheelchairEkf(const config::WheelchairConfig& cfg, const EkfOptio
       input_(input),
       zero_input_(opt.input_interpolation),
       pm_(makeFilterModel(cfg, opt_), processNoiseDiag(opt_), opt_.current_noise_density_A2_s,
-          errorStateNoise(opt_)),
+          errorStateNoise(opt_), manoeuvreYawNoise(cfg, opt_)),
       ekf_(pm_, opt_.cvode) {
   if (!input_) input_ = &zero_input_;
   u_in_.signal = input_;

@@ -61,6 +61,7 @@
 #include "libwheelchair/estimation/Measurement.h"
 #include "libwheelchair/model/FilterModel.h"
 
+#include <cmath>
 #include <memory>
 
 namespace wheelchair::estimation {
@@ -80,15 +81,52 @@ Eigen::Vector2d scaledEncoderSpeeds(const Eigen::Vector2d& a, double k_s, double
                                     double track_width_m, Eigen::Matrix2d* dz_da = nullptr,
                                     Eigen::Matrix2d* dz_dk = nullptr);
 
+/// Yaw process noise that follows the manoeuvre (EkfOptions::yaw_noise_from_manoeuvre,
+/// docs/estimation.md "Yaw noise that follows the manoeuvre"). The model (6) leaves out yaw
+/// accelerations that act only while the motors pull and the chair moves: the centre of mass a
+/// distance d ahead of the axle (m_b d v omega / I_z), and the two drive sides' differences
+/// (torque constant, gearbox efficiency, friction, castor swivel torques at turn starts): (6)
+/// writes omegadot as the right side's minus the left side's yaw acceleration,
+///   omegadot = [a2 i_R + (a4 / l_w) u_R] - [a2 i_L + (a4 / l_w) u_L],  u_R,L = v +- omega l_w / 2,
+/// and each side's torque and friction known to a fraction epsilon leave an error up to
+/// epsilon (|a2| (|i_R| + |i_L|) + |a4 / l_w| (|u_R| + |u_L|)), whatever the turn. A sustained
+/// yaw-acceleration error a, with the gyro's white noise r = sigma_g^2 / rate (rad^2/s), is
+/// covered by the white density q = a^(4/3) r^(1/3) (its lag a / sqrt(q / r) equals the omega
+/// sd (q r)^(1/4)); here a follows the state and the measured currents:
+///   a(t) = a_0 + kappa |v omega| + epsilon (|a2| (|i_R| + |i_L|) + |a4 / l_w| (|u_R| + |u_L|))
+///   q_omega(t) = a(t)^(4/3) r^(1/3)
+/// with kappa = m_b d / I_z (1/m) and a_0 the floor (standing: only a_0 remains).
+struct ManoeuvreYawNoise {
+  bool on = false;
+  double floor_rad_s2 = 0;       ///< a_0 (rad/s^2)
+  double kappa_1_m = 0;          ///< m_b d / I_z (1/m)
+  double side_fraction = 0;      ///< epsilon (-)
+  double a2_rad_s2_A = 0;        ///< |a2| of (6) (rad/s^2 per A)
+  double a4_per_track_1_ms = 0;  ///< |a4| / l_w (1/(m s))
+  double half_track_m = 0;       ///< l_w / 2 (m)
+  double cbrt_r = 0;             ///< r^(1/3), r = gyro variance / rate (rad^2/s)
+  /// q_omega (rad^2/s^3) at speed v (m/s), turn rate omega (rad/s), currents i_R, i_L (A).
+  double qOmega(double v, double omega, double i_R, double i_L) const {
+    const double w = omega * half_track_m;
+    const double sides = a2_rad_s2_A * (std::fabs(i_R) + std::fabs(i_L)) +
+                         a4_per_track_1_ms * (std::fabs(v + w) + std::fabs(v - w));
+    const double a = floor_rad_s2 + kappa_1_m * std::fabs(v * omega) + side_fraction * sides;
+    return a * std::cbrt(a) * cbrt_r;
+  }
+};
+
 /// The augmented process model of WheelchairEkf: f, F = df/dx and
 /// Q = diag(q) + G Sigma_u G' (Sigma_u = current-noise density I_2) on the first 7 states;
 /// the accumulators have no process noise of their own (they integrate v and omega exactly).
 /// With `error_q` (3 random-walk densities of k_R, k_L, b_g) the state has the 3 sensor-error
 /// components, with f = 0, F = 0 and Q = diag(error_q) on them.
+/// With `yaw.on`, Q(omega, omega) = (the constant part, q_diag(1) + the current noise's) +
+/// yaw.qOmega(v, omega, omegadot) at every right-hand side (varyingQ); the rest stays constant.
 class WheelchairProcessModel : public CdModel {
  public:
   WheelchairProcessModel(const model::FilterModel& fm, const Eigen::Matrix<double, 7, 1>& q_diag,
-                         double current_density_A2_s, const Eigen::VectorXd& error_q = {});
+                         double current_density_A2_s, const Eigen::VectorXd& error_q = {},
+                         const ManoeuvreYawNoise& yaw = {});
   int stateDim() const override { return n_; }
   void f(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::VectorXd& xdot) const override;
   void F(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& F) const override;
@@ -96,12 +134,16 @@ class WheelchairProcessModel : public CdModel {
              Eigen::MatrixXd& F) const override;
   void Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& Q) const override;
   bool constantQ() const override { return true; }
+  int varyingQIndex() const override { return yaw_.on ? model::kIdxOmega : -1; }
+  double varyingQ(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
+                  const Eigen::VectorXd& xdot) const override;
   const model::FilterModel& filterModel() const { return fm_; }
 
  private:
   model::FilterModel fm_;
   int n_ = kPhysicsStateDim;
-  Eigen::MatrixXd Q_;
+  Eigen::MatrixXd Q_;  ///< constant Q (with yaw_.on: Q(omega, omega) without yaw_.qOmega)
+  ManoeuvreYawNoise yaw_;
 };
 
 class WheelchairEkf : public Estimator {

@@ -3,79 +3,25 @@
 #include "libwheelchair/io/RawlogIO.h"
 #include "libwheelchair/io/RawlogStream.h"
 #include "libwheelchair/util/OutputDir.h"
+#include "libwheelchair/util/ScratchRecords.h"
 
-#include <cerrno>
-#include <cstdio>
-#include <cstring>
-#include <memory>
 #include <stdexcept>
 
 namespace wheelchair::simulation {
 
 namespace {
 
-/// Truth samples: in memory up to `in_memory` samples (default 200000, ~30 MB: a drive of
-/// ~35 min at 100 Hz),
-/// beyond that in an anonymous temporary file (std::tmpfile: gone when closed, even after a
-/// crash), every write and read checked; errors name the truth file being produced.
-class TruthScratch {
- public:
-  TruthScratch(std::string target, std::size_t in_memory)
-      : target_(std::move(target)), in_memory_(in_memory) {}
-  void add(const TruthSample& s) {
-    if (!f_ && mem_.size() < in_memory_) {
-      mem_.push_back(s);
-      return;
-    }
-    if (!f_) {  // spill
-      f_.reset(std::tmpfile());
-      if (!f_) fail("cannot create");
-      write(mem_.data(), mem_.size());
-      mem_ = {};
-    }
-    write(&s, 1);
-  }
-  /// Calls f for every sample in order.
-  void replay(const std::function<void(const TruthSample&)>& f) {
-    if (!f_) {
-      for (const auto& s : mem_) f(s);
-      return;
-    }
-    if (std::fflush(f_.get()) != 0) fail("cannot write");
-    std::rewind(f_.get());
-    std::vector<TruthSample> chunk(4096);
-    for (;;) {
-      const std::size_t n = std::fread(chunk.data(), sizeof(TruthSample), chunk.size(), f_.get());
-      for (std::size_t i = 0; i < n; ++i) f(chunk[i]);
-      if (n < chunk.size()) break;
-    }
-    if (std::ferror(f_.get())) fail("cannot read");
-    std::fseek(f_.get(), 0, SEEK_END);
-  }
-
- private:
-  void write(const TruthSample* s, std::size_t n) {
-    if (n && std::fwrite(s, sizeof *s, n, f_.get()) != n) fail("cannot write");
-  }
-  [[noreturn]] void fail(const char* what) const {
-    throw std::runtime_error(target_ +
-                             ": scratch file of the truth samples (temporary directory): " + what +
-                             ": " + std::strerror(errno));
-  }
-  std::string target_;
-  std::size_t in_memory_;
-  std::vector<TruthSample> mem_;
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> f_{nullptr, &std::fclose};
-};
-
 struct FileSink : SimulationSink {
   io::TimeOrderedRawlogWriter rawlog;
-  TruthScratch truth_samples;
+  /// Truth samples: in memory up to `in_memory` samples (default 200000, ~30 MB: a drive of
+  /// ~35 min at 100 Hz), beyond that in an anonymous temporary file (util::ScratchRecords);
+  /// errors name the truth file being produced.
+  util::ScratchRecords<TruthSample> truth_samples;
   bool ground_truth;
   FileSink(const std::string& path, const std::string& truth_path, std::size_t in_memory,
            const config::WheelchairConfig& cfg, bool gt)
       : rawlog(path, cfg, expectedStreams(gt)),
-        truth_samples(truth_path, in_memory),
+        truth_samples(truth_path + ": the truth samples", in_memory),
         ground_truth(gt) {}
   static std::vector<io::StreamKind> expectedStreams(bool gt) {
     using io::StreamKind;
@@ -123,7 +69,7 @@ StreamedSimulation simulateToFiles(const config::WheelchairConfig& cfg, const st
     }
     outputs.add(rawlog);
     out.result.writeTruth(truth_path, [&](const std::function<void(const TruthSample&)>& f) {
-      sink.truth_samples.replay(f);
+      sink.truth_samples.replay(0, sink.truth_samples.size(), f);
     });
   }
   outputs.keep();

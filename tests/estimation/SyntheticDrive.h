@@ -44,6 +44,9 @@ struct SynthOptions {
   /// out (one gearbox stiffer, the centre of mass ahead of the axle); 0 = none.
   double yaw_accel_error_rad_s2 = 0.0;
   double yaw_error_phase = 0.0;
+  /// A yaw-acceleration error that follows the manoeuvre (1/m): omegadot += -kappa v omega,
+  /// the centre of mass a distance d ahead of the axle (kappa = m d / I_z); 0 = none.
+  double yaw_accel_per_v_omega_1_m = 0.0;
   Eigen::Vector2d obstacle_world{3.0, 0.6};
   bool sonar_cone = false;           ///< only see the obstacle inside the 15 deg cone
   std::set<int> forced_sonar_zeros;  ///< indices of sonar samples that read 0
@@ -195,7 +198,9 @@ inline SynthRun synthesize(const config::WheelchairConfig& cfg, const SynthOptio
     const double v1 = v + dt * (a.a3 * v + a.a1 * (im(0) + im(1))) +
                       (moving ? std::sqrt(o.q_v * dt) * N01(rng) : 0.0);
     const double yaw_err =
-        moving ? o.yaw_accel_error_rad_s2 * std::sin(0.23 * tr + o.yaw_error_phase) : 0.0;
+        moving ? o.yaw_accel_error_rad_s2 * std::sin(0.23 * tr + o.yaw_error_phase) -
+                     o.yaw_accel_per_v_omega_1_m * v * om
+               : 0.0;
     const double om1 = om + dt * (a.a4 * om + a.a2 * (im(0) - im(1)) + yaw_err) +
                        (moving ? std::sqrt(o.q_omega * dt) * N01(rng) : 0.0);
     const double vm = 0.5 * (v + v1), omm = 0.5 * (om + om1);
