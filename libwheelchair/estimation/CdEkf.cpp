@@ -1,6 +1,5 @@
 #include "libwheelchair/estimation/CdEkf.h"
 
-#include "libwheelchair/estimation/FixedPointSolver.h"
 #include "libwheelchair/estimation/Measurement.h"
 
 #include <limits>
@@ -9,6 +8,7 @@
 #include <nvector/nvector_serial.h>
 #include <sunlinsol/sunlinsol_dense.h>
 #include <sunmatrix/sunmatrix_dense.h>
+#include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
 
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
@@ -583,8 +583,8 @@ void CdEkf::initCvode(Cvode& cv, double tau0) {
             mem, [](int, const char*, const char*, char*, void*) {}, nullptr),
         "CVodeSetErrHandlerFn");
   if (opt_.method == CvodeOptions::Method::Adams) {
-    cv_->nls = newFixedPointSolver(cv_->y, cv_->ctx);  // SUNNonlinSol_FixedPoint(y, 0), -O2
-    if (!cv_->nls) throw std::runtime_error("CdEkf: fixed-point solver allocation failed");
+    cv_->nls = SUNNonlinSol_FixedPoint(cv_->y, 0, cv_->ctx);
+    if (!cv_->nls) throw std::runtime_error("CdEkf: SUNNonlinSol_FixedPoint failed");
     check(CVodeSetNonlinearSolver(mem, cv_->nls), "CVodeSetNonlinearSolver");
   } else {
     cv_->A = SUNDenseMatrix(N, N, cv_->ctx);
