@@ -380,7 +380,7 @@ class Inflater {
   bool isGzipStart() const { return st_.next_in[0] == 0x1f && st_.next_in[1] == 0x8b; }
   /// At least `n` compressed bytes at st_.next_in unless the file ends first.
   bool input(std::size_t n) {
-    while (st_.avail_in < n && !file_end_) {
+    while (st_.avail_in < n && st_.avail_in < in_.size() && !file_end_) {
       std::memmove(in_.data(), st_.next_in, st_.avail_in);
       st_.next_in = in_.data();
       const ssize_t got = ::read(fd_, in_.data() + st_.avail_in, in_.size() - st_.avail_in);
@@ -415,6 +415,7 @@ class Inflater {
       if (st_.avail_in == 0) input(1);
       const auto state = st_.block_state;
       const auto bits = st_.read_in_length;
+      const uint32_t avail = st_.avail_in;
       st_.next_out = buf.data() + end;
       st_.avail_out = static_cast<uint32_t>(buf.size() - end);
       const int rc = isal_inflate(&st_);
@@ -423,8 +424,10 @@ class Inflater {
       inflated += got;
       if (rc != ISAL_DECOMP_OK) {
         damaged(inflateError(rc));
-      } else if (got == 0 && st_.avail_in == 0 && file_end_ && st_.block_state == state &&
-                 st_.read_in_length == bits && st_.block_state != ISAL_BLOCK_FINISH) {
+      } else if (got == 0 && st_.avail_in == avail && st_.block_state == state &&
+                 st_.read_in_length == bits && st_.block_state != ISAL_BLOCK_FINISH &&
+                 !input(std::size_t{st_.avail_in} + 1)) {
+        // No progress on all the input there is, and the file has no more: cut (or unreadable).
         if (read_errno_ != 0)
           damaged(fmt::format("read error: {}", std::strerror(read_errno_)));
         else
