@@ -2,10 +2,10 @@
 // damaged file is refused with one line naming the record index, byte offset and reason (a
 // damaged header as header damage); with --salvage every complete record is used and a
 // warning says where and why the file broke. A 0-byte file is refused by every command.
+#include "../common/GzipUtil.h"
 #include "../common/TestUtil.h"
 
 #include <gtest/gtest.h>
-#include <zlib.h>
 
 #include <filesystem>
 #include <memory>
@@ -13,28 +13,14 @@
 
 namespace fs = std::filesystem;
 using wheelchair::test::cli;
+using wheelchair::test::gunzip;
+using wheelchair::test::gzipTo;
 using wheelchair::test::readFile;
 using wheelchair::test::run;
 using wheelchair::test::TempDir;
 using wheelchair::test::writeFile;
 
 namespace {
-
-std::string gunzip(const std::string& path) {
-  gzFile f = gzopen(path.c_str(), "rb");
-  std::string out;
-  char buf[1 << 16];
-  int n;
-  while ((n = gzread(f, buf, sizeof buf)) > 0) out.append(buf, static_cast<std::size_t>(n));
-  gzclose(f);
-  return out;
-}
-
-void gzipTo(const std::string& path, const std::string& data) {
-  gzFile f = gzopen(path.c_str(), "wb1");
-  gzwrite(f, data.data(), static_cast<unsigned>(data.size()));
-  gzclose(f);
-}
 
 struct Files {
   TempDir tmp;
