@@ -28,6 +28,9 @@ const Names<ObstacleInit> kInit{{ObstacleInit::FirstSonar, "first_sonar"},
 const Names<EncoderFaultPrior> kFaultPrior{{EncoderFaultPrior::Either, "either"},
                                            {EncoderFaultPrior::Short, "short"},
                                            {EncoderFaultPrior::None, "none"}};
+const Names<HealthyScaleLearning> kHealthyLearn{{HealthyScaleLearning::None, "none"},
+                                                {HealthyScaleLearning::Difference, "difference"},
+                                                {HealthyScaleLearning::Both, "both"}};
 const Names<CvodeOptions::Method> kMethod{{CvodeOptions::Method::Adams, "adams"},
                                           {CvodeOptions::Method::Bdf, "bdf"}};
 
@@ -126,6 +129,8 @@ config::Options EkfOptions::options(const std::string& section) {
       .real("closed_gyro_bias_sigma_rad_s", closed_gyro_bias_sigma_rad_s,
             "1 sigma of the gyro bias while closed, a consider state (rad/s; 0: held exactly)",
             nonneg)
+      .choice("learn_healthy_encoder_scales", learn_healthy_encoder_scales, kHealthyLearn,
+              "scales learned before the alarm: none | difference (k_d) | both (k_d, k_s)")
       .real("initial_sigma_v_m_s", initial_sigma_v_m_s, "initial 1 sigma of v (m/s)", pos)
       .real("initial_sigma_omega_rad_s", initial_sigma_omega_rad_s,
             "initial 1 sigma of omega (rad/s)", pos)
