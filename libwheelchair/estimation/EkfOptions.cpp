@@ -43,8 +43,8 @@ config::Options EkfOptions::options(const std::string& section) {
   const Range pos = Range::above(0), nonneg = Range::atLeast(0), any = Range::any();
   const char* sensor = "1 sigma; < 0: the sensor section's datasheet value";
   auto& c = cvode;
-  return config::Options(section, "state estimation (docs/estimation.md)")
-      .choice("filter", filter, kFilter, "physics EKF or constant-velocity baseline")
+  config::Options o(section, "state estimation (docs/estimation.md)");
+  o.choice("filter", filter, kFilter, "physics EKF or constant-velocity baseline")
       .choice("obstacle_form", obstacle_form, kForm, "obstacle state, eq. (7) or (8)")
       .choice("encoder_model", encoder_model, kEnc, "encoder measurement model")
       .choice("input_interpolation", input_interpolation, kInterp, "motor currents between samples")
@@ -142,8 +142,14 @@ config::Options EkfOptions::options(const std::string& section) {
       .real("initial_obstacle_range_sigma_m", initial_obstacle_range_sigma_m,
             "initial range 1 sigma (m)", pos)
       .real("initial_obstacle_bearing_sigma_deg", initial_obstacle_bearing_sigma_deg,
-            "initial bearing 1 sigma (deg); < 0: cone half-angle / sqrt(3)", any)
-      .real("baseline_q_v_m2_s3", baseline_q_v_m2_s3, "baseline: density of v (m^2/s^3)", nonneg)
+            "initial bearing 1 sigma (deg); < 0: cone half-angle / sqrt(3)", any);
+  addBaselineKeys(o);
+  return o;
+}
+
+void EkfOptions::addBaselineKeys(config::Options& o) {
+  const config::Range nonneg = config::Range::atLeast(0);
+  o.real("baseline_q_v_m2_s3", baseline_q_v_m2_s3, "baseline: density of v (m^2/s^3)", nonneg)
       .real("baseline_q_omega_rad2_s3", baseline_q_omega_rad2_s3,
             "baseline: density of omega (rad^2/s^3)", nonneg)
       .real("baseline_q_xy_m2_s", baseline_q_xy_m2_s, "baseline: on x, y (m^2/s)", nonneg)

@@ -190,6 +190,8 @@ struct EkfOptions {
   /// The key table of the section (config/Options.h): name, range, help of every key,
   /// bound to this object. config/wheelchair.ini [estimator] documents the same keys.
   config::Options options(const std::string& section = "estimator");
+  /// The baseline filter's keys of options() (its densities).
+  void addBaselineKeys(config::Options& o);
   /// Reads the keys present in `section` (missing keys keep their values). Throws
   /// std::runtime_error naming file, line and key on a malformed or out-of-range value.
   void loadFromConfig(const mrpt::config::CConfigFileBase& ini,
