@@ -28,6 +28,9 @@ const Names<ObstacleInit> kInit{{ObstacleInit::FirstSonar, "first_sonar"},
 const Names<EncoderFaultPrior> kFaultPrior{{EncoderFaultPrior::Either, "either"},
                                            {EncoderFaultPrior::Short, "short"},
                                            {EncoderFaultPrior::None, "none"}};
+const Names<HealthyScaleLearning> kHealthyLearn{{HealthyScaleLearning::None, "none"},
+                                                {HealthyScaleLearning::Difference, "difference"},
+                                                {HealthyScaleLearning::Both, "both"}};
 const Names<CvodeOptions::Method> kMethod{{CvodeOptions::Method::Adams, "adams"},
                                           {CvodeOptions::Method::Bdf, "bdf"}};
 
@@ -40,8 +43,8 @@ config::Options EkfOptions::options(const std::string& section) {
   const Range pos = Range::above(0), nonneg = Range::atLeast(0), any = Range::any();
   const char* sensor = "1 sigma; < 0: the sensor section's datasheet value";
   auto& c = cvode;
-  return config::Options(section, "state estimation (docs/estimation.md)")
-      .choice("filter", filter, kFilter, "physics EKF or constant-velocity baseline")
+  config::Options o(section, "state estimation (docs/estimation.md)");
+  o.choice("filter", filter, kFilter, "physics EKF or constant-velocity baseline")
       .choice("obstacle_form", obstacle_form, kForm, "obstacle state, eq. (7) or (8)")
       .choice("encoder_model", encoder_model, kEnc, "encoder measurement model")
       .choice("input_interpolation", input_interpolation, kInterp, "motor currents between samples")
@@ -126,6 +129,8 @@ config::Options EkfOptions::options(const std::string& section) {
       .real("closed_gyro_bias_sigma_rad_s", closed_gyro_bias_sigma_rad_s,
             "1 sigma of the gyro bias while closed, a consider state (rad/s; 0: held exactly)",
             nonneg)
+      .choice("learn_healthy_encoder_scales", learn_healthy_encoder_scales, kHealthyLearn,
+              "scales learned before the alarm: none | difference (k_d) | both (k_d, k_s)")
       .real("initial_sigma_v_m_s", initial_sigma_v_m_s, "initial 1 sigma of v (m/s)", pos)
       .real("initial_sigma_omega_rad_s", initial_sigma_omega_rad_s,
             "initial 1 sigma of omega (rad/s)", pos)
@@ -137,8 +142,14 @@ config::Options EkfOptions::options(const std::string& section) {
       .real("initial_obstacle_range_sigma_m", initial_obstacle_range_sigma_m,
             "initial range 1 sigma (m)", pos)
       .real("initial_obstacle_bearing_sigma_deg", initial_obstacle_bearing_sigma_deg,
-            "initial bearing 1 sigma (deg); < 0: cone half-angle / sqrt(3)", any)
-      .real("baseline_q_v_m2_s3", baseline_q_v_m2_s3, "baseline: density of v (m^2/s^3)", nonneg)
+            "initial bearing 1 sigma (deg); < 0: cone half-angle / sqrt(3)", any);
+  addBaselineKeys(o);
+  return o;
+}
+
+void EkfOptions::addBaselineKeys(config::Options& o) {
+  const config::Range nonneg = config::Range::atLeast(0);
+  o.real("baseline_q_v_m2_s3", baseline_q_v_m2_s3, "baseline: density of v (m^2/s^3)", nonneg)
       .real("baseline_q_omega_rad2_s3", baseline_q_omega_rad2_s3,
             "baseline: density of omega (rad^2/s^3)", nonneg)
       .real("baseline_q_xy_m2_s", baseline_q_xy_m2_s, "baseline: on x, y (m^2/s)", nonneg)

@@ -42,6 +42,14 @@ enum class EncoderFaultPrior {
   None     ///< the common scale keeps its prior until a turn
 };
 
+/// Which encoder scales a HEALTHY chair's filter learns before an alarm opens the group
+/// (open_sensor_errors_on_alarm; docs/estimation.md, "Learning a healthy chair's radii").
+enum class HealthyScaleLearning {
+  None,        ///< both closed: consider states until the alarm
+  Difference,  ///< k_d = k_R - k_L learned (gyro vs encoders while moving), k_s closed
+  Both         ///< k_d, and k_s from the encoders' yaw rate against the gyro while turning
+};
+
 struct EkfOptions {
   // --- what runs --------------------------------------------------------------------------
   FilterKind filter = FilterKind::Physics;  ///< filter = physics | baseline
@@ -142,6 +150,14 @@ struct EkfOptions {
   /// bias 1 sigma (rad/s) while closed. 0: held with zero variance (the filter without it).
   double closed_encoder_scale_sigma = 0.005;
   double closed_gyro_bias_sigma_rad_s = 0.0;
+  /// With open_sensor_errors_on_alarm: the scales a healthy chair's filter LEARNS before the
+  /// alarm (their gain rows on, random walk q_encoder_scale_1_s per wheel on, prior variance
+  /// that of the closed scales, closed_encoder_scale_sigma per wheel), while the alarm, the
+  /// fault prior and the sonar's scale teaching still wait for the alarm. The gyro observes
+  /// k_d whenever the chair moves (z_omega - omega = k_d a_v / l_w) and k_s while it turns
+  /// (k_s a_omega); each only through an excited regressor (learnableScaleColumns), so a
+  /// drive that cannot excite a scale leaves it at its prior. None: both consider states.
+  HealthyScaleLearning learn_healthy_encoder_scales = HealthyScaleLearning::None;
   /// Whether the physics filter carries the three sensor-error states: an estimate flag is on
   /// or a prior mean is not nominal (then a fixed, configured calibration).
   bool sensorErrorStates() const {
@@ -174,6 +190,8 @@ struct EkfOptions {
   /// The key table of the section (config/Options.h): name, range, help of every key,
   /// bound to this object. config/wheelchair.ini [estimator] documents the same keys.
   config::Options options(const std::string& section = "estimator");
+  /// The baseline filter's keys of options() (its densities).
+  void addBaselineKeys(config::Options& o);
   /// Reads the keys present in `section` (missing keys keep their values). Throws
   /// std::runtime_error naming file, line and key on a malformed or out-of-range value.
   void loadFromConfig(const mrpt::config::CConfigFileBase& ini,

@@ -261,6 +261,13 @@ void WheelchairEkf::start(double t0) {
   encoders_standstill_ = false;
   encoder_scales_open_ = false;
   gyro_bias_open_ = false;
+  // A healthy chair's scales learned before the alarm (learn_healthy_encoder_scales).
+  const bool learn =
+      n > kPhysicsStateDim && opt_.open_sensor_errors_on_alarm && opt_.estimate_encoder_scales;
+  const HealthyScaleLearning hl = opt_.learn_healthy_encoder_scales;
+  scale_difference_open_ = learn && hl != HealthyScaleLearning::None;
+  common_scale_learned_ = learn && hl == HealthyScaleLearning::Both;
+  encoder_noise_t_s_ = t0;
   // Obstacle at its most likely place: configured position (also the placeholder until the
   // first valid sonar reading in first_sonar mode).
   setObstacle(configObstacle(), configObstacleCov());
@@ -462,13 +469,16 @@ void WheelchairEkf::addErrorNoise() {
   // The random walks of the OPEN groups (open_sensor_errors_on_alarm), added at the update
   // times instead of in the Riccati equation: the sensor-error rows of F are 0 and f does not
   // depend on them, so dP_kk/dt = q is all the propagation does to them (exact at updates).
-  if (!opt_.open_sensor_errors_on_alarm || !(encoder_scales_open_ || gyro_bias_open_)) return;
+  // k_d alone while only it is open (learn_encoder_scale_difference).
+  const bool enc_walk = encoder_scales_open_ || scale_difference_open_;
+  if (!opt_.open_sensor_errors_on_alarm || !(enc_walk || gyro_bias_open_)) return;
   const double t = ekf_.time();
   Pw_ = ekf_.P();
-  if (encoder_scales_open_ && t > encoder_noise_t_s_) {
+  if (enc_walk && t > encoder_noise_t_s_) {
     const double qdt = opt_.q_encoder_scale_1_s * (t - encoder_noise_t_s_);
-    Pw_(kIdxEncScaleS, kIdxEncScaleS) += 0.5 * qdt;  // k_s = (k_R + k_L) / 2
-    Pw_(kIdxEncScaleD, kIdxEncScaleD) += 2.0 * qdt;  // k_d = k_R - k_L
+    if (encoder_scales_open_ || common_scale_learned_)
+      Pw_(kIdxEncScaleS, kIdxEncScaleS) += 0.5 * qdt;  // (k_R + k_L) / 2
+    Pw_(kIdxEncScaleD, kIdxEncScaleD) += 2.0 * qdt;    // k_d = k_R - k_L
     encoder_noise_t_s_ = t;
   }
   if (gyro_bias_open_ && t > gyro_noise_t_s_) {
@@ -791,7 +801,7 @@ UpdateResult WheelchairEkf::scaleConsiderUpdate(const Eigen::Vector2d& y, const 
     }
   }
   K.row(kIdxEncScaleS).setZero();
-  if (learn(1, 0) != 0 && pkk > 0 && !scalesClosed()) {
+  if (learn(1, 0) != 0 && pkk > 0 && (!scalesClosed() || common_scale_learned_)) {
     const double kks = PHt(kIdxEncScaleS, 1) / S(1, 1);
     for (int j = 0; j < N; ++j)
       if (j != kIdxEncScaleS) K(j, 1) += D(j) * kks;
@@ -913,7 +923,8 @@ bool WheelchairEkf::closedVariance() const {
 
 void WheelchairEkf::zeroClosedGainRows(Eigen::Ref<Eigen::MatrixXd> K) const {
   if (!opt_.open_sensor_errors_on_alarm || K.rows() <= kPhysicsStateDim) return;
-  if (!encoder_scales_open_) K.middleRows<2>(kIdxEncScaleS).setZero();
+  if (!encoder_scales_open_ && !common_scale_learned_) K.row(kIdxEncScaleS).setZero();
+  if (!encoder_scales_open_ && !scale_difference_open_) K.row(kIdxEncScaleD).setZero();
   if (!gyro_bias_open_) K.row(kIdxGyroBias).setZero();
 }
 

@@ -293,6 +293,9 @@ class WheelchairEkf : public Estimator {
   // Fault detection and isolation (open_sensor_errors_on_alarm): a group is closed (zero
   // variance, no walk) until its sensor's CUSUM alarms; the walk is added from then on.
   bool encoder_scales_open_ = false, gyro_bias_open_ = false;
+  /// Learned before the group opens (learn_healthy_encoder_scales): k_d, k_s (gain rows on,
+  /// walks added); the alarm, the fault prior and the sonar's scale teaching still wait.
+  bool scale_difference_open_ = false, common_scale_learned_ = false;
   double encoder_noise_t_s_ = 0, gyro_noise_t_s_ = 0;  ///< walk added up to these times (s)
   bool encoders_standstill_ = false;  ///< the last encoder interval had no tick on either wheel
   double standstill_since_s_ = 0;     ///< start of the current run of tick-free intervals (s)

@@ -360,3 +360,76 @@ TEST(SensorErrorStates, AnEncoderFaultOpensTheScalesShortOrLong) {
     EXPECT_LT(err(res), 0.5 * err(res0));
   }
 }
+
+TEST(SensorErrorStates, AHealthyChairsRadiiAreLearnedBeforeAnyAlarm) {
+  // learn_healthy_encoder_scales = both: the wheels' radii of a healthy chair (0.4 % long
+  // right, 0.3 % short left: below any alarm) are learned from the gyro while the chair moves
+  // and turns (k_d from z_omega - omega = k_d a_v / l_w, k_s from k_s a_omega), without an
+  // alarm; with none they stay consider states at 1 until the encoders' CUSUM alarms on the
+  // 0.7 % difference, and the pose pays for the radii until then.
+  SynthOptions so;
+  so.duration_s = 40.0;
+  so.currents = curvyCurrents(0.8, 2.0, 0.6);
+  so.right_encoder_scale = 1.004;
+  so.left_encoder_scale = 0.997;
+  const SynthRun sr = synthesize(nominal(), so, 31);
+  EkfOptions on;  // the shipped alarm mode
+  on.estimate_encoder_scales = on.estimate_gyro_bias = true;
+  on.output_rate_hz = 5;
+  ASSERT_TRUE(on.open_sensor_errors_on_alarm);
+  EkfOptions off = on;
+  on.learn_healthy_encoder_scales = HealthyScaleLearning::Both;
+  const EstimationResult a = runEstimator(sr.rec, nominal(), on);
+  const EstimationResult b = runEstimator(sr.rec, nominal(), off);
+  for (const HealthEvent& h : a.health) EXPECT_EQ(h.sensor, "sonar") << h.text;  // no alarm
+  const SensorErrorEstimate& e = a.sensor_errors;
+  std::printf("[healthy radii learned] k_R = %.4f +- %.4f, k_L = %.4f +- %.4f\n",
+              e.encoder_scale_right, e.encoder_scale_right_sd, e.encoder_scale_left,
+              e.encoder_scale_left_sd);
+  EXPECT_NEAR(e.encoder_scale_right, 1.004, 3 * e.encoder_scale_right_sd);
+  EXPECT_NEAR(e.encoder_scale_left, 0.997, 3 * e.encoder_scale_left_sd);
+  // Learned: well below the closed prior's 0.5 % per wheel.
+  EXPECT_LT(e.encoder_scale_right_sd, 0.5 * on.closed_encoder_scale_sigma);
+  EXPECT_LT(e.encoder_scale_left_sd, 0.5 * on.closed_encoder_scale_sigma);
+  auto err = [&](const EstimationResult& r) {
+    const TruthPoint& t = sr.at(r.final().t_s);
+    return std::hypot(r.final().x(2) - t.x, r.final().x(3) - t.y);
+  };
+  std::printf("final position error learned %.4f m, consider states %.4f m\n", err(a), err(b));
+  EXPECT_LT(err(a), err(b));
+}
+
+TEST(SensorErrorStates, LearningAHealthyChairsRadiiInventsNoScaleOnStraightOrStandingDrives) {
+  // learn_healthy_encoder_scales = both on a nominal chair: driving straight excites k_d only
+  // (it must stay at 0), standing excites nothing, and the common scale k_s, observable only
+  // while turning, must keep its mean 1 and its prior sd (0.5 % / sqrt 2) on both.
+  EkfOptions opt;
+  opt.estimate_encoder_scales = true;
+  opt.output_rate_hz = 5;
+  opt.learn_healthy_encoder_scales = HealthyScaleLearning::Both;
+  ASSERT_TRUE(opt.open_sensor_errors_on_alarm);
+  const double ks_prior_sd = opt.closed_encoder_scale_sigma / std::sqrt(2.0);
+  SynthOptions straight;
+  straight.q_v = straight.q_omega = 0.0;
+  straight.duration_s = 20.0;
+  straight.currents = curvyCurrents(0.3, 2.4, 0.0);  // i_R = i_L: no turning
+  SynthOptions standing = straight;
+  standing.currents = [](double) { return Eigen::Vector2d::Zero(); };
+  for (const auto* so : {&straight, &standing}) {
+    const SynthRun sr = synthesize(nominal(), *so, 5);
+    const EstimationResult res = runEstimator(sr.rec, nominal(), opt);
+    const SensorErrorEstimate& e = res.sensor_errors;
+    ASSERT_TRUE(e.present);
+    for (const HealthEvent& h : res.health) EXPECT_EQ(h.sensor, "sonar") << h.text;
+    const double ks = 0.5 * (e.encoder_scale_right + e.encoder_scale_left);
+    const double kd = e.encoder_scale_right - e.encoder_scale_left;
+    // Each wheel's sd is at least the common scale's (k_R, k_L = k_s +- k_d / 2).
+    std::printf("[%s, learning] k_R = %.5f +- %.5f, k_L = %.5f +- %.5f\n",
+                so == &straight ? "straight" : "standing", e.encoder_scale_right,
+                e.encoder_scale_right_sd, e.encoder_scale_left, e.encoder_scale_left_sd);
+    EXPECT_NEAR(ks, 1.0, 0.1 * ks_prior_sd);
+    EXPECT_NEAR(kd, 0.0, 0.2 * opt.closed_encoder_scale_sigma);
+    EXPECT_GT(e.encoder_scale_right_sd, 0.9 * ks_prior_sd);
+    EXPECT_GT(e.encoder_scale_left_sd, 0.9 * ks_prior_sd);
+  }
+}
