@@ -1910,8 +1910,12 @@ std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candid
   return out;
 }
 
-/// Library indices (dynLibNames) of the rates v and omega.
-constexpr int kLibRate = 1, kLibYawRate = 2;
+/// Library terms (dynLibNames) that are a speed law: the rates v, omega, v*|v| and the friction
+/// shapes of the rim speed u (frictionShapeTerm: 1, sgn(u), |u|, u^2). A motor asymmetry and a
+/// load on both motors (viscous, dry or quadratic in speed) are made of these.
+bool speedLawTerm(int j) {
+  return j == 1 || j == 2 || j == 14 || frictionShapeTerm(j);
+}
 
 /// The out-of-catalogue terms found on each motor (`unmodeled`, the library terms `keep`
 /// accepts) as columns over both motors' fit rows of df2 (zero on the other motor's rows).
@@ -1967,7 +1971,7 @@ bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
 /// along the heading (a drag), not an asymmetry, and the out-of-catalogue terms describe it
 /// (MuJoCo 31337: quadratic drags 640403 and 220317 were named motor asymmetries). The two
 /// columns are compared beside the accepted design AND the out-of-catalogue terms found but
-/// the rates v and omega (the columns the two readings are made of): the other physics the
+/// the speed laws (speedLawTerm: the columns the two readings are made of): the other physics the
 /// catalogue lacks (on a multibody the centre of mass' v*omega, omega^2 currents) left in the
 /// residual inflates both sds until a one-motor term looks equal on both (MuJoCo seed 7 single
 /// 132242, right asymmetry 1.17: right 0.129 +- 0.056, left 0.066 +- 0.040 beside the
@@ -1982,11 +1986,11 @@ bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrU(U);
   bool added = false;
   std::string untold;  // the drive cannot tell the asymmetry from the load (once)
-  // The other physics the catalogue lacks (the out-of-catalogue terms but the rates v and
-  // omega, which are what an asymmetry or a load on both motors is made of) beside the
+  // The other physics the catalogue lacks (the out-of-catalogue terms but the speed laws,
+  // speedLawTerm, which are what an asymmetry or a load on both motors is made of) beside the
   // catalogue design: the two readings are compared on a residual without it.
-  const Eigen::MatrixXd W = outOfCatalogueColumns(
-      unmodeled, df2, [](int lib) { return lib != kLibRate && lib != kLibYawRate; });
+  const Eigen::MatrixXd W =
+      outOfCatalogueColumns(unmodeled, df2, [](int lib) { return !speedLawTerm(lib); });
   Eigen::MatrixXd DW(Df.rows(), Df.cols() + W.cols());
   DW << Df, W;
   const bool symmetric_load = symmetricSpareAsymmetry(cands, spare, DW, df2, lags, untold);
