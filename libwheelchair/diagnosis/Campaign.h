@@ -145,7 +145,9 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
                    const DiagnosisOptions& dopt, const std::string& engine = "model");
 
 /// Runs everything; returns {"engine", "single": {effect: {runs, correct, rate,
-/// median_param_error, ...}}, "pairs": {...}, "triples": {...} (if triple_runs),
+/// median_param_error, cannot_tell, false_finding, ...}}, "pairs": {...}, "triples": {...}
+/// (if triple_runs; cannot_tell / false_finding: drives with CaseResult::cannot_tell non-empty
+/// / CaseResult::false_finding),
 /// "clean": {runs, false_alarms, named_false_alarms, engine_false_alarms,
 /// catalogue_false_alarms (drives with a catalogue name other than unmodeled /
 /// wheel_geometry)}, "unknown": {runs, flagged, located, described, located_rate,
