@@ -172,6 +172,9 @@ std::string findingsText(const diagnosis::DiagnosisReport& rep) {
   if (insufficient)
     for (const auto& why : rep.info["insufficient_data"])
       text += fmt::format("insufficient data: {}\n", why.get<std::string>());
+  if (rep.info.contains("cannot_tell"))  // readings the data do not tell apart (issue 16)
+    for (const auto& why : rep.info["cannot_tell"])
+      if (why.is_string()) text += fmt::format("cannot tell: {}\n", why.get<std::string>());
   if (rep.info.contains("kinematic_calibration")) {
     const auto& k = rep.info["kinematic_calibration"];
     if (!k.value("tested", false)) {

@@ -200,6 +200,8 @@ nlohmann::json CaseResult::toJson() const {
   j["mismatch"] = mismatch;
   j["named_correct"] = named_correct;
   j["engine_correct"] = engine_correct;
+  j["false_finding"] = false_finding;
+  if (!cannot_tell.empty()) j["cannot_tell"] = cannot_tell;
   j["findings"] = findings;
   if (!engine_truth.is_null()) j["engine_truth"] = engine_truth;
   return j;
@@ -518,6 +520,27 @@ nlohmann::json effectTrace(const config::WheelchairConfig& cfg, const std::strin
           {"realised", realisedLaw(ma_cur, dcur[0], dcur[1])}};
 }
 
+namespace {
+/// The concealed effects not named (rs: the reported effect names) that an info.cannot_tell
+/// note names first (CaseResult::cannot_tell).
+std::vector<std::string> untoldEffects(const std::vector<effects::EffectSpec>& effects,
+                                       const std::multiset<std::string>& rs,
+                                       const nlohmann::json& info) {
+  std::vector<std::string> out;
+  if (!info.contains("cannot_tell")) return out;
+  for (const auto& e : effects) {
+    if (rs.count(e.id)) continue;
+    const std::string key = e.id + (e.has("side") ? "/" + e.text("side") : "") + " ";
+    for (const auto& why : info["cannot_tell"])
+      if (why.is_string() && why.get<std::string>().rfind(key, 0) == 0) {
+        out.push_back(e.id);
+        break;
+      }
+  }
+  return out;
+}
+}  // namespace
+
 CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scenario, uint64_t seed,
                    double duration_s, const std::vector<effects::EffectSpec>& effects,
                    const DiagnosisOptions& dopt, const std::string& engine) {
@@ -577,6 +600,9 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
       eset.insert(f.effect);
   }
   c.engine_correct = engine_ok && eset == tset;
+  c.false_finding =
+      !engine_ok || !std::includes(tset.begin(), tset.end(), eset.begin(), eset.end());
+  c.cannot_tell = untoldEffects(effects, rs, rep.info);
   for (auto& e : effects) {
     double err = 1.0;
     for (auto& f : rep.findings)
@@ -711,7 +737,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
   nlohmann::json single = nlohmann::json::object();
   int tot = 0, totc = 0, totn = 0, tote = 0;
   for (auto& id : opt.effects) {
-    int n = 0, ok = 0, named = 0, eng = 0;
+    int n = 0, ok = 0, named = 0, eng = 0, untold = 0, wrong = 0;
     std::vector<double> errs;
     for (int k = 0; k < opt.runs_per_effect; ++k) {
       auto e = randomEffect(id, rng);
@@ -721,6 +747,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       CaseResult c = runCase(cfg, sc, seed % 1000000, opt.duration_s, {e}, dopt, opt.engine);
       log(sc, c);
       ++n, ok += c.correct, named += c.named_correct, eng += c.engine_correct;
+      untold += !c.cannot_tell.empty(), wrong += c.false_finding;
       errs.push_back(c.param_errors[0]);
       auto j = c.toJson();
       j["scenario"] = sc, j["seed"] = seed % 1000000, j["kind"] = "single";
@@ -733,6 +760,8 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
                   {"correct", ok},
                   {"named_correct", named},
                   {"engine_correct", eng},
+                  {"cannot_tell", untold},
+                  {"false_finding", wrong},
                   {"rate", n ? double(ok) / n : 0},
                   {"median_param_error", median(errs)},
                   {"p90_param_error", quantile(errs, 0.9)},
@@ -744,7 +773,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
   out["single_engine_rate"] = tot ? double(tote) / tot : 0;
   // Drives with k distinct concealed effects (pairs, triples): counts and parameter errors.
   auto combinations = [&](std::size_t k, int runs, const char* kind) {
-    int n = 0, ok = 0, named = 0, eng = 0;
+    int n = 0, ok = 0, named = 0, eng = 0, untold = 0, wrong = 0;
     std::vector<double> errs;
     for (int r = 0; r < runs && opt.effects.size() >= k; ++r) {
       std::vector<std::size_t> idx;
@@ -760,6 +789,7 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
       const CaseResult c = runCase(cfg, sc, seed, opt.duration_s, es, dopt, opt.engine);
       log(sc, c);
       ++n, ok += c.correct, named += c.named_correct, eng += c.engine_correct;
+      untold += !c.cannot_tell.empty(), wrong += c.false_finding;
       for (double e : c.param_errors) errs.push_back(e);
       auto j = c.toJson();
       j["scenario"] = sc, j["seed"] = seed, j["kind"] = kind;
@@ -771,6 +801,8 @@ nlohmann::json runCampaign(const config::WheelchairConfig& cfg, const CampaignOp
                           {"correct", ok},
                           {"named_correct", named},
                           {"engine_correct", eng},
+                          {"cannot_tell", untold},
+                          {"false_finding", wrong},
                           {"rate", n ? double(ok) / n : 0},
                           {"median_param_error", median(errs)},
                           {"within_25pct", within},

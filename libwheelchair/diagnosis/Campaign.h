@@ -126,6 +126,15 @@ struct CaseResult {
   /// on the multibody independently of the diagnosis (simulation/MujocoTruth.h; see
   /// engineTruthFinding). On the model engine the same as `correct`.
   bool engine_correct = false;
+  /// A finding the engine does not realise: a catalogue name not concealed, or an `unmodeled`
+  /// / `wheel_geometry` finding that is not the engine's own physics (engine_correct without
+  /// the misses and the parameter errors).
+  bool false_finding = false;
+  /// Concealed effects not named that the report says it cannot tell from another reading
+  /// (an info.cannot_tell note that starts with the effect's catalogue name and side, e.g.
+  /// "motor_asymmetry/right or a load on both motors: ..."): not a correct naming, not a
+  /// false finding (issue 16 item 5).
+  std::vector<std::string> cannot_tell;
   nlohmann::json findings = nlohmann::json::array();  ///< per finding: effect, parameters
   nlohmann::json engine_truth;  ///< MuJoCo: the measured geometry and current terms
   nlohmann::json toJson() const;
@@ -136,7 +145,9 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
                    const DiagnosisOptions& dopt, const std::string& engine = "model");
 
 /// Runs everything; returns {"engine", "single": {effect: {runs, correct, rate,
-/// median_param_error, ...}}, "pairs": {...}, "triples": {...} (if triple_runs),
+/// median_param_error, cannot_tell, false_finding, ...}}, "pairs": {...}, "triples": {...}
+/// (if triple_runs; cannot_tell / false_finding: drives with CaseResult::cannot_tell non-empty
+/// / CaseResult::false_finding),
 /// "clean": {runs, false_alarms, named_false_alarms, engine_false_alarms,
 /// catalogue_false_alarms (drives with a catalogue name other than unmodeled /
 /// wheel_geometry)}, "unknown": {runs, flagged, located, described, located_rate,

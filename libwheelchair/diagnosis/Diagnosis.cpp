@@ -29,6 +29,7 @@
 #include <map>
 #include <optional>
 #include <stdexcept>
+#include <utility>
 
 namespace wheelchair::diagnosis {
 
@@ -1458,6 +1459,26 @@ bool equalOnBothMotors(const double b[2], const double sd[2]) {
          diff <= 3 * std::hypot(sd[0], sd[1]);
 }
 
+/// The two readings of two motors' coefficients b (1-sigma sd > 0; 0 right, 1 left) of a
+/// motor-asymmetry column: one extra load on both motors, b_R = b_L = c (c their
+/// inverse-variance mean, sd_c = (sum_i 1/sd_i^2)^-1/2; chi2_both = sum_i (b_i - c)^2 / sd_i^2),
+/// or a load on one motor only, `side`, the other zero (chi2_one = min_i (b_i / sd_i)^2, side
+/// the other motor than the minimiser). One free parameter each: chi^2 with 1 degree of freedom.
+struct AsymmetryOrLoad {
+  double c = 0, sd_c = 0, chi2_both = 0, chi2_one = 0;
+  int side = 0;
+};
+AsymmetryOrLoad asymmetryOrLoad(const double b[2], const double sd[2]) {
+  AsymmetryOrLoad r;
+  const double w0 = 1 / (sd[0] * sd[0]), w1 = 1 / (sd[1] * sd[1]);
+  r.c = (w0 * b[0] + w1 * b[1]) / (w0 + w1), r.sd_c = 1 / std::sqrt(w0 + w1);
+  r.chi2_both = w0 * (b[0] - r.c) * (b[0] - r.c) + w1 * (b[1] - r.c) * (b[1] - r.c);
+  const double zero[2] = {w0 * b[0] * b[0], w1 * b[1] * b[1]};  // that motor's term zero
+  r.side = zero[0] <= zero[1] ? 1 : 0;
+  r.chi2_one = std::min(zero[0], zero[1]);
+  return r;
+}
+
 /// Whether one extra load on both motors (b_R = b_L = c, c their inverse-variance mean) fits
 /// the two coefficients b (1-sigma sd) at least as well as a load on one motor only (the other
 /// zero; the better side): chi^2 of the first sum_i (b_i - c)^2 / sd_i^2 against min_i
@@ -1467,10 +1488,39 @@ bool equalOnBothMotors(const double b[2], const double sd[2]) {
 /// difference, but the right motor's zero fits it (chi^2 0.55 against 7.5 for one load).
 bool loadOnBothMotorsFitsBetter(const double b[2], const double sd[2]) {
   if (!(sd[0] > 0) || !(sd[1] > 0)) return true;  // no sd: equalOnBothMotors decides
-  const double w0 = 1 / (sd[0] * sd[0]), w1 = 1 / (sd[1] * sd[1]);
-  const double c = (w0 * b[0] + w1 * b[1]) / (w0 + w1);
-  const double chi2_both = w0 * (b[0] - c) * (b[0] - c) + w1 * (b[1] - c) * (b[1] - c);
-  return chi2_both <= std::min(w0 * b[0] * b[0], w1 * b[1] * b[1]);
+  const AsymmetryOrLoad r = asymmetryOrLoad(b, sd);
+  return r.chi2_both <= r.chi2_one;
+}
+
+/// chi^2 with one degree of freedom at the 5 % level: a reading of the two motors'
+/// coefficients (two numbers, one free parameter) whose chi^2 exceeds it is rejected by them.
+constexpr double kReadingRejectedChi2 = 3.841;
+
+/// A motor asymmetry not named because one load on both motors fits the two coefficients b
+/// (sd) better (oneLoadOnBothMotors) is "cannot tell" when neither reading is rejected by them
+/// (both chi^2 <= kReadingRejectedChi2): the note for info.cannot_tell, with both readings
+/// and what to drive to tell them apart; empty when one reading is rejected (then the choice
+/// is the data's). A drive at one speed per manoeuvre gives a one-motor viscous term and an
+/// equal load on both motors nearly the same columns, so a small asymmetry's coefficients on
+/// the two motors are both within noise of equal and of (x, 0) (MuJoCo seed 7 single 132242,
+/// a right asymmetry 1.17: right 0.129 +- 0.056, left 0.066 +- 0.040, chi^2 0.83 against 2.7).
+std::string untoldAsymmetryOrLoad(const double b[2], const double sd[2]) {
+  if (!(sd[0] > 0) || !(sd[1] > 0)) return {};
+  const AsymmetryOrLoad r = asymmetryOrLoad(b, sd);
+  if (r.chi2_both > kReadingRejectedChi2 || r.chi2_one > kReadingRejectedChi2) return {};
+  const char* side = r.side == 0 ? "right" : "left";
+  const char* other = r.side == 0 ? "left" : "right";
+  return fmt::format(
+      "motor_asymmetry/{0} or a load on both motors: this drive cannot tell a {0} motor "
+      "asymmetry (viscous friction ratio {2:.3f} +- {3:.3f}, the {1} motor unchanged: chi^2 "
+      "{4:.2f}) from the same extra load on both motors (viscous friction x {5:.3f} +- {6:.3f} "
+      "on each, or a drag along the heading: chi^2 {7:.2f}); neither reading is rejected "
+      "(chi^2_1 5 % level {8:.2f}); the motor asymmetry is not named. To tell: straight runs at "
+      "several speeds, forward and back (a viscous term of one motor raises that motor's "
+      "current alone, a load on both raises both alike), and turns on the spot both ways (a "
+      "one-motor term acts on that motor alone; a drag along the heading acts on neither)",
+      side, other, 1 + b[r.side], sd[r.side], r.chi2_one, 1 + r.c, r.sd_c, r.chi2_both,
+      kReadingRejectedChi2);
 }
 
 /// The fit of the design D with the candidates' columns `extra` beside it (df's rows, HAC
@@ -1500,9 +1550,10 @@ bool oneLoadOnBothMotors(const double b[2], const double sd[2]) {
 /// side's column is fitted beside the accepted design (df's fit rows) and compared so, and a
 /// load on both motors must fit them better than one on the accepted side alone
 /// (loadOnBothMotorsFitsBetter; MuJoCo seed 7 square 699374, a viscous drag, was named a left
-/// motor asymmetry 1.081).
+/// motor asymmetry 1.081). `untold`: the note when the drive cannot tell the two readings
+/// (untoldAsymmetryOrLoad), else unchanged.
 bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cands,
-                        const DynRows& df, int lags) {
+                        const DynRows& df, int lags, std::string& untold) {
   double b[2] = {0, 0}, sd[2] = {0, 0};
   int found = 0, side_found = -1;
   for (std::size_t a = 0; a < sel.accepted.size(); ++a) {
@@ -1525,7 +1576,9 @@ bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cand
     if (cands[sel.accepted[a]].effect == "motor_asymmetry")
       coefficientOf(f, sel.ranges[a].first, b[side_found], sd[side_found]);
   coefficientOf(f, D.cols(), b[1 - side_found], sd[1 - side_found]);
-  return oneLoadOnBothMotors(b, sd);
+  if (!oneLoadOnBothMotors(b, sd)) return false;
+  untold = untoldAsymmetryOrLoad(b, sd);
+  return true;
 }
 
 /// The terms of motor `ch`'s sparse fit that are reported as `unmodeled`: a friction finding
@@ -1919,12 +1972,39 @@ std::vector<SpareTerm> spareTerms(const Selection& sel, const std::vector<Candid
   return out;
 }
 
+/// Library terms (dynLibNames) that are a speed law: the rates v, omega, v*|v| and the friction
+/// shapes of the rim speed u (frictionShapeTerm: 1, sgn(u), |u|, u^2). A motor asymmetry and a
+/// load on both motors (viscous, dry or quadratic in speed) are made of these.
+bool speedLawTerm(int j) {
+  return j == 1 || j == 2 || j == 14 || frictionShapeTerm(j);
+}
+
+/// The out-of-catalogue terms found on each motor (`unmodeled`, the library terms `keep`
+/// accepts) as columns over both motors' fit rows of df2 (zero on the other motor's rows).
+template <class Keep>
+Eigen::MatrixXd outOfCatalogueColumns(const std::array<SparseResult, 2>& unmodeled,
+                                      const DynRows& df2, const Keep& keep) {
+  const int nR = static_cast<int>(df2.y.size() / 2);
+  int n = 0;
+  for (int s2 = 0; s2 < 2; ++s2)
+    if (unmodeled[s2].accepted)
+      for (int lib : unmodeled[s2].terms) n += keep(lib) ? 1 : 0;
+  Eigen::MatrixXd U = Eigen::MatrixXd::Zero(df2.y.size(), n);
+  int k = 0;
+  for (int s2 = 0; s2 < 2; ++s2)
+    if (unmodeled[s2].accepted)
+      for (int lib : unmodeled[s2].terms)
+        if (keep(lib)) U.col(k++).segment(s2 * nR, nR) = df2.libColumn(lib, s2 * nR, nR);
+  return U;
+}
+
 /// Whether both motors' asymmetry columns are spare (neither accepted) and, fitted together
 /// beside the accepted design Df on the fit rows, are one load on both motors
-/// (oneLoadOnBothMotors, the rule symmetricAsymmetry applies to one accepted side).
+/// (oneLoadOnBothMotors, the rule symmetricAsymmetry applies to one accepted side); `untold`
+/// as there.
 bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
                              const std::vector<SpareTerm>& spare, const Eigen::MatrixXd& Df,
-                             const DynRows& df2, int lags) {
+                             const DynRows& df2, int lags, std::string& untold) {
   int side_cand[2] = {-1, -1};  // right, left
   for (const SpareTerm& sp : spare) {
     const std::string& n = cands[sp.cand].name;
@@ -1936,7 +2016,9 @@ bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
   if (!f.ok) return false;
   double b[2], sd[2];
   for (int s2 = 0; s2 < 2; ++s2) coefficientOf(f, Df.cols() + s2, b[s2], sd[s2]);
-  return oneLoadOnBothMotors(b, sd);
+  if (!oneLoadOnBothMotors(b, sd)) return false;
+  untold = untoldAsymmetryOrLoad(b, sd);
+  return true;
 }
 
 /// A catalogue term rejected by the forward selection (typically by its held-out check, the
@@ -1949,27 +2031,31 @@ bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
 /// motor's asymmetry column, fitted beside it, takes an equal coefficient
 /// (symmetricSpareAsymmetry): the same extra speed-dependent load on both motors is a load
 /// along the heading (a drag), not an asymmetry, and the out-of-catalogue terms describe it
-/// (MuJoCo 31337: quadratic drags 640403 and 220317 were named motor asymmetries). true if a
-/// term was added.
+/// (MuJoCo 31337: quadratic drags 640403 and 220317 were named motor asymmetries). The two
+/// columns are compared beside the accepted design AND the out-of-catalogue terms found but
+/// the speed laws (speedLawTerm: the columns the two readings are made of): the other physics the
+/// catalogue lacks (on a multibody the centre of mass' v*omega, omega^2 currents) left in the
+/// residual inflates both sds until a one-motor term looks equal on both (MuJoCo seed 7 single
+/// 132242, right asymmetry 1.17: right 0.129 +- 0.056, left 0.066 +- 0.040 beside the
+/// catalogue alone, while the right motor's own search finds `v` 0.50 +- 0.014 and the left's
+/// none). true if a term was added.
 bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
                      const std::vector<SpareTerm>& spare,
                      const std::array<SparseResult, 2>& unmodeled, Eigen::MatrixXd& Df,
                      Eigen::MatrixXd& Dv, const DynRows& df2, const DynRows& dv2, int lags) {
-  const int nR = static_cast<int>(df2.y.size() / 2);
-  std::vector<Eigen::VectorXd> u;
-  for (int s2 = 0; s2 < 2; ++s2)
-    if (unmodeled[s2].accepted)
-      for (int lib : unmodeled[s2].terms) {
-        Eigen::VectorXd x = Eigen::VectorXd::Zero(df2.y.size());
-        x.segment(s2 * nR, nR) = df2.libColumn(lib, s2 * nR, nR);
-        u.push_back(std::move(x));
-      }
-  if (u.empty()) return false;
-  Eigen::MatrixXd U(df2.y.size(), u.size());
-  for (size_t k = 0; k < u.size(); ++k) U.col(k) = u[k];
+  const Eigen::MatrixXd U = outOfCatalogueColumns(unmodeled, df2, [](int) { return true; });
+  if (U.cols() == 0) return false;
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qrU(U);
   bool added = false;
-  const bool symmetric_load = symmetricSpareAsymmetry(cands, spare, Df, df2, lags);
+  std::string untold;  // the drive cannot tell the asymmetry from the load (once)
+  // The other physics the catalogue lacks (the out-of-catalogue terms but the speed laws,
+  // speedLawTerm, which are what an asymmetry or a load on both motors is made of) beside the
+  // catalogue design: the two readings are compared on a residual without it.
+  const Eigen::MatrixXd W =
+      outOfCatalogueColumns(unmodeled, df2, [](int lib) { return !speedLawTerm(lib); });
+  Eigen::MatrixXd DW(Df.rows(), Df.cols() + W.cols());
+  DW << Df, W;
+  const bool symmetric_load = symmetricSpareAsymmetry(cands, spare, DW, df2, lags, untold);
   for (const SpareTerm& sp : spare) {
     const Candidate& c = cands[sp.cand];
     bool conflict = false;
@@ -1985,6 +2071,7 @@ bool addSpannedTerms(Selection& sel, const std::vector<Candidate>& cands,
                         ": described by the out-of-catalogue terms, but not named: both motors' "
                         "asymmetry columns fitted together take equal coefficients (a load on "
                         "both motors, not an asymmetry)");
+      if (!untold.empty()) sel.cannot_tell.push_back(std::exchange(untold, {}));
       continue;
     }
     const LinearFit f0 = fitLinear(Df, df2.y, df2.groups, lags);
@@ -2216,7 +2303,8 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
                           std::vector<SupersededTerm>& gone) {
   Selection sel = forwardSelect(sd, cands, opt);
   std::vector<std::string> symmetric;
-  if (symmetricAsymmetry(sel, cands, df, lags)) {
+  std::string untold;  // the drive cannot tell the asymmetry from a load on both motors
+  if (symmetricAsymmetry(sel, cands, df, lags, untold)) {
     // Both motors' viscous friction up by the same amount is no asymmetry: it is a load the
     // catalogue does not have (e.g. a drag proportional to speed). Not forced onto the
     // catalogue name: selected again without it, so the unmodeled terms describe it.
@@ -2247,6 +2335,7 @@ Selection selectCatalogue(const SelectionData& sd, std::vector<Candidate>& cands
   }
   sel.log.insert(sel.log.end(), symmetric.begin(), symmetric.end());
   sel.log.insert(sel.log.end(), superseded.begin(), superseded.end());
+  if (!untold.empty()) sel.cannot_tell.push_back(untold);
   return sel;
 }
 
@@ -2425,6 +2514,7 @@ bool dynamicStageOn(Stage2Spill& sp, const config::WheelchairConfig& cfg,
   if (opt.enable_unmodeled)
     catalogueWithUnmodeled(sel, cands, superseded, Df, Dv, df2, dv2, lags, sd.min_contribution_rms,
                            alpha_b, cfg, opt, unmodeled, rep);
+  for (const std::string& why : sel.cannot_tell) rep.info["cannot_tell"].push_back(why);
   Eigen::VectorXd rv_after = dv2.y - Dv * sel.fit.beta;
   {
     // The fully nominal model (no sensor corrections either), as the report's figures show it.

@@ -243,6 +243,9 @@ struct Selection {
   stats::LinearFit fit;                     ///< final joint fit (columns: accepted in order)
   std::vector<std::pair<int, int>> ranges;  ///< coefficient range of each accepted candidate
   std::vector<std::string> log;             ///< why candidates were rejected (last round)
+  /// What the drive could not tell apart (for info.cannot_tell): readings of the data none of
+  /// which it rejects, and what would have to be driven to tell them apart.
+  std::vector<std::string> cannot_tell;
 };
 
 /// Views of the caller's rows (no copy of the regression matrices; they must outlive it).
