@@ -35,6 +35,17 @@ const char* priorName(EncoderFaultPrior p) {
                                          : "none";
 }
 
+/// Distance (m) of the filter's final position from the truth at that time.
+double finalPositionError(const SynthRun& sr, const EstimationResult& r) {
+  const TruthPoint& t = sr.at(r.final().t_s);
+  return std::hypot(r.final().x(2) - t.x, r.final().x(3) - t.y);
+}
+
+void printScales(const char* label, const SensorErrorEstimate& e) {
+  std::printf("[%s] k_R = %.4f +- %.4f, k_L = %.4f +- %.4f\n", label, e.encoder_scale_right,
+              e.encoder_scale_right_sd, e.encoder_scale_left, e.encoder_scale_left_sd);
+}
+
 }  // namespace
 
 TEST(SensorErrorStates, EncoderModelJacobiansMatchFiniteDifferences) {
@@ -108,9 +119,7 @@ TEST(SensorErrorStates, AShortLeftEncoderIsEstimatedOnACurvyDrive) {
   const EstimationResult res = runEstimator(sr.rec, nominal(), withScales());
   const SensorErrorEstimate& e = res.sensor_errors;
   ASSERT_TRUE(e.present);
-  std::printf("[left encoder x0.95] k_R = %.4f +- %.4f, k_L = %.4f +- %.4f\n",
-              e.encoder_scale_right, e.encoder_scale_right_sd, e.encoder_scale_left,
-              e.encoder_scale_left_sd);
+  printScales("left encoder x0.95", e);
   EXPECT_NEAR(e.encoder_scale_left, 0.95, std::max(3 * e.encoder_scale_left_sd, 0.005));
   EXPECT_NEAR(e.encoder_scale_right, 1.0, std::max(3 * e.encoder_scale_right_sd, 0.005));
   EXPECT_LT(e.encoder_scale_left_sd, 0.01);  // learnt, not the prior 0.05
@@ -118,10 +127,7 @@ TEST(SensorErrorStates, AShortLeftEncoderIsEstimatedOnACurvyDrive) {
   EkfOptions off = withScales();
   off.estimate_encoder_scales = false;
   const EstimationResult res0 = runEstimator(sr.rec, nominal(), off);
-  auto err = [&](const EstimationResult& r) {
-    const TruthPoint& t = sr.at(r.final().t_s);
-    return std::hypot(r.final().x(2) - t.x, r.final().x(3) - t.y);
-  };
+  auto err = [&](const EstimationResult& r) { return finalPositionError(sr, r); };
   std::printf("final position error with the states %.3f m, without %.3f m\n", err(res), err(res0));
   EXPECT_LT(err(res), err(res0));
 }
@@ -351,10 +357,7 @@ TEST(SensorErrorStates, AnEncoderFaultOpensTheScalesShortOrLong) {
     EXPECT_EQ(res.health.front().sensor, "encoders");
     EXPECT_NEAR(e.encoder_scale_left, left, std::max(3 * e.encoder_scale_left_sd, 0.005));
     EXPECT_NEAR(e.encoder_scale_right, 1.0, std::max(3 * e.encoder_scale_right_sd, 0.005));
-    auto err = [&](const EstimationResult& r) {
-      const TruthPoint& t = sr.at(r.final().t_s);
-      return std::hypot(r.final().x(2) - t.x, r.final().x(3) - t.y);
-    };
+    auto err = [&](const EstimationResult& r) { return finalPositionError(sr, r); };
     std::printf("[left x%.2f] k_L = %.4f +- %.4f; final position error %.3f m (states off %.3f)\n",
                 left, e.encoder_scale_left, e.encoder_scale_left_sd, err(res), err(res0));
     EXPECT_LT(err(res), 0.5 * err(res0));
@@ -383,18 +386,13 @@ TEST(SensorErrorStates, AHealthyChairsRadiiAreLearnedBeforeAnyAlarm) {
   const EstimationResult b = runEstimator(sr.rec, nominal(), off);
   for (const HealthEvent& h : a.health) EXPECT_EQ(h.sensor, "sonar") << h.text;  // no alarm
   const SensorErrorEstimate& e = a.sensor_errors;
-  std::printf("[healthy radii learned] k_R = %.4f +- %.4f, k_L = %.4f +- %.4f\n",
-              e.encoder_scale_right, e.encoder_scale_right_sd, e.encoder_scale_left,
-              e.encoder_scale_left_sd);
+  printScales("healthy radii learned", e);
   EXPECT_NEAR(e.encoder_scale_right, 1.004, 3 * e.encoder_scale_right_sd);
   EXPECT_NEAR(e.encoder_scale_left, 0.997, 3 * e.encoder_scale_left_sd);
   // Learned: well below the closed prior's 0.5 % per wheel.
   EXPECT_LT(e.encoder_scale_right_sd, 0.5 * on.closed_encoder_scale_sigma);
   EXPECT_LT(e.encoder_scale_left_sd, 0.5 * on.closed_encoder_scale_sigma);
-  auto err = [&](const EstimationResult& r) {
-    const TruthPoint& t = sr.at(r.final().t_s);
-    return std::hypot(r.final().x(2) - t.x, r.final().x(3) - t.y);
-  };
+  auto err = [&](const EstimationResult& r) { return finalPositionError(sr, r); };
   std::printf("final position error learned %.4f m, consider states %.4f m\n", err(a), err(b));
   EXPECT_LT(err(a), err(b));
 }
