@@ -478,7 +478,7 @@ void CdEkf::evalRhs(double tau, const double* y, double* ydot) {
   }
   // One state-dependent diagonal entry (the packed column c starts at c n - c (c - 1) / 2).
   const int iq = model_.varyingQIndex();
-  if (iq >= 0 && iq < n) qp[iq * n - iq * (iq - 1) / 2] = model_.varyingQ(wx_, wu_, wxd_);
+  if (iq >= 0 && iq < n) qp[iq * n - iq * (iq - 1) / 2] = model_.varyingQ(wx_, wu_);
   for (int i = 0; i < n; ++i) ydot[i] = wxd_(i);
   // With a held tail only F's leading n x n block is used (the held rows of P are zero).
   const double* F = wF_.data();

@@ -72,9 +72,8 @@ class CdModel {
   /// A constant Q but for one diagonal entry Q(i, i), i = varyingQIndex() (-1: none): CdEkf
   /// evaluates Q once and rewrites only that entry with varyingQ() at each right-hand side.
   virtual int varyingQIndex() const { return -1; }
-  /// Q(i, i), i = varyingQIndex(), at (x, u), with xdot = f(x, u) already evaluated.
-  virtual double varyingQ(const Eigen::VectorXd& /*x*/, const Eigen::VectorXd& /*u*/,
-                          const Eigen::VectorXd& /*xdot*/) const {
+  /// Q(i, i), i = varyingQIndex(), at (x, u).
+  virtual double varyingQ(const Eigen::VectorXd& /*x*/, const Eigen::VectorXd& /*u*/) const {
     return 0.0;
   }
 };
@@ -245,11 +244,11 @@ class CdEkf {
   // Consider tail after a restart: wF0_ is taken from CVODE's first right-hand side, which is
   // evaluated at (tau, y) = (capture_tau_, the packed state at t0), instead of a separate F.
   bool capture_F0_ = false;
-  double capture_tau_ = 0;           // (s, CVODE's time)
-  int m_ = 0;                        // states integrated in the current interval
-  std::unique_ptr<Cvode> cv_;        // all n states
-  std::unique_ptr<Cvode> cvHeld_;    // the leading n - held_tail_ (made on first use)
-  Cvode* act_ = nullptr;             // the set-up of the current interval
+  double capture_tau_ = 0;         // (s, CVODE's time)
+  int m_ = 0;                      // states integrated in the current interval
+  std::unique_ptr<Cvode> cv_;      // all n states
+  std::unique_ptr<Cvode> cvHeld_;  // the leading n - held_tail_ (made on first use)
+  Cvode* act_ = nullptr;           // the set-up of the current interval
   CvodeStats stats_;
 };
 

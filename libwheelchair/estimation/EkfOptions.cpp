@@ -154,7 +154,8 @@ void EkfOptions::addBaselineKeys(config::Options& o) {
             "baseline: density of omega (rad^2/s^3)", nonneg)
       .real("baseline_q_xy_m2_s", baseline_q_xy_m2_s, "baseline: on x, y (m^2/s)", nonneg)
       .real("baseline_q_phi_rad2_s", baseline_q_phi_rad2_s, "baseline: on phi (rad^2/s)", nonneg)
-      .real("baseline_q_obstacle_m2_s", baseline_q_obstacle_m2_s, "obstacle (m^2/s)", nonneg);
+      .real("baseline_q_obstacle_m2_s", baseline_q_obstacle_m2_s,
+            "baseline: on the obstacle (m^2/s)", nonneg);
 }
 
 void EkfOptions::loadFromConfig(const mrpt::config::CConfigFileBase& ini,

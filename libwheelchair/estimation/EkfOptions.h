@@ -76,8 +76,8 @@ struct EkfOptions {
   CvodeOptions cvode;
 
   // --- process noise (continuous-time spectral densities) ---------------------------------
-  double q_v_m2_s3 = 0.01;                  ///< on vdot (model error of (6))
-  double q_omega_rad2_s3 = 0.02;  ///< on omegadot; config/wheelchair.ini ships 0.003 (derived there)
+  double q_v_m2_s3 = 0.01;        ///< on vdot (model error of (6))
+  double q_omega_rad2_s3 = 0.02;  ///< on omegadot (docs/estimation.md "Error budget")
   /// Yaw noise that follows the manoeuvre (WheelchairEkf.h ManoeuvreYawNoise): q_omega(t) =
   /// a(t)^(4/3) (gyro variance / rate)^(1/3) with the yaw-acceleration error of (6) a(t) =
   /// yaw_noise_floor_rad_s2 + m_b yaw_noise_com_ahead_m / I_z |v omega| +

@@ -77,14 +77,10 @@ void WheelchairProcessModel::fAndF(const Eigen::VectorXd& x, const Eigen::Vector
 void WheelchairProcessModel::Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
                                Eigen::MatrixXd& Q) const {
   Q = Q_;
-  if (!yaw_.on) return;
-  Eigen::VectorXd xdot;
-  f(x, u, xdot);
-  Q(model::kIdxOmega, model::kIdxOmega) = varyingQ(x, u, xdot);
+  if (yaw_.on) Q(model::kIdxOmega, model::kIdxOmega) = varyingQ(x, u);
 }
 
-double WheelchairProcessModel::varyingQ(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
-                                        const Eigen::VectorXd&) const {
+double WheelchairProcessModel::varyingQ(const Eigen::VectorXd& x, const Eigen::VectorXd& u) const {
   return Q_(model::kIdxOmega, model::kIdxOmega) +
          yaw_.qOmega(x(model::kIdxV), x(model::kIdxOmega), u(0), u(1));
 }
@@ -469,7 +465,7 @@ void WheelchairEkf::addErrorNoise() {
   // The random walks of the OPEN groups (open_sensor_errors_on_alarm), added at the update
   // times instead of in the Riccati equation: the sensor-error rows of F are 0 and f does not
   // depend on them, so dP_kk/dt = q is all the propagation does to them (exact at updates).
-  // k_d alone while only it is open (learn_encoder_scale_difference).
+  // k_d alone while only it is learned (learn_healthy_encoder_scales = difference).
   const bool enc_walk = encoder_scales_open_ || scale_difference_open_;
   if (!opt_.open_sensor_errors_on_alarm || !(enc_walk || gyro_bias_open_)) return;
   const double t = ekf_.time();

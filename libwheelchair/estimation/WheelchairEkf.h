@@ -121,7 +121,7 @@ struct ManoeuvreYawNoise {
 /// With `error_q` (3 random-walk densities of k_R, k_L, b_g) the state has the 3 sensor-error
 /// components, with f = 0, F = 0 and Q = diag(error_q) on them.
 /// With `yaw.on`, Q(omega, omega) = (the constant part, q_diag(1) + the current noise's) +
-/// yaw.qOmega(v, omega, omegadot) at every right-hand side (varyingQ); the rest stays constant.
+/// yaw.qOmega(v, omega, i_R, i_L) at every right-hand side (varyingQ); the rest stays constant.
 class WheelchairProcessModel : public CdModel {
  public:
   WheelchairProcessModel(const model::FilterModel& fm, const Eigen::Matrix<double, 7, 1>& q_diag,
@@ -135,8 +135,7 @@ class WheelchairProcessModel : public CdModel {
   void Q(const Eigen::VectorXd& x, const Eigen::VectorXd& u, Eigen::MatrixXd& Q) const override;
   bool constantQ() const override { return true; }
   int varyingQIndex() const override { return yaw_.on ? model::kIdxOmega : -1; }
-  double varyingQ(const Eigen::VectorXd& x, const Eigen::VectorXd& u,
-                  const Eigen::VectorXd& xdot) const override;
+  double varyingQ(const Eigen::VectorXd& x, const Eigen::VectorXd& u) const override;
   const model::FilterModel& filterModel() const { return fm_; }
 
  private:
