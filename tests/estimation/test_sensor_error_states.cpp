@@ -160,9 +160,7 @@ TEST(SensorErrorStates, NoScaleIsInventedOnStraightOrStandingDrives) {
       const SensorErrorEstimate& e = res.sensor_errors;
       ASSERT_TRUE(e.present);
       const double ks = 0.5 * (e.encoder_scale_right + e.encoder_scale_left);
-      std::printf("[%s] k_R = %.4f +- %.4f, k_L = %.4f +- %.4f\n",
-                  so == &straight ? "straight" : "standing", e.encoder_scale_right,
-                  e.encoder_scale_right_sd, e.encoder_scale_left, e.encoder_scale_left_sd);
+      printScales(so == &straight ? "straight" : "standing", e);
       // Within a small fraction of the prior sd: nothing was read into the common scale.
       EXPECT_NEAR(ks, 1.0, 0.1 * prior_sd);
       EXPECT_NEAR(e.encoder_scale_right, 1.0, e.encoder_scale_right_sd);
@@ -422,9 +420,7 @@ TEST(SensorErrorStates, LearningAHealthyChairsRadiiInventsNoScaleOnStraightOrSta
     const double ks = 0.5 * (e.encoder_scale_right + e.encoder_scale_left);
     const double kd = e.encoder_scale_right - e.encoder_scale_left;
     // Each wheel's sd is at least the common scale's (k_R, k_L = k_s +- k_d / 2).
-    std::printf("[%s, learning] k_R = %.5f +- %.5f, k_L = %.5f +- %.5f\n",
-                so == &straight ? "straight" : "standing", e.encoder_scale_right,
-                e.encoder_scale_right_sd, e.encoder_scale_left, e.encoder_scale_left_sd);
+    printScales(so == &straight ? "straight, learning" : "standing, learning", e);
     EXPECT_NEAR(ks, 1.0, 0.1 * ks_prior_sd);
     EXPECT_NEAR(kd, 0.0, 0.2 * opt.closed_encoder_scale_sigma);
     EXPECT_GT(e.encoder_scale_right_sd, 0.9 * ks_prior_sd);
