@@ -438,15 +438,19 @@ Predictor heldOutPredictor(const Library& L, const Eigen::VectorXd& y, const Lib
 /// Blocked K-fold cross-validation on the fit rows: each of K contiguous blocks predicted by
 /// a fit on the others (for terms the held-out part cannot test, e.g. a turn-rate term when
 /// the last 30 % of a `square` drive does not turn).
+/// The predictions of the terms t writes rows [0, L.rows) of p (p has at least that many).
+void crossValidationInto(const Library& L, const Eigen::VectorXd& y, int K,
+                         const std::vector<int>& t, Eigen::VectorXd& p) {
+  for (int k = 0; k < K; ++k) {
+    const int a = static_cast<int>(Eigen::Index(L.rows) * k / K);
+    const int b = static_cast<int>(Eigen::Index(L.rows) * (k + 1) / K);
+    L.timesRows(t, L.solve(t, y, a, b), a, b, p);
+  }
+}
 Predictor crossValidationPredictor(const Library& L, const Eigen::VectorXd& y, int K) {
   return [&L, &y, K](const std::vector<int>& t) {
-    const int n = L.rows;
-    Eigen::VectorXd p(n);
-    for (int k = 0; k < K; ++k) {
-      const int a = static_cast<int>(Eigen::Index(n) * k / K);
-      const int b = static_cast<int>(Eigen::Index(n) * (k + 1) / K);
-      L.timesRows(t, L.solve(t, y, a, b), a, b, p);
-    }
+    Eigen::VectorXd p(L.rows);
+    crossValidationInto(L, y, K, t, p);
     return p;
   };
 }
@@ -646,11 +650,7 @@ std::vector<std::pair<int, double>> belowMisspecification(
   auto valPrediction = [&](const std::vector<int>& t, Eigen::VectorXd& p) {
     p.setZero(n);
     if (t.empty()) return;
-    for (int k = 0; all_rows && k < 5; ++k) {
-      const int a = static_cast<int>(Eigen::Index(L.rows) * k / 5);
-      const int b = static_cast<int>(Eigen::Index(L.rows) * (k + 1) / 5);
-      L.timesRows(t, L.solve(t, y, a, b), a, b, p);
-    }
+    if (all_rows) crossValidationInto(L, y, 5, t, p);
     Lv.timesRows(t, L.solve(t, y), 0, Lv.rows, p, nf);
   };
   const double nv = std::max<double>(1, n);
@@ -1486,15 +1486,9 @@ AsymmetryOrLoad asymmetryOrLoad(const double b[2], const double sd[2]) {
 /// "one poorly determined": MuJoCo triple 976019, a left asymmetry 1.49 with the right
 /// column fitted beside it, 0.073 +- 0.099 against 0.465 +- 0.103, is within 3 sigma of the
 /// difference, but the right motor's zero fits it (chi^2 0.55 against 7.5 for one load).
-bool loadOnBothMotorsFitsBetter(const double b[2], const double sd[2]) {
-  if (!(sd[0] > 0) || !(sd[1] > 0)) return true;  // no sd: equalOnBothMotors decides
-  const AsymmetryOrLoad r = asymmetryOrLoad(b, sd);
+bool loadOnBothMotorsFitsBetter(const AsymmetryOrLoad& r) {
   return r.chi2_both <= r.chi2_one;
 }
-
-/// chi^2 with one degree of freedom at the 5 % level: a reading of the two motors'
-/// coefficients (two numbers, one free parameter) whose chi^2 exceeds it is rejected by them.
-constexpr double kReadingRejectedChi2 = 3.841;
 
 /// A motor asymmetry not named because one load on both motors fits the two coefficients b
 /// (sd) better (oneLoadOnBothMotors) is "cannot tell" when neither reading is rejected by them
@@ -1504,9 +1498,10 @@ constexpr double kReadingRejectedChi2 = 3.841;
 /// equal load on both motors nearly the same columns, so a small asymmetry's coefficients on
 /// the two motors are both within noise of equal and of (x, 0) (MuJoCo seed 7 single 132242,
 /// a right asymmetry 1.17: right 0.129 +- 0.056, left 0.066 +- 0.040, chi^2 0.83 against 2.7).
-std::string untoldAsymmetryOrLoad(const double b[2], const double sd[2]) {
-  if (!(sd[0] > 0) || !(sd[1] > 0)) return {};
-  const AsymmetryOrLoad r = asymmetryOrLoad(b, sd);
+std::string untoldAsymmetryOrLoad(const double b[2], const double sd[2], const AsymmetryOrLoad& r) {
+  // chi^2 with one degree of freedom at the 5 % level: a reading of the two motors'
+  // coefficients (two numbers, one free parameter) whose chi^2 exceeds it is rejected by them.
+  const double kReadingRejectedChi2 = stats::chi2Quantile(0.95, 1);
   if (r.chi2_both > kReadingRejectedChi2 || r.chi2_one > kReadingRejectedChi2) return {};
   const char* side = r.side == 0 ? "right" : "left";
   const char* other = r.side == 0 ? "left" : "right";
@@ -1539,9 +1534,19 @@ void coefficientOf(const LinearFit& f, Eigen::Index q, double& b, double& sd) {
 
 /// A motor asymmetry's column and the other motor's, fitted together (b, sd), are one extra
 /// load on both motors, not an asymmetry: equal (equalOnBothMotors) and better fitted by one
-/// load on both than by one on either motor alone (loadOnBothMotorsFitsBetter).
-bool oneLoadOnBothMotors(const double b[2], const double sd[2]) {
-  return equalOnBothMotors(b, sd) && loadOnBothMotorsFitsBetter(b, sd);
+/// load on both than by one on either motor alone (loadOnBothMotorsFitsBetter; without sds
+/// equalOnBothMotors decides). If so, `untold` is the note when the drive cannot tell the two
+/// readings (untoldAsymmetryOrLoad; empty when it can).
+bool oneLoadOnBothMotors(const double b[2], const double sd[2], std::string& untold) {
+  if (!equalOnBothMotors(b, sd)) return false;
+  if (!(sd[0] > 0) || !(sd[1] > 0)) {
+    untold.clear();
+    return true;
+  }
+  const AsymmetryOrLoad r = asymmetryOrLoad(b, sd);
+  if (!loadOnBothMotorsFitsBetter(r)) return false;
+  untold = untoldAsymmetryOrLoad(b, sd, r);
+  return true;
 }
 
 /// Whether the selection accepted a motor asymmetry on BOTH sides with equal coefficients
@@ -1560,8 +1565,7 @@ bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cand
     const std::string& n = cands[sel.accepted[a]].name;
     const int side = n == "motor_asymmetry/right" ? 0 : (n == "motor_asymmetry/left" ? 1 : -1);
     if (side < 0) continue;
-    const int i = sel.ranges[a].first;
-    b[side] = sel.fit.beta(i), sd[side] = std::sqrt(std::max(0.0, sel.fit.cov(i, i)));
+    coefficientOf(sel.fit, sel.ranges[a].first, b[side], sd[side]);
     ++found, side_found = side;
   }
   if (found == 2) return equalOnBothMotors(b, sd);
@@ -1576,9 +1580,7 @@ bool symmetricAsymmetry(const Selection& sel, const std::vector<Candidate>& cand
     if (cands[sel.accepted[a]].effect == "motor_asymmetry")
       coefficientOf(f, sel.ranges[a].first, b[side_found], sd[side_found]);
   coefficientOf(f, D.cols(), b[1 - side_found], sd[1 - side_found]);
-  if (!oneLoadOnBothMotors(b, sd)) return false;
-  untold = untoldAsymmetryOrLoad(b, sd);
-  return true;
+  return oneLoadOnBothMotors(b, sd, untold);
 }
 
 /// The terms of motor `ch`'s sparse fit that are reported as `unmodeled`: a friction finding
@@ -2016,9 +2018,7 @@ bool symmetricSpareAsymmetry(const std::vector<Candidate>& cands,
   if (!f.ok) return false;
   double b[2], sd[2];
   for (int s2 = 0; s2 < 2; ++s2) coefficientOf(f, Df.cols() + s2, b[s2], sd[s2]);
-  if (!oneLoadOnBothMotors(b, sd)) return false;
-  untold = untoldAsymmetryOrLoad(b, sd);
-  return true;
+  return oneLoadOnBothMotors(b, sd, untold);
 }
 
 /// A catalogue term rejected by the forward selection (typically by its held-out check, the
@@ -2141,22 +2141,26 @@ int unconfirmedNamedTerm(const Selection& sel, const std::vector<Candidate>& can
   };
   place(Df, df2, nRf, 0);
   place(Dv, dv2, nRv, 2 * nRf);
+  // The catalogue columns alone, block by block (no copy of A's left columns).
+  const CvRows catalogueRows = [&A, &Df](Eigen::Index r0, Eigen::Index r1) {
+    return Eigen::MatrixXd(A.block(r0, 0, r1 - r0, Df.cols()));
+  };
+  // Confirmation of a term already selected, one test per named term (not a search over the
+  // catalogue: the family-wise alpha, not Bonferroni's): its held-out gain positive and its
+  // coefficient beyond the block-to-block spread at 1 - alpha. The bootstrap's P(gain <= 0)
+  // is reported, not required below alpha: true asymmetries 1.17-1.25 on MuJoCo excite have
+  // P 0.002-0.09 at 2.9-5.2 sd; those named from the centre of mass' terms P >= 0.44, <= 1.5 sd.
+  const double z = stats::normalQuantile(1 - alpha / 2);
+  auto confirmed = [z](const BlockedCvTerm& cv) {
+    return cv.testable && cv.mean_gain > 0 && std::abs(cv.coef) >= z * cv.coef_se;
+  };
   for (size_t a = 0; a < sel.accepted.size(); ++a) {
     if (std::find(named.begin(), named.end(), sel.accepted[a]) == named.end()) continue;
     const int j = sel.ranges[a].first;
     // with the out-of-catalogue terms beside it, and in their place (the catalogue alone)
     const BlockedCvTerm with = blockedCvTerm(A, y, j, 10, 2 * std::max(1, lags));
     const BlockedCvTerm alone =
-        blockedCvTerm(Eigen::MatrixXd(A.leftCols(Df.cols())), y, j, 10, 2 * std::max(1, lags));
-    // Confirmation of a term already selected, one test per named term (not a search over the
-    // catalogue: the family-wise alpha, not Bonferroni's): its held-out gain positive and its
-    // coefficient beyond the block-to-block spread at 1 - alpha. The bootstrap's P(gain <= 0)
-    // is reported, not required below alpha: true asymmetries 1.17-1.25 on MuJoCo excite have
-    // P 0.002-0.09 at 2.9-5.2 sd; those named from the centre of mass' terms P >= 0.44, <= 1.5 sd.
-    const double z = stats::normalQuantile(1 - alpha / 2);
-    auto confirmed = [z](const BlockedCvTerm& cv) {
-      return cv.testable && cv.mean_gain > 0 && std::abs(cv.coef) >= z * cv.coef_se;
-    };
+        blockedCvTerm(catalogueRows, A.rows(), Df.cols(), y, j, 10, 2 * std::max(1, lags));
     if (confirmed(with) && confirmed(alone)) continue;
     const BlockedCvTerm& cv = confirmed(with) ? alone : with;
     why = fmt::format(
