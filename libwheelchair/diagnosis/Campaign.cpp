@@ -550,8 +550,11 @@ void widenToRealisedGeometry(nlohmann::json& truth, const config::WheelchairConf
                              const simulation::TruthTrajectory& drive) {
   const simulation::RealisedGeometry g = simulation::realisedGeometry(cfg, drive.samples);
   if (g.windows == 0) return;
-  truth["geometry_in_drive"] = {
-      {"radius_rel", g.radius_rel}, {"track_rel", g.track_rel}, {"windows", g.windows}};
+  truth["geometry_in_drive"] = {{"radius_rel", g.radius_rel},
+                                {"track_rel", g.track_rel},
+                                {"windows", g.windows},
+                                {"steady_radius_rel", truth["radius_rel"]},
+                                {"steady_track_rel", truth["track_rel"]}};
   for (const auto& [key, x] : {std::pair{"radius_rel", g.radius_rel}, {"track_rel", g.track_rel}}) {
     auto& range = truth[key];
     range[0] = std::min(range[0].get<double>(), x);
