@@ -539,9 +539,7 @@ std::vector<std::string> untoldEffects(const std::vector<effects::EffectSpec>& e
   }
   return out;
 }
-}  // namespace
 
-namespace {
 /// The drive's own operating point joins the engine's geometry range (MujocoTruth.h,
 /// realisedGeometry: measured on the multibody's exact pose and hinge angles in this drive,
 /// independently of the recorded sensors and of the diagnosis). The steady drives of
