@@ -539,6 +539,26 @@ std::vector<std::string> untoldEffects(const std::vector<effects::EffectSpec>& e
   }
   return out;
 }
+
+/// The drive's own operating point joins the engine's geometry range (MujocoTruth.h,
+/// realisedGeometry: measured on the multibody's exact pose and hinge angles in this drive,
+/// independently of the recorded sensors and of the diagnosis). The steady drives of
+/// measureMujocoTruth are operating points (3 / 6 A straight) the drive need not visit.
+void widenToRealisedGeometry(nlohmann::json& truth, const config::WheelchairConfig& cfg,
+                             const simulation::TruthTrajectory& drive) {
+  const simulation::RealisedGeometry g = simulation::realisedGeometry(cfg, drive.samples);
+  if (g.windows == 0) return;
+  truth["geometry_in_drive"] = {{"radius_rel", g.radius_rel},
+                                {"track_rel", g.track_rel},
+                                {"windows", g.windows},
+                                {"steady_radius_rel", truth["radius_rel"]},
+                                {"steady_track_rel", truth["track_rel"]}};
+  for (const auto& [key, x] : {std::pair{"radius_rel", g.radius_rel}, {"track_rel", g.track_rel}}) {
+    auto& range = truth[key];
+    range[0] = std::min(range[0].get<double>(), x);
+    range[1] = std::max(range[1].get<double>(), x);
+  }
+}
 }  // namespace
 
 CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scenario, uint64_t seed,
@@ -573,7 +593,10 @@ CaseResult runCase(const config::WheelchairConfig& cfg, const std::string& scena
     for (const auto& m : simulation::mujocoEffectCatalogue()) engine_only |= m.id == e.id;
     engine_only |= simulation::findUnknownEffect(e.id) != nullptr;
   }
-  if (engine == "mujoco" && !engine_only) c.engine_truth = engineTruthJson(cfg, effects);
+  if (engine == "mujoco" && !engine_only) {
+    c.engine_truth = engineTruthJson(cfg, effects);
+    widenToRealisedGeometry(c.engine_truth, cfg, sim.truth);
+  }
   // An acceleration term (vdot, omegadot) is judged against the term the multibody realises
   // in this drive's motion, per motor (measured only when a finding has one: it needs the
   // model twin).

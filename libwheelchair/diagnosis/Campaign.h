@@ -59,7 +59,9 @@ double parameterError(const effects::EffectSpec& truth, const Finding& f,
 
 /// Whether a non-catalogue finding (`wheel_geometry`, `unmodeled`) on a MuJoCo drive is the
 /// engine's own physics, measured independently (`truth`: simulation::measureMujocoTruth as
-/// JSON: radius_rel / track_rel [min, max]; per right motor current v_omega_A, omega2_A,
+/// JSON: radius_rel / track_rel [min, max], which runCase widens to the geometry the
+/// multibody realises in the drive itself, `geometry_in_drive` (simulation::realisedGeometry);
+/// per right motor current v_omega_A, omega2_A,
 /// omegadot_A and,
 /// on a slope, slope_cos_A / slope_sin_A). wheel_geometry: every changed (non-zero) relative
 /// radius / track within the measured range widened by 25 % of its largest magnitude (the

@@ -180,7 +180,17 @@ int crossValidate(const std::vector<CandidateModel>& models,
       foldFits[m].push_back(g);
       cv[m] += identification::meanOdometryError(test[k], g).mean_position_m / K;
     }
-    kc.candidates.push_back({{"model", models[m].name}, {"cv_mean_position_error_m", cv[m]}});
+    double mean[3] = {0, 0, 0};  // the fold fits' mean relative corrections (evidence)
+    for (const auto& g : foldFits[m]) {
+      mean[0] += rel(g.m_per_tick_right, kc.nominal.m_per_tick_right) / K;
+      mean[1] += rel(g.m_per_tick_left, kc.nominal.m_per_tick_left) / K;
+      mean[2] += rel(g.track_m, kc.nominal.track_m) / K;
+    }
+    kc.candidates.push_back({{"model", models[m].name},
+                             {"cv_mean_position_error_m", cv[m]},
+                             {"folds_radius_right_rel", mean[0]},
+                             {"folds_radius_left_rel", mean[1]},
+                             {"folds_track_rel", mean[2]}});
   }
   kc.candidates.push_back({{"model", "nominal"}, {"cv_mean_position_error_m", cv_nominal}});
   // a whole-run fit that disagrees with the increments is misspecified: only increment-domain

@@ -130,4 +130,41 @@ MujocoTruth measureMujocoTruth(const config::WheelchairConfig& cfg,
   return t;
 }
 
+RealisedGeometry realisedGeometry(const config::WheelchairConfig& cfg,
+                                  const std::vector<TruthSample>& truth, double window_s) {
+  struct Window {
+    double ds, dphi, dR, dL;
+  };
+  std::vector<Window> w;
+  for (std::size_t i = 0, j = 1; j < truth.size(); ++j) {
+    const TruthSample &a = truth[i], &b = truth[j];
+    if (b.t_s - a.t_s < window_s) continue;
+    const double h = 0.5 * (a.phi_rad + b.phi_rad);
+    const double ds = (b.x_m - a.x_m) * std::cos(h) + (b.y_m - a.y_m) * std::sin(h);
+    const double dR = b.wheel_angle_right_rad - a.wheel_angle_right_rad,
+                 dL = b.wheel_angle_left_rad - a.wheel_angle_left_rad;
+    if (std::abs(0.5 * (dR + dL)) > 1e-6 || std::abs(dR - dL) > 1e-6)
+      w.push_back({ds, b.phi_rad - a.phi_rad, dR, dL});
+    i = j;
+  }
+  RealisedGeometry g;
+  if (w.size() < 10) return g;
+  double sm = 0, mm = 0;
+  for (const auto& x : w) {
+    const double m = 0.5 * (x.dR + x.dL);
+    sm += x.ds * m, mm += m * m;
+  }
+  const double r = sm / mm;
+  double dd = 0, dp = 0;
+  for (const auto& x : w) {
+    const double d = r * (x.dR - x.dL);
+    dd += d * d, dp += d * x.dphi;
+  }
+  if (!(dp > 0)) return g;  // no turn: the track is not realised in this drive
+  g.radius_rel = r / cfg.vehicle.geom.wheel_radius_m - 1;
+  g.track_rel = dd / dp / cfg.vehicle.geom.track_width_m - 1;
+  g.windows = static_cast<int>(w.size());
+  return g;
+}
+
 }  // namespace wheelchair::simulation

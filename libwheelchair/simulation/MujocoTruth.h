@@ -30,6 +30,7 @@
 
 #include "libwheelchair/config/WheelchairConfig.h"
 #include "libwheelchair/effects/Effect.h"
+#include "libwheelchair/simulation/Simulator.h"
 
 #include <vector>
 
@@ -71,5 +72,25 @@ struct MujocoTruth {
 /// Takes ~1 s.
 MujocoTruth measureMujocoTruth(const config::WheelchairConfig& cfg,
                                const std::vector<effects::EffectSpec>& effects);
+
+/// The odometric geometry the chair realises in ONE drive's own motion, from the engine's exact
+/// state (body pose and wheel hinge angles of the truth trajectory; no sensor is used), so that
+/// a `wheel_geometry` finding can be scored against the geometry of the drive it was found on
+/// (the steady drives of measureMujocoTruth are operating points the drive may not visit: on
+/// the 90-s excite drives the multibody rolls -0.09..-0.10 % short, with or without a payload,
+/// where the steady 3 / 6 A drives give -0.13 / -0.14 %). Over non-overlapping windows of
+/// window_s: ds the body's displacement along its mid-window heading, dphi its heading change,
+/// dpsi_R, dpsi_L the hinge angles;
+///     effective radius  r = sum(ds m) / sum(m^2),  m = (dpsi_R + dpsi_L) / 2  (least squares);
+///     effective track   b = sum(d^2) / sum(d dphi), d = r (dpsi_R - dpsi_L)   (d = b dphi);
+/// both relative to [vehicle] wheel_radius_m, track_width_m. Windows with no rolling (|m| below
+/// 1e-6 rad) carry no information and are skipped; fewer than 10 windows (or no turn): windows = 0.
+/// Example (MuJoCo excite 799554, nominal chair): radius -0.097 %, track +0.070 %.
+struct RealisedGeometry {
+  double radius_rel = 0, track_rel = 0;
+  int windows = 0;
+};
+RealisedGeometry realisedGeometry(const config::WheelchairConfig& cfg,
+                                  const std::vector<TruthSample>& truth, double window_s = 0.1);
 
 }  // namespace wheelchair::simulation
