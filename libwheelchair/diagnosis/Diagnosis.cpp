@@ -2176,6 +2176,51 @@ int unconfirmedNamedTerm(const Selection& sel, const std::vector<Candidate>& can
   return -1;
 }
 
+/// The motors (bit 0 right, bit 1 left) a component of channel `ch` (UnmodeledPhysics.h) acts on.
+int componentMotors(const std::string& ch) {
+  return ch == "current_right" ? 1 : ch == "current_left" ? 2 : 3;
+}
+
+/// The terms describeDynamicTerms left out because their own held-out prediction gets worse
+/// (`dropped`) taken out of the motors' terms srs where no kept component of `physics` carries
+/// them (issue 16 item 2: each term of an `unmodeled` finding judged on the held-out rows, not
+/// only the finding as a whole); a motor left without terms is no longer accepted. What was left
+/// out, with its numbers, goes to rep.info["rejected_heldout"].
+void dropHeldOutWorse(std::array<SparseResult, 2>& srs,
+                      const std::vector<DroppedComponent>& dropped, const nlohmann::json& physics,
+                      DiagnosisReport& rep) {
+  const auto& nm = dynLibNames();
+  for (const DroppedComponent& w : dropped) {
+    const std::string term = nm[w.term];
+    const std::string channel = w.mode == 0   ? "forward"
+                                : w.mode == 1 ? "yaw"
+                                : w.mode == 2 ? "current_right"
+                                              : "current_left";
+    const int motors = componentMotors(channel);
+    rep.info["rejected_heldout"].push_back(
+        {{"effect", "unmodeled"},
+         {"term", term},
+         {"channel", channel},
+         {"rejected_by", "held-out rule, term " + term},
+         {"reason", fmt::format("its own held-out prediction gets worse (realised likelihood "
+                                "ratio {:.2f}, predicted {:.2f}): left out of the finding",
+                                w.lr, w.expected_lr)}});
+    for (int s2 = 0; s2 < 2; ++s2) {
+      if (!(motors & (1 << s2))) continue;
+      bool carried = false;
+      for (const auto& c : physics) {  // (a heading component carries cos and sin)
+        const std::string t = c["term"];
+        carried = carried || ((componentMotors(c["channel"]) & (1 << s2)) &&
+                              (t == term || (t == "cos(phi), sin(phi)" &&
+                                             (term == "cos(phi)" || term == "sin(phi)"))));
+      }
+      if (carried) continue;
+      srs[s2] = sparseSubset(srs[s2], [&](int j) { return j != w.term; });
+      if (srs[s2].terms.empty()) srs[s2].accepted = false;
+    }
+  }
+}
+
 /// The out-of-catalogue terms of both motors (srs, from the joint fit) as findings: a friction
 /// law's shape and terms below the unexplained structure set aside (reportableTerms), then
 /// what the rest is physically, both motors' terms refitted jointly as forward / yaw /
@@ -2183,7 +2228,7 @@ int unconfirmedNamedTerm(const Selection& sel, const std::vector<Candidate>& can
 /// rv_after (validation rows). friction[s]: rep.findings index of the friction on motor s.
 void reportUnmodeled(std::array<SparseResult, 2> srs, const DynRows& df2, const DynRows& dv2,
                      const Eigen::VectorXd& rf, const Eigen::VectorXd& rv_after, int lags,
-                     const config::WheelchairConfig& cfg,
+                     const config::WheelchairConfig& cfg, const DiagnosisOptions& opt,
                      const std::array<int, 2>& friction_finding, DiagnosisReport& rep) {
   const int nRf = static_cast<int>(df2.y.size() / 2), nRv2 = static_cast<int>(dv2.y.size() / 2);
   for (int s2 = 0; s2 < 2; ++s2)
@@ -2203,7 +2248,12 @@ void reportUnmodeled(std::array<SparseResult, 2> srs, const DynRows& df2, const 
                : unmodeledColumn(dv2, j, side * nRv2, nRv2);
   };
   td.y_fit = rf, td.y_val = rv_after, td.groups_fit = df2.groups, td.lags = lags;
-  const nlohmann::json physics = describeDynamicTerms(terms, dynLibNames(), td, cfg);
+  td.groups_val = dv2.groups;
+  td.min_expected_lr = opt.validation_min_expected_lr;
+  td.worse_lr = stats::chi2Quantile(1 - opt.alpha, 1);
+  std::vector<DroppedComponent> dropped;
+  const nlohmann::json physics = describeDynamicTerms(terms, dynLibNames(), td, cfg, &dropped);
+  dropHeldOutWorse(srs, dropped, physics, rep);
   for (int s2 = 0; s2 < 2; ++s2) {
     if (!srs[s2].accepted) continue;
     std::string ch = s2 == 0 ? "current_right" : "current_left";
@@ -2568,8 +2618,8 @@ bool dynamicStageOn(Stage2Spill& sp, const config::WheelchairConfig& cfg,
     }
   }
   if (opt.enable_unmodeled)
-    reportUnmodeled(unmodeled, df2, dv2, df2.y - Df * sel.fit.beta, rv_after, lags, cfg, friction,
-                    rep);
+    reportUnmodeled(unmodeled, df2, dv2, df2.y - Df * sel.fit.beta, rv_after, lags, cfg, opt,
+                    friction, rep);
   return true;
 }
 

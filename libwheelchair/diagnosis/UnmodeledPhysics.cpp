@@ -269,9 +269,40 @@ std::vector<Col> termChannels(const stats::LinearFit& f, const std::vector<int>&
 }
 }  // namespace
 
+namespace {
+/// The component of `kept` whose own held-out prediction gets worse (DynamicTermData's rule)
+/// the most (lowest realised likelihood ratio), or -1: for component k, the validation RSS of
+/// the fit of kept without k (rss0) against kept (rss1), n_eff of the latter's residual,
+/// realised LR n_eff log(rss0 / rss1), predicted n_eff log(1 + |p1 - p0|^2 / rss1).
+int heldOutWorse(const DynamicTermData& d, const std::vector<Col>& kept, DroppedComponent& worst) {
+  if (d.y_val.size() == 0 || d.groups_val.empty() || kept.empty()) return -1;
+  auto prediction = [&](const std::vector<Col>& cols) -> Eigen::VectorXd {
+    if (cols.empty()) return Eigen::VectorXd::Zero(d.y_val.size());
+    const Eigen::VectorXd b = designOf(d, cols, true).colPivHouseholderQr().solve(d.y_fit);
+    return designOf(d, cols, false) * b;
+  };
+  const Eigen::VectorXd p1 = prediction(kept), r1 = d.y_val - p1;
+  const double rss1 = std::max(1e-300, r1.squaredNorm());
+  const double ne = stats::effectiveSampleSize(r1, d.groups_val, d.lags);
+  int out = -1;
+  for (std::size_t k = 0; k < kept.size(); ++k) {
+    std::vector<Col> without = kept;
+    without.erase(without.begin() + static_cast<long>(k));
+    const Eigen::VectorXd p0 = prediction(without);
+    const double lr = ne * std::log((d.y_val - p0).squaredNorm() / rss1);
+    const double expected = ne * std::log(1.0 + (p1 - p0).squaredNorm() / rss1);
+    const bool worse = expected >= d.min_expected_lr ? lr < 0 : lr < -d.worse_lr;
+    if (worse && (out < 0 || lr < worst.lr))
+      out = static_cast<int>(k), worst = {kept[k].term, kept[k].mode, lr, expected};
+  }
+  return out;
+}
+}  // namespace
+
 nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
                                     const std::vector<std::string>& names, const DynamicTermData& d,
-                                    const config::WheelchairConfig& cfg) {
+                                    const config::WheelchairConfig& cfg,
+                                    std::vector<DroppedComponent>* dropped) {
   nlohmann::json out = nlohmann::json::array();
   if (terms.empty() || d.y_fit.size() == 0) return out;
   // 1. Forward and yaw column of every term, jointly.
@@ -279,8 +310,13 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
   for (int j : terms) cols.push_back({j, 0}), cols.push_back({j, 1});
   stats::LinearFit f = stats::fitLinear(designOf(d, cols, true), d.y_fit, d.groups_fit, d.lags);
   if (!f.ok) return out;
-  // 2. Channel per term.
-  const std::vector<Col> kept = termChannels(f, terms, names, d.t_threshold);
+  // 2. Channel per term; a component whose own held-out prediction gets worse is left out.
+  std::vector<Col> kept = termChannels(f, terms, names, d.t_threshold);
+  for (DroppedComponent w; heldOutWorse(d, kept, w) >= 0;) {
+    kept.erase(std::find_if(kept.begin(), kept.end(),
+                            [&](const Col& c) { return c.term == w.term && c.mode == w.mode; }));
+    if (dropped) dropped->push_back(w);
+  }
   if (kept.empty()) return out;
   stats::LinearFit g = stats::fitLinear(designOf(d, kept, true), d.y_fit, d.groups_fit, d.lags);
   if (!g.ok) return out;

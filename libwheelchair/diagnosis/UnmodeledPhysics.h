@@ -64,15 +64,34 @@ struct DynamicTermData {
   std::function<Eigen::VectorXd(int j, int side, bool fit)> column;
   Eigen::VectorXd y_fit, y_val;
   stats::Groups groups_fit;
+  stats::Groups groups_val;  ///< of y_val (empty: the held-out judgement of each term is off)
   int lags = 0;
   double t_threshold = 3.0;
+  /// The held-out judgement of each component (heldOutWorse), as the forward selection's
+  /// held-out check (Stages.cpp heldOutCheck): testable when its predicted likelihood-ratio
+  /// gain on y_val is >= min_expected_lr; then worse when the realised one is < 0; untestable,
+  /// worse when the realised one is < -worse_lr (chi^2_1 at 1 - alpha).
+  double min_expected_lr = 9.0;
+  double worse_lr = 6.63;
+};
+
+/// A component (library term, mode: 0 forward, 1 yaw, 2 right motor only, 3 left only)
+/// describeDynamicTerms left out because its own held-out prediction gets worse.
+struct DroppedComponent {
+  int term = 0, mode = 0;
+  double lr = 0, expected_lr = 0;  ///< realised and predicted held-out likelihood ratio
 };
 
 /// Components (JSON as above) of the stage-2 terms `terms` (library indices, names `names`).
+/// Each component is judged on the held-out rows on its own (issue 16 item 2: never report a
+/// term whose own held-out prediction gets worse): with groups_val given, the component whose
+/// removal improves the held-out prediction beyond noise (DynamicTermData's rule) is left out
+/// and the rest refitted, until none is; those left out go to `dropped` (if given).
 nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
                                     const std::vector<std::string>& names,
                                     const DynamicTermData& data,
-                                    const config::WheelchairConfig& cfg);
+                                    const config::WheelchairConfig& cfg,
+                                    std::vector<DroppedComponent>* dropped = nullptr);
 
 /// An out-of-catalogue term that predicts the currents better than an accepted catalogue
 /// term (issue 16 item 3: "do not force it onto the nearest catalogue name").

@@ -277,26 +277,28 @@ TEST(UnmodeledPhysics, MujocoSoftTyreIsARollingRadiusGrowingWithSpeedSquared) {
   expectNoCatalogueName(j, {"gyro_scale", "encoder_scale"});
 }
 
-TEST(UnmodeledPhysics, MujocoQuadraticDragOnSquareKeepsASetThatStands) {
+TEST(UnmodeledPhysics, MujocoQuadraticDragOnSquareTermWorseOnHeldOutRowsIsLeftOut) {
   // A quadratic drag of 4.32 N s^2/m^2 on a `square` drive (a 0.94-sigma current trace). The
-  // search on the right motor reached a held-out-tested set, then sparserEquivalent replaced a
-  // pair of it by one column that predicts the held-out rows as well but does not stand the
-  // fit rows' thresholding, and the whole structure dissolved: nothing was reported. stlsq now
-  // searches again with only replacements that stand. At the one speed of a `square` side a
-  // viscous and a quadratic drag are one column: the forward force is found as a rate term,
-  // ambiguous with v*|v|, and not as a motor asymmetry.
+  // search on the left motor finds omega^2 (the multibody's centre of mass) and a forward rate
+  // term `v` (the drag at the one speed of a `square` side; its held-out gain -0.006 A). Each
+  // component of an `unmodeled` finding is judged on the held-out rows on its own (issue 16
+  // item 2): `v` predicts them worse (realised likelihood ratio -20 where +18 was predicted)
+  // and is left out, said in info.rejected_heldout. (Before: `v` was reported, the finding as
+  // a whole predicting the held-out rows better.) Not forced onto a catalogue name either.
   const auto j =
       diagnoseWith("forward_quadratic_drag:c_N_s2_m2=4.32", 785894, "square --engine mujoco");
   expectNoCatalogueName(j, {"motor_asymmetry", "coulomb_friction"});
-  bool found = false;
-  for (const auto& f : j["findings"])
-    for (const auto& c : f.value("physics", nlohmann::json::array())) {
-      if (c["channel"] != "forward" || c["term"] != "v") continue;
-      for (const auto& a : c.value("ambiguous_with", nlohmann::json::array()))
-        found |= a["term"] == "v*|v|";
-      EXPECT_GT(c["physical"]["value"].get<double>(), 0) << c.dump();  // opposing the motion
-    }
-  EXPECT_TRUE(found) << j["findings"].dump();
+  for (const auto& f : j["findings"]) {
+    EXPECT_FALSE(f["parameters"].contains("v")) << f.dump();
+    for (const auto& c : f.value("physics", nlohmann::json::array()))
+      EXPECT_GE(c["heldout_gain_A"].get<double>(), -1e-3) << c.dump();
+  }
+  bool said = false;
+  for (const auto& r : j["info"].value("rejected_heldout", nlohmann::json::array()))
+    said = said || (r.value("term", "") == "v" &&
+                    r["reason"].get<std::string>().find("held-out prediction gets worse") !=
+                        std::string::npos);
+  EXPECT_TRUE(said) << j["info"].dump();
 }
 
 TEST(UnmodeledPhysics, MujocoCleanDriveHasNoCastorTerm) {
