@@ -174,10 +174,10 @@ double pairedRelativeT(const std::vector<std::pair<FilterErrors, FilterErrors>>&
 // encoders' yaw rate weighs less and the heading leans more on the model, measured +2.1 % on
 // three_task seed 11 (-0.4 .. +0.7 % on the others, +0.2 % on the mean); "strictly better" on
 // v requires -5 % on every drive (4 standard deviations short of the measured mean).
-// With the radii LEARNED, the position of one drive moves by -25 .. +18 % against the same
+// With the radii LEARNED, the position of one drive moves by -24 .. +18 % against the same
 // configuration's filter with the radii held (the learned common scale's path through the
 // drive: these truth wheels have exactly the nominal radii), and the paired identified/nominal
-// position difference spreads to +2.2 % +- 5.7 % over the six drives (2026-11-25): 20 times the
+// position difference spreads to +2.2 % +- 5.6 % over the six drives (2026-11-25): 20 times the
 // dynamics' effect, so the paired position comparison of the learning filters cannot see the
 // model. Hence: v, omega and the NIS (where the dynamics act) from the filters as configured;
 // the position per drive and in the mean with each configuration's filter with the radii held
