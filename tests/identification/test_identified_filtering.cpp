@@ -179,11 +179,16 @@ double pairedRelativeT(const std::vector<std::pair<FilterErrors, FilterErrors>>&
 // drive: these truth wheels have exactly the nominal radii), and the paired identified/nominal
 // position difference spreads to +2.2 % +- 5.6 % over the six drives (2026-11-25): 20 times the
 // dynamics' effect, so the paired position comparison of the learning filters cannot see the
-// model. Hence: v, omega and the NIS (where the dynamics act) from the filters as configured;
-// the position per drive and in the mean with each configuration's filter with the radii held
-// (learn_healthy_encoder_scales = none; the same as configured when it is none), with the
-// margins above; and the learning filters' position only as a paired one-sided t test
-// (identified not worse at the 1 % level: t < t_{0.99, n-1}, 3.36 for six drives).
+// model. And with a yaw process noise small enough to bring the gyro's NIS towards 1 (the
+// manoeuvre-scaled yaw noise, or a constant q_omega <= 0.005), even the vehicle's EXACT
+// configuration, given as the "identified" one, is +10 % / +14 % off the nominal's position on
+// two drives with the radii held (docs/estimation.md, "Shipping the self-calibrating filter?"):
+// single gyro readings gated at the 0.999 level move a drive's position by ~10 %, so per-drive
+// position margins judge the gate, not the model. Hence: v, omega and the NIS (where the
+// dynamics act) per drive from the filters as configured, with the margins above; the position
+// with the radii held (learn_healthy_encoder_scales = none; the same as configured when it is
+// none) and as configured each as a paired one-sided t test over the drives (identified not
+// worse at the 1 % level: t < t_{0.99, n-1}, 3.36 for six drives).
 // Returns the failed checks (empty: at least as good).
 std::vector<std::string> notAsGood(const Comparison& c) {
   std::vector<std::string> f;
@@ -194,17 +199,14 @@ std::vector<std::string> notAsGood(const Comparison& c) {
     const auto& [n, i] = c.runs[k];
     check(i.v_rmse < 0.95 * n.v_rmse, fmt::format("v, drive {}", k));  // strictly better
     check(i.omega_rmse <= 1.02 * n.omega_rmse, fmt::format("omega, drive {}", k));
-    check(i.pos_rmse_fixed_radii <= 1.03 * n.pos_rmse_fixed_radii,
-          fmt::format("position (radii held), drive {}", k));
     check(i.nis_enc <= 1.02 * n.nis_enc, fmt::format("NIS encoders, drive {}", k));
     check(i.nis_gyro <= 1.02 * n.nis_gyro, fmt::format("NIS gyro, drive {}", k));
   }
   check(mean(c.runs, true, &FilterErrors::omega_rmse) <
             mean(c.runs, false, &FilterErrors::omega_rmse),
         "mean omega");
-  check(mean(c.runs, true, &FilterErrors::pos_rmse_fixed_radii) <=
-            1.005 * mean(c.runs, false, &FilterErrors::pos_rmse_fixed_radii),
-        "mean position (radii held)");
+  check(pairedRelativeT(c.runs, &FilterErrors::pos_rmse_fixed_radii) < 3.36,
+        "position (radii held), paired t");
   check(pairedRelativeT(c.runs, &FilterErrors::pos_rmse) < 3.36, "position, paired t");
   return f;
 }
