@@ -10,9 +10,11 @@
 // alarming sum was 0. The caller then opens the encoder scale states (closed until then with
 // open_sensor_errors_on_alarm; prior variance added), so the fault is ESTIMATED and the
 // encoders are kept, corrected, instead of rejected.
-// Estimation: after every encoder update the per-wheel scales k = value +- sd are reported as
-// an "estimate" event once sd < 0.005 and |k - 1| > max(3 sd, 0.01) (or sd < 0.01 and
-// |k - 1| > 5 sd: a side decided by the fault prior), and again when a later
+// Estimation: after every encoder update while the encoder fault group is open (WheelchairEkf
+// passes them only then: before an alarm the closed states hold a healthy chair's radii, which
+// learn_healthy_encoder_scales may learn, not a fault) the per-wheel scales k = value +- sd are
+// reported as an "estimate" event once sd < 0.005 and |k - 1| > max(3 sd, 0.01) (or
+// sd < 0.01 and |k - 1| > 5 sd: a side decided by the fault prior), and again when a later
 // estimate differs from the reported one by more than that (a new fault). Before a turn only
 // the RATIO k_R / k_L is known (straight driving): it is reported the same way (parameter
 // "scale_ratio", side ""), saying that the side needs a turn.

@@ -677,7 +677,15 @@ void WheelchairEkf::encoderInterval(const sensors::WheelSpeedInterval& iv) {
       reopenEncoderScales();
     encoderFaultPrior();
     if (opt_.encoder_fault_prior == EncoderFaultPrior::Either) encoderFaultDirection(iv);
-    health_.scales(iv.t1_s, sensorErrors());
+    // A scale is a FAULT estimate only while the fault group is open (an alarm, or
+    // open_sensor_errors_on_alarm off). Before the alarm the states hold the healthy
+    // hypothesis (learn_healthy_encoder_scales: a healthy chair's radii, closed prior 0.5 %
+    // per wheel, k_s split symmetrically): a fault present from the start that k_d has
+    // partly absorbed would be reported unsided on both wheels ("right reads 1.3 % long"
+    // for a left wheel 5 % short) and then reported back. At the alarm the learned k_d is
+    // handed to the fault group as its starting value (reopenEncoderScales) and the side is
+    // decided by the fault prior, the motor currents or the turn, as without learning.
+    if (!scalesClosed()) health_.scales(iv.t1_s, sensorErrors());
   }
   wrap();
   if (!still) adaptSlipVariance(r, R, dt);
