@@ -309,6 +309,10 @@ std::vector<Options> registeredOptions() {
   std::vector<Options> all;
   for (const auto& f : registry().factories)
     for (auto& t : f()) all.push_back(std::move(t));
+  // By section name: the registration order is the static initialisers' order, which the
+  // linker decides (it changed with link-time optimisation), and `config --dump` must not.
+  std::stable_sort(all.begin(), all.end(),
+                   [](const Options& a, const Options& b) { return a.section() < b.section(); });
   return all;
 }
 

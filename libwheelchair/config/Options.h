@@ -188,7 +188,7 @@ bool registerOptionsOf(const std::string& section) {
     return std::vector<Options>{t};
   });
 }
-/// Every registered table (defaults), in registration order.
+/// Every registered table (defaults), ordered by section name (stable).
 std::vector<Options> registeredOptions();
 
 /// Unknown keys and sections, and an empty file, only warn (stderr) instead of throwing.
