@@ -113,7 +113,8 @@ bool CsvStreamReader::next(AnySample& out) {
   std::size_t col = 0;
   for (;;) {
     while (p < end && (*p == ' ' || *p == '\t')) ++p;
-    const char* field_end = static_cast<const char*>(memchr(p, ',', end - p));
+    const std::size_t left = p < end ? static_cast<std::size_t>(end - p) : 0;
+    const char* field_end = static_cast<const char*>(memchr(p, ',', left));
     if (!field_end) field_end = end;
     const char* fe = field_end;
     while (fe > p && (fe[-1] == ' ' || fe[-1] == '\t')) --fe;
