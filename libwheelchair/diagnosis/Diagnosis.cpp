@@ -2192,15 +2192,11 @@ void dropHeldOutWorse(std::array<SparseResult, 2>& srs,
   const auto& nm = dynLibNames();
   for (const DroppedComponent& w : dropped) {
     const std::string term = nm[w.term];
-    const std::string channel = w.mode == 0   ? "forward"
-                                : w.mode == 1 ? "yaw"
-                                : w.mode == 2 ? "current_right"
-                                              : "current_left";
-    const int motors = componentMotors(channel);
+    const int motors = componentMotors(w.channel);
     rep.info["rejected_heldout"].push_back(
         {{"effect", "unmodeled"},
          {"term", term},
-         {"channel", channel},
+         {"channel", w.channel},
          {"rejected_by", "held-out rule, term " + term},
          {"reason", fmt::format("its own held-out prediction gets worse (realised likelihood "
                                 "ratio {:.2f}, predicted {:.2f}): left out of the finding",

@@ -816,13 +816,9 @@ bool conflictsWith(const Candidate& c, const std::vector<int>& acc,
 std::string heldOutCheck(const SelectionData& d, const Eigen::VectorXd& p0v, double rss0v,
                          const Eigen::VectorXd& p1v, const DiagnosisOptions& opt, double alpha,
                          SelectionStep& st) {
-  Eigen::VectorXd r1 = d.y_val - p1v;
-  double rss1v = r1.squaredNorm();
-  double nev = effectiveSampleSize(r1, d.g_val, d.lags);
-  Eigen::VectorXd delta = p1v - p0v;
-  st.rss0_val = rss0v, st.rss1_val = rss1v, st.n_eff_val = nev;
-  st.lr_val = nev * std::log(rss0v / std::max(1e-300, rss1v));
-  st.lr_val_expected = nev * std::log(1.0 + delta.squaredNorm() / std::max(1e-300, rss1v));
+  const stats::HeldOutGain g = stats::heldOutGain(d.y_val, p0v, rss0v, p1v, d.g_val, d.lags);
+  st.rss0_val = rss0v, st.rss1_val = g.rss1, st.n_eff_val = g.n_eff;
+  st.lr_val = g.lr, st.lr_val_expected = g.lr_expected;
   st.val_tested = st.lr_val_expected >= opt.validation_min_expected_lr;
   if (st.val_tested && st.lr_val < opt.validation_fraction_of_expected * st.lr_val_expected)
     return "does not improve the held-out data as predicted";

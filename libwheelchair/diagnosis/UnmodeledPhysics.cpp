@@ -274,26 +274,26 @@ namespace {
 /// the most (lowest realised likelihood ratio), or -1: for component k, the validation RSS of
 /// the fit of kept without k (rss0) against kept (rss1), n_eff of the latter's residual,
 /// realised LR n_eff log(rss0 / rss1), predicted n_eff log(1 + |p1 - p0|^2 / rss1).
-int heldOutWorse(const DynamicTermData& d, const std::vector<Col>& kept, DroppedComponent& worst) {
+int heldOutWorse(const DynamicTermData& d, const std::vector<Col>& kept,
+                 const std::vector<std::string>& names, DroppedComponent& worst) {
   if (d.y_val.size() == 0 || d.groups_val.empty() || kept.empty()) return -1;
   auto prediction = [&](const std::vector<Col>& cols) -> Eigen::VectorXd {
     if (cols.empty()) return Eigen::VectorXd::Zero(d.y_val.size());
     const Eigen::VectorXd b = designOf(d, cols, true).colPivHouseholderQr().solve(d.y_fit);
     return designOf(d, cols, false) * b;
   };
-  const Eigen::VectorXd p1 = prediction(kept), r1 = d.y_val - p1;
-  const double rss1 = std::max(1e-300, r1.squaredNorm());
-  const double ne = stats::effectiveSampleSize(r1, d.groups_val, d.lags);
+  const Eigen::VectorXd p1 = prediction(kept);
   int out = -1;
   for (std::size_t k = 0; k < kept.size(); ++k) {
     std::vector<Col> without = kept;
     without.erase(without.begin() + static_cast<long>(k));
     const Eigen::VectorXd p0 = prediction(without);
-    const double lr = ne * std::log((d.y_val - p0).squaredNorm() / rss1);
-    const double expected = ne * std::log(1.0 + (p1 - p0).squaredNorm() / rss1);
-    const bool worse = expected >= d.min_expected_lr ? lr < 0 : lr < -d.worse_lr;
-    if (worse && (out < 0 || lr < worst.lr))
-      out = static_cast<int>(k), worst = {kept[k].term, kept[k].mode, lr, expected};
+    const stats::HeldOutGain g =
+        stats::heldOutGain(d.y_val, p0, (d.y_val - p0).squaredNorm(), p1, d.groups_val, d.lags);
+    const bool worse = g.lr_expected >= d.min_expected_lr ? g.lr < 0 : g.lr < -d.worse_lr;
+    if (worse && (out < 0 || g.lr < worst.lr))
+      out = static_cast<int>(k), worst = {kept[k].term, kept[k].mode, g.lr, g.lr_expected,
+                                          channelOf(names[kept[k].term], kept[k].mode)};
   }
   return out;
 }
@@ -312,7 +312,7 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
   if (!f.ok) return out;
   // 2. Channel per term; a component whose own held-out prediction gets worse is left out.
   std::vector<Col> kept = termChannels(f, terms, names, d.t_threshold);
-  for (DroppedComponent w; heldOutWorse(d, kept, w) >= 0;) {
+  for (DroppedComponent w; heldOutWorse(d, kept, names, w) >= 0;) {
     kept.erase(std::find_if(kept.begin(), kept.end(),
                             [&](const Col& c) { return c.term == w.term && c.mode == w.mode; }));
     if (dropped) dropped->push_back(w);
@@ -331,11 +331,7 @@ nlohmann::json describeDynamicTerms(const std::vector<int>& terms,
     const Col& c = kept[k];
     const std::string& term = names[c.term];
     const std::string dep = dependenceOf(term);
-    std::string channel = c.mode == 2   ? "current_right"
-                          : c.mode == 3 ? "current_left"
-                          : c.mode == 1 ? "yaw"
-                                        : (perSideTerm(term) ? "wheels" : "forward");
-    if (perSideTerm(term) && c.mode == 1) channel = "wheels";
+    const std::string channel = channelOf(term, c.mode);
     std::vector<Col> without = kept;
     without.erase(without.begin() + static_cast<long>(k));
     const double gain = valRms(d, without) - rms_all;

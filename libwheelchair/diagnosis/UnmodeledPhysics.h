@@ -80,6 +80,7 @@ struct DynamicTermData {
 struct DroppedComponent {
   int term = 0, mode = 0;
   double lr = 0, expected_lr = 0;  ///< realised and predicted held-out likelihood ratio
+  std::string channel;             ///< as the components' "channel" (forward, yaw, wheels, ...)
 };
 
 /// Components (JSON as above) of the stage-2 terms `terms` (library indices, names `names`).

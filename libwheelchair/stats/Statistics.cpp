@@ -38,6 +38,18 @@ double effectiveSampleSize(const Eigen::VectorXd& r, const Groups& groups, int l
   return std::clamp(n * g0 / lrv, 1.0, n);
 }
 
+HeldOutGain heldOutGain(const Eigen::VectorXd& y, const Eigen::VectorXd& p0, double rss0,
+                        const Eigen::VectorXd& p1, const Groups& groups, int lags) {
+  HeldOutGain g;
+  const Eigen::VectorXd r1 = y - p1;
+  g.rss1 = r1.squaredNorm();
+  g.n_eff = effectiveSampleSize(r1, groups, lags);
+  const double rss1 = std::max(1e-300, g.rss1);
+  g.lr = g.n_eff * std::log(rss0 / rss1);
+  g.lr_expected = g.n_eff * std::log(1.0 + (p1 - p0).squaredNorm() / rss1);
+  return g;
+}
+
 Whiteness ljungBox(const Eigen::VectorXd& r, const Groups& groups, int m) {
   Whiteness w;
   double n = 0;

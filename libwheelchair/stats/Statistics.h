@@ -25,6 +25,18 @@ namespace wheelchair::stats {
 /// over groups; clamped to [1, n].
 double effectiveSampleSize(const Eigen::VectorXd& r, const Groups& groups, int lags);
 
+/// What a prediction p1 gains over p0 on held-out rows y (rows in `groups`, HAC `lags`): the
+/// residual sums of squares rss0 = |y - p0|^2 (given) and rss1 = |y - p1|^2, n_eff of y - p1,
+/// the realised likelihood-ratio gain lr = n_eff log(rss0 / rss1) and the gain predicted if p1
+/// were right, lr_expected = n_eff log(1 + |p1 - p0|^2 / rss1) (diagnose's held-out checks: a
+/// forward-selection step, Stages.cpp; each component of an unmodeled finding,
+/// UnmodeledPhysics.cpp).
+struct HeldOutGain {
+  double rss1 = 0, n_eff = 0, lr = 0, lr_expected = 0;
+};
+HeldOutGain heldOutGain(const Eigen::VectorXd& y, const Eigen::VectorXd& p0, double rss0,
+                        const Eigen::VectorXd& p1, const Groups& groups, int lags);
+
 /// Ljung-Box Q over lags 1..m (within groups, pooled autocorrelation) and its p-value
 /// against chi2(m).
 struct Whiteness {

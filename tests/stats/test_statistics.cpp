@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 using namespace wheelchair::stats;
@@ -54,4 +55,24 @@ TEST(Statistics, RankDeficientDesignIsReported) {
   X.col(1) = 2 * X.col(0);
   Eigen::VectorXd y = X.col(0);
   EXPECT_FALSE(fitLinear(X, y, singleGroup(10), 2).ok);
+}
+
+// heldOutGain against its closed form on rows whose residual is white enough that n_eff = n
+// (lags 0): y = (1, -1, 2, -2), p0 = 0 (rss0 = 10), p1 = y / 2 (rss1 = 2.5, |p1 - p0|^2 = 2.5):
+// lr = 4 log(10 / 2.5) = 4 log 4, predicted 4 log(1 + 1) = 4 log 2. And a prediction that
+// overshoots as far as p0 falls short (p1 = 2 y: rss1 = 10) gains nothing, lr = 0, though
+// it predicted 4 log(1 + 40 / 10).
+TEST(Statistics, HeldOutGainIsTheClosedFormLikelihoodRatio) {
+  Eigen::VectorXd y(4);
+  y << 1, -1, 2, -2;
+  const Eigen::VectorXd p0 = Eigen::VectorXd::Zero(4);
+  const Groups g{{0, 4}};
+  const HeldOutGain half = heldOutGain(y, p0, y.squaredNorm(), 0.5 * y, g, 0);
+  EXPECT_DOUBLE_EQ(half.rss1, 2.5);
+  EXPECT_DOUBLE_EQ(half.n_eff, 4.0);
+  EXPECT_NEAR(half.lr, 4 * std::log(4.0), 1e-12);
+  EXPECT_NEAR(half.lr_expected, 4 * std::log(2.0), 1e-12);
+  const HeldOutGain twice = heldOutGain(y, p0, y.squaredNorm(), 2.0 * y, g, 0);
+  EXPECT_NEAR(twice.lr, 0.0, 1e-12);
+  EXPECT_NEAR(twice.lr_expected, 4 * std::log(1.0 + 40.0 / 10.0), 1e-12);
 }
