@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include <Eigen/Cholesky>
 
 #include <cmath>
@@ -44,6 +46,24 @@ double finalPositionError(const SynthRun& sr, const EstimationResult& r) {
 void printScales(const char* label, const SensorErrorEstimate& e) {
   std::printf("[%s] k_R = %.4f +- %.4f, k_L = %.4f +- %.4f\n", label, e.encoder_scale_right,
               e.encoder_scale_right_sd, e.encoder_scale_left, e.encoder_scale_left_sd);
+}
+
+/// The drives that cannot excite the common scale k_s (observable only while turning): 20 s
+/// straight (equal currents: only the ratio k_R / k_L is observable, and it is 1) and 20 s
+/// standing still (nothing is). No process noise in the truth: the generator's white
+/// accelerations would make the chair turn and so excite the scales.
+struct UnexcitingDrive {
+  bool standing;
+  SynthOptions so;
+};
+std::array<UnexcitingDrive, 2> straightAndStanding() {
+  SynthOptions straight;
+  straight.q_v = straight.q_omega = 0.0;
+  straight.duration_s = 20.0;
+  straight.currents = curvyCurrents(0.3, 2.4, 0.0);  // i_R = i_L: no turning
+  SynthOptions standing = straight;
+  standing.currents = [](double) { return Eigen::Vector2d::Zero(); };
+  return {UnexcitingDrive{false, straight}, UnexcitingDrive{true, standing}};
 }
 
 }  // namespace
@@ -141,33 +161,21 @@ TEST(SensorErrorStates, NoScaleIsInventedOnStraightOrStandingDrives) {
     EkfOptions opt = withScales();
     opt.encoder_fault_prior = prior;
     const double prior_sd = opt.encoder_scale_sigma;
-    // Straight only (equal currents): the ratio k_R / k_L is observable and is 1; the common
-    // scale is not (no turning), so it must stay at its prior mean and keep about its prior sd.
-    // (No process noise in the truth: the generator's white accelerations would make the chair
-    // turn and so excite the scales.)
-    SynthOptions straight;
-    straight.q_v = straight.q_omega = 0.0;
-    straight.duration_s = 20.0;
-    straight.currents = curvyCurrents(0.3, 2.4, 0.0);  // i_R = i_L: no turning
-    // Standing still: nothing is observable.
-    SynthOptions standing;
-    standing.q_v = standing.q_omega = 0.0;
-    standing.duration_s = 20.0;
-    standing.currents = [](double) { return Eigen::Vector2d::Zero(); };
-    for (const auto* so : {&straight, &standing}) {
-      const SynthRun sr = synthesize(nominal(), *so, 5);
+    // Straight (k_s must stay at its prior mean and keep about its prior sd) and standing.
+    for (const auto& [is_standing, so] : straightAndStanding()) {
+      const SynthRun sr = synthesize(nominal(), so, 5);
       const EstimationResult res = runEstimator(sr.rec, nominal(), opt);
       const SensorErrorEstimate& e = res.sensor_errors;
       ASSERT_TRUE(e.present);
       const double ks = 0.5 * (e.encoder_scale_right + e.encoder_scale_left);
-      printScales(so == &straight ? "straight" : "standing", e);
+      printScales(is_standing ? "standing" : "straight", e);
       // Within a small fraction of the prior sd: nothing was read into the common scale.
       EXPECT_NEAR(ks, 1.0, 0.1 * prior_sd);
       EXPECT_NEAR(e.encoder_scale_right, 1.0, e.encoder_scale_right_sd);
       EXPECT_NEAR(e.encoder_scale_left, 1.0, e.encoder_scale_left_sd);
       // The common scale keeps (about) its prior uncertainty: sd(k_R) >= sd(k_s) >= 0.9
       // prior/sqrt(2); with the fault prior, once moving, the healthy sd and no less.
-      if (!fault_prior || so == &standing)
+      if (!fault_prior || is_standing)
         EXPECT_GT(e.encoder_scale_right_sd, 0.9 * prior_sd / std::sqrt(2.0));
       else
         EXPECT_GT(e.encoder_scale_right_sd, 0.9 * opt.healthy_encoder_scale_sigma);
@@ -405,14 +413,8 @@ TEST(SensorErrorStates, LearningAHealthyChairsRadiiInventsNoScaleOnStraightOrSta
   opt.learn_healthy_encoder_scales = HealthyScaleLearning::Both;
   ASSERT_TRUE(opt.open_sensor_errors_on_alarm);
   const double ks_prior_sd = opt.closed_encoder_scale_sigma / std::sqrt(2.0);
-  SynthOptions straight;
-  straight.q_v = straight.q_omega = 0.0;
-  straight.duration_s = 20.0;
-  straight.currents = curvyCurrents(0.3, 2.4, 0.0);  // i_R = i_L: no turning
-  SynthOptions standing = straight;
-  standing.currents = [](double) { return Eigen::Vector2d::Zero(); };
-  for (const auto* so : {&straight, &standing}) {
-    const SynthRun sr = synthesize(nominal(), *so, 5);
+  for (const auto& [is_standing, so] : straightAndStanding()) {
+    const SynthRun sr = synthesize(nominal(), so, 5);
     const EstimationResult res = runEstimator(sr.rec, nominal(), opt);
     const SensorErrorEstimate& e = res.sensor_errors;
     ASSERT_TRUE(e.present);
@@ -420,7 +422,7 @@ TEST(SensorErrorStates, LearningAHealthyChairsRadiiInventsNoScaleOnStraightOrSta
     const double ks = 0.5 * (e.encoder_scale_right + e.encoder_scale_left);
     const double kd = e.encoder_scale_right - e.encoder_scale_left;
     // Each wheel's sd is at least the common scale's (k_R, k_L = k_s +- k_d / 2).
-    printScales(so == &straight ? "straight, learning" : "standing, learning", e);
+    printScales(is_standing ? "standing, learning" : "straight, learning", e);
     EXPECT_NEAR(ks, 1.0, 0.1 * ks_prior_sd);
     EXPECT_NEAR(kd, 0.0, 0.2 * opt.closed_encoder_scale_sigma);
     EXPECT_GT(e.encoder_scale_right_sd, 0.9 * ks_prior_sd);
