@@ -13,6 +13,7 @@
 //    heldOutCheck): model engine, heading-dependent yaw moment (out of catalogue), where
 //    `motor_asymmetry` made the held-out prediction worse (LR -19 for a predicted +8).
 #include "libwheelchair/simulation/MujocoTruth.h"
+#include "libwheelchair/simulation/Simulator.h"
 
 #include "../common/TestUtil.h"
 
@@ -207,14 +208,7 @@ TEST(ExtraFindingsCli, MujocoWheelGeometryIsTheGeometryTheDriveRealises) {
   const auto* w = findingOf(j, "wheel_geometry");
   ASSERT_NE(w, nullptr) << j["findings"].dump();
 
-  const auto tj = nlohmann::json::parse(readFile(rec + ".truth.json"))["trajectory"];
-  std::vector<wheelchair::simulation::TruthSample> truth(tj["t_s"].size());
-  for (std::size_t k = 0; k < truth.size(); ++k) {
-    auto& s = truth[k];
-    s.t_s = tj["t_s"][k], s.x_m = tj["x_m"][k], s.y_m = tj["y_m"][k], s.phi_rad = tj["phi_rad"][k];
-    s.wheel_angle_right_rad = tj["wheel_angle_right_rad"][k];
-    s.wheel_angle_left_rad = tj["wheel_angle_left_rad"][k];
-  }
+  const auto truth = wheelchair::simulation::readTruth(rec + ".truth.json").truth.samples;
   const wheelchair::config::WheelchairConfig cfg;
   const auto g = wheelchair::simulation::realisedGeometry(cfg, truth);
   ASSERT_GT(g.windows, 100);
