@@ -30,9 +30,12 @@ using wheelchair::test::readFile;
 using wheelchair::test::TempDir;
 
 // `simulate_args` simulated (90-s excite unless given) and diagnosed with defaults: the JSON.
-nlohmann::json simulateAndDiagnose(const std::string& simulate_args) {
+// The recording (and its truth, rec + ".truth.json") goes to `rec` if given, else to a
+// temporary directory.
+nlohmann::json simulateAndDiagnose(const std::string& simulate_args, std::string rec = "") {
   const TempDir d;
-  const std::string rec = d / "x.rawlog", json = d / "x.json";
+  const std::string json = d / "x.json";
+  if (rec.empty()) rec = d / "x.rawlog";
   const auto sim = cli("simulate " + simulate_args + " -o " + rec);
   EXPECT_EQ(sim.exit_code, 0) << sim.out;
   const auto diag = cli("diagnose " + rec + " --json " + json);
@@ -195,15 +198,11 @@ TEST(ExtraFindingsCli, MujocoSlopeYawCreepIsNotReportedAsWheelGeometry) {
 // track +0.07 % wider: the finding is the drive's own geometry, within the campaign's 25 %.
 TEST(ExtraFindingsCli, MujocoWheelGeometryIsTheGeometryTheDriveRealises) {
   const TempDir d;
-  const std::string rec = d / "x.rawlog", json = d / "x.json";
-  const auto sim =
-      cli("simulate --engine mujoco --scenario excite --seed 799554 --duration 90 "
-          "--effect gyro_bias:bias_rad_s=0.0192724 --ground-truth-stream -o " +
-          rec);
-  ASSERT_EQ(sim.exit_code, 0) << sim.out;
-  const auto diag = cli("diagnose " + rec + " --json " + json);
-  ASSERT_EQ(diag.exit_code, 0) << diag.out;
-  const auto j = nlohmann::json::parse(readFile(json));
+  const std::string rec = d / "x.rawlog";
+  const auto j = simulateAndDiagnose(
+      "--engine mujoco --scenario excite --seed 799554 --duration 90 "
+      "--effect gyro_bias:bias_rad_s=0.0192724 --ground-truth-stream",
+      rec);
   ASSERT_NE(findingOf(j, "gyro_bias"), nullptr) << j["findings"].dump();
   const auto* w = findingOf(j, "wheel_geometry");
   ASSERT_NE(w, nullptr) << j["findings"].dump();
